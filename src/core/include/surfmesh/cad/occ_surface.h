@@ -1,0 +1,145 @@
+// SurfMesh — OpenCASCADE adapters: a B-rep face as a Surface, a B-rep edge as a Curve.
+//
+// OccFaceSurface wraps a BRepAdaptor_Surface on a TopoDS_Face (the face's location applied):
+//   * value/d1/d2 are BRepAdaptor_Surface::D0/D1/D2 (the parameterization of the underlying
+//     surface, NOT reversed for a Reversed face: the face orientation only sets normalSign());
+//   * bounds() is BRepTools::UVBounds of the face, except in periodic directions where it is
+//     one period [c − P/2, c + P/2) centred on the middle c of the face's own range (so a face
+//     that covers a full period gets [umin, umin + P), and a partial face never straddles the
+//     wrap point: a node slightly outside its face's range is not sent a period away);
+//   * normalSign() = −1 when face.Orientation() == TopAbs_REVERSED;
+//   * contains(u,v) classifies (u,v) against the face's trimming loops (holes, inner wires)
+//     with BRepTopAdaptor_FClass2d, after wrapping periodic coordinates; ON counts as inside.
+//
+// Neither class is thread-safe (OCC adaptors and the lazily built classifier are not): use
+// clone() to get an independent copy per thread.
+#pragma once
+
+#include "surfmesh/geometry/curve.h"
+#include "surfmesh/geometry/surface.h"
+
+#include <BRepAdaptor_Curve.hxx>
+#include <BRepAdaptor_Surface.hxx>
+#include <Geom2d_Curve.hxx>
+#include <TopoDS_Edge.hxx>
+#include <TopoDS_Face.hxx>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+class BRepTopAdaptor_FClass2d;
+
+namespace surfmesh {
+
+/// OCC name of the geometric type of a face's surface: "Plane", "Cylinder", "Cone", "Sphere",
+/// "Torus", "BezierSurface", "BSplineSurface", "SurfaceOfRevolution", "SurfaceOfExtrusion",
+/// "OffsetSurface", "OtherSurface".
+std::string occSurfaceTypeName(const TopoDS_Face& face);
+
+/// A TopoDS_Face as a Surface (see the file comment for the conventions).
+class OccFaceSurface final : public Surface {
+ public:
+  /// @param[in] face    the face (its location and orientation are honoured)
+  /// @param[in] faceId  id used in describe() (e.g. the CadShape face index; −1 if none)
+  explicit OccFaceSurface(const TopoDS_Face& face, int faceId = -1);
+  ~OccFaceSurface() override;
+
+  Vec3 value(double u, double v) const override;
+  SurfaceD1 d1(double u, double v) const override;
+  SurfaceD2 d2(double u, double v) const override;
+  ParamBounds bounds() const override { return bounds_; }
+  bool isUPeriodic() const override { return uPeriodic_; }
+  bool isVPeriodic() const override { return vPeriodic_; }
+  double uPeriod() const override { return uPeriod_; }
+  double vPeriod() const override { return vPeriod_; }
+  int normalSign() const override { return normalSign_; }
+  /// Inside the trimmed domain (ON the boundary counts as inside).
+  bool contains(double u, double v) const override;
+  std::unique_ptr<Surface> clone() const override;
+  /// "OCC face 12 (BSplineSurface)".
+  std::string describe() const override;
+
+  /// BRepTools::UVBounds of the face (not widened to a period).
+  const ParamBounds& faceUVBounds() const { return faceBounds_; }
+  /// Tolerance in (u,v) used by contains() (resolution of the face's 3D tolerance).
+  double uvTolerance() const { return uvTol_; }
+  const TopoDS_Face& face() const { return face_; }
+  const BRepAdaptor_Surface& adaptor() const { return adaptor_; }
+  int faceId() const { return faceId_; }
+
+ private:
+  TopoDS_Face face_;
+  int faceId_;
+  BRepAdaptor_Surface adaptor_;
+  ParamBounds bounds_, faceBounds_;
+  bool uPeriodic_ = false, vPeriodic_ = false;
+  double uPeriod_ = 0.0, vPeriod_ = 0.0;
+  int normalSign_ = 1;
+  double uvTol_ = 1e-9;
+  mutable std::unique_ptr<BRepTopAdaptor_FClass2d> classifier_;  // built on first contains()
+};
+
+/// One face adjacent to an edge, with the edge's pcurve(s) on it.
+struct EdgeFaceUse {
+  int faceId = -1;               ///< face id (CadShape numbering)
+  TopoDS_Face face;              ///< the face
+  Handle(Geom2d_Curve) pcurve;   ///< pcurve of the FORWARD edge on the face
+  Handle(Geom2d_Curve) pcurve2;  ///< second pcurve of a seam edge (REVERSED use), else null
+  double uPeriod = 0.0;          ///< period of the face in u (0 if not periodic)
+  double vPeriod = 0.0;          ///< period of the face in v (0 if not periodic)
+};
+
+/// A TopoDS_Edge as a Curve: C(t) and its derivatives from BRepAdaptor_Curve (t ∈ the edge's
+/// range [tmin, tmax], the parameter of its 3D curve), and (u,v) on each adjacent face from the
+/// edge's pcurves (BRep_Tool::CurveOnSurface; the two pcurves of a seam edge).
+///
+/// isPeriodic() is true for a closed edge whose curve is periodic with period tmax − tmin
+/// (a full circle): t may then be wrapped by the period. A degenerated edge (a pole, no 3D
+/// curve) evaluates to its vertex with zero derivatives.
+class OccEdgeCurve final : public Curve {
+ public:
+  OccEdgeCurve(const TopoDS_Edge& edge, int edgeId, std::vector<EdgeFaceUse> faces);
+
+  Vec3 value(double t) const override;
+  CurveD2 d2(double t) const override;
+  double tmin() const override { return tmin_; }
+  double tmax() const override { return tmax_; }
+  bool isPeriodic() const override { return periodic_; }
+  double period() const override { return period_; }
+
+  int faceCount() const override { return static_cast<int>(faces_.size()); }
+  int faceId(int k) const override { return faces_[static_cast<std::size_t>(k)].faceId; }
+  /// (u,v) of C(t) on face `faceId` through the pcurve; for a seam edge the pcurve whose image
+  /// is closest to `near`. The result is shifted by whole periods of the face to be as close
+  /// as possible to `near`. Throws std::invalid_argument if the edge does not bound that face.
+  Vec2 uvOnFace(int faceId, double t, const Vec2& near) const override;
+
+  std::unique_ptr<Curve> clone() const override;
+  /// "OCC edge 7 (Circle)".
+  std::string describe() const override;
+
+  const TopoDS_Edge& edge() const { return edge_; }
+  int edgeId() const { return edgeId_; }
+  bool isDegenerated() const { return degenerated_; }
+  /// Whether this edge is a seam of face `faceId` (two pcurves on it).
+  bool isSeamOf(int faceId) const;
+  const std::vector<EdgeFaceUse>& faceUses() const { return faces_; }
+  /// The adaptor (valid only when !isDegenerated()).
+  const BRepAdaptor_Curve& adaptor() const { return adaptor_; }
+
+ private:
+  const EdgeFaceUse& use(int faceId) const;
+
+  TopoDS_Edge edge_;
+  int edgeId_;
+  std::vector<EdgeFaceUse> faces_;
+  BRepAdaptor_Curve adaptor_;
+  bool degenerated_ = false;
+  Vec3 degeneratePoint_ = Vec3::Zero();
+  double tmin_ = 0.0, tmax_ = 0.0;
+  bool periodic_ = false;
+  double period_ = 0.0;
+};
+
+}  // namespace surfmesh

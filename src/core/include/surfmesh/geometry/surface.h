@@ -1,0 +1,106 @@
+// SurfMesh — parameterized surfaces φ : U ⊂ R² → R³.
+//
+// A Surface gives the point φ(u,v), its first derivatives φ_u, φ_v and second derivatives
+// φ_uu, φ_uv, φ_vv, the parameter bounds, the periods of periodic directions, and the outward
+// normal convention: the outward normal is normalSign() · (φ_u × φ_v) / ‖φ_u × φ_v‖.
+//
+// Surfaces are NOT required to be thread-safe (OpenCASCADE adaptors are not): every thread
+// works on its own copy obtained with clone().
+#pragma once
+
+#include <Eigen/Core>
+
+#include <memory>
+#include <string>
+
+namespace surfmesh {
+
+using Vec2 = Eigen::Vector2d;
+using Vec3 = Eigen::Vector3d;
+using Mat2 = Eigen::Matrix2d;
+using Mat3 = Eigen::Matrix3d;
+
+/// Point and first derivatives of a surface at (u,v).
+struct SurfaceD1 {
+  Vec3 p;   ///< φ(u,v)
+  Vec3 du;  ///< ∂φ/∂u
+  Vec3 dv;  ///< ∂φ/∂v
+};
+
+/// Point, first and second derivatives of a surface at (u,v).
+struct SurfaceD2 {
+  Vec3 p;    ///< φ(u,v)
+  Vec3 du;   ///< ∂φ/∂u
+  Vec3 dv;   ///< ∂φ/∂v
+  Vec3 duu;  ///< ∂²φ/∂u²
+  Vec3 duv;  ///< ∂²φ/∂u∂v
+  Vec3 dvv;  ///< ∂²φ/∂v²
+};
+
+/// Parameter rectangle [umin,umax] × [vmin,vmax]. Infinite bounds are allowed (plane).
+struct ParamBounds {
+  double umin = -1e300;
+  double umax = 1e300;
+  double vmin = -1e300;
+  double vmax = 1e300;
+};
+
+/// Abstract parameterized surface.
+class Surface {
+ public:
+  virtual ~Surface() = default;
+
+  /// φ(u,v).
+  virtual Vec3 value(double u, double v) const = 0;
+  /// φ and its first derivatives.
+  virtual SurfaceD1 d1(double u, double v) const = 0;
+  /// φ and its first and second derivatives.
+  virtual SurfaceD2 d2(double u, double v) const = 0;
+
+  /// Parameter bounds (for a periodic direction, one period).
+  virtual ParamBounds bounds() const = 0;
+  virtual bool isUPeriodic() const { return false; }
+  virtual bool isVPeriodic() const { return false; }
+  /// Period in u (only meaningful when isUPeriodic()).
+  virtual double uPeriod() const { return 0.0; }
+  /// Period in v (only meaningful when isVPeriodic()).
+  virtual double vPeriod() const { return 0.0; }
+
+  /// +1 when the outward normal is φ_u × φ_v, −1 when it is −φ_u × φ_v (e.g. a Reversed
+  /// B-rep face).
+  virtual int normalSign() const { return 1; }
+
+  /// Whether (u,v) lies in the surface's domain. The default checks the bounds of the
+  /// non-periodic directions; trimmed faces override it to test their trimming loops.
+  virtual bool contains(double u, double v) const;
+
+  /// An independent copy, safe to use from another thread.
+  virtual std::unique_ptr<Surface> clone() const = 0;
+
+  /// Short human-readable description ("torus R=10 r=4", "OCC face 12 (BSplineSurface)").
+  virtual std::string describe() const = 0;
+
+  // ---- helpers built on the virtual interface -------------------------------------------
+
+  /// Unit outward normal at (u,v) (normalSign applied); zero vector where φ_u × φ_v = 0.
+  Vec3 normal(double u, double v) const;
+
+  /// Wraps the periodic coordinates of `uv` into [min, min + period).
+  Vec2 wrap(const Vec2& uv) const;
+
+  /// Shifts the periodic coordinates of `uv` by whole periods so that it is as close as
+  /// possible to `ref` (unwrapping across the seam).
+  Vec2 unwrapNear(const Vec2& uv, const Vec2& ref) const;
+
+  /// Clamps the non-periodic coordinates of `uv` into the bounds.
+  Vec2 clampToBounds(const Vec2& uv) const;
+};
+
+/// Relative threshold under which ‖φ_u × φ_v‖ is considered degenerate (a pole):
+/// ‖φ_u × φ_v‖ ≤ kDegenerateTol · ‖φ_u‖ · ‖φ_v‖ (or either derivative vanishes).
+constexpr double kDegenerateTol = 1e-10;
+
+/// True where the parameterization is degenerate (φ_u × φ_v ≈ 0).
+bool isDegenerate(const SurfaceD1& d);
+
+}  // namespace surfmesh

@@ -1,0 +1,90 @@
+// SurfMesh — distortion of elements whose nodes lie on a surface (paper section 3).
+//
+// A linear triangle t_Σ = (x0, x1, x2) is mapped to its own plane by T (eq. 6–7):
+//     e1 = x2 − x1, e2 = x0 − x1, ẽ1 = e1/‖e1‖, ẽ2,0 = (e2 − (e2·ẽ1)ẽ1)/‖…‖, ẽ2 = γ ẽ2,0,
+//     γ = sign((ẽ1 × ẽ2,0) · n),   T(x) = [ẽ1 ẽ2]ᵀ (x − x1),
+// so that y1 = (0,0), y2 = (‖e1‖, 0), y0 = (e2·ẽ1, γ‖e2 − (e2·ẽ1)ẽ1‖). The planar measure is
+// then applied to (y0, y1, y2): S = [y1 − y0, y2 − y0] W⁻¹. A triangle whose orientation
+// disagrees with the reference normal n has σ < 0: it is tangled.
+//
+// The reference normal n of an element is the normalized sum of the reference (outward) normals
+// of its face at its corners, skipping corners where the parameterization is degenerate
+// (poles). Elements store these corner normals so that the same n is used by the quality report
+// and by the optimizer.
+//
+// The restricted measure (paper Remark 1, eq. 12–13) is the distortion as a function of one
+// free node; its gradient and Hessian with respect to that node's position are exact, and
+// chain rules carry them to the node's (u,v) on its surface or to its t on a curve.
+#pragma once
+
+#include "surfmesh/geometry/curve.h"
+#include "surfmesh/geometry/surface.h"
+#include "surfmesh/measures/measure.h"
+#include "surfmesh/mesh/surface_mesh.h"
+
+namespace surfmesh {
+
+/// Result of one element evaluation.
+struct ElementEval {
+  double eta = 1.0;       ///< distortion (δ-regularized when δ > 0); +∞ when tangled and δ = 0
+  double minSigma = 0.0;  ///< smallest det S over the element's sub-triangles / quadrature points,
+                          ///< scaled to be dimensionless (det S / (element size)²)
+  bool tangled = false;   ///< minSigma ≤ 0 (tangled or degenerate)
+};
+
+/// 3×2 Jacobian of an element's map from reference coordinates to R³ (columns: ∂x/∂ξ, ∂x/∂η).
+using Jacobian32 = Eigen::Matrix<double, 3, 2>;
+
+/// The distortion at one Jacobian J of a (possibly curved) element: S = T J W⁻¹ where T maps
+/// the plane spanned by J to R² oriented by n, so η = h(F, σ) with F = ‖J W⁻¹‖²,
+/// σ = γ‖J₁ × J₂‖ det W⁻¹, γ = sign((J₁ × J₂)·n).
+/// When `b` is non-null, J depends on one free node x through J = J⁰ + x bᵀ (b = the node's
+/// reference-gradient of its shape function, 2-vector) and grad/hess receive ∂η/∂x and
+/// ∂²η/∂x² (exact; the Hessian term ∝ 1/‖J₁ × J₂‖ is dropped for degenerate J, where the
+/// in-surface direction n is used for the orientation instead).
+/// `minSigma` of the result is the signed shape quality 2σ/F ∈ [−1, 1] (≤ 0: tangled).
+ElementEval jacobianDistortion(const PlanarMeasure& m, const Jacobian32& J, const Mat2& Winv,
+                               const Vec3& n, double delta, const Eigen::Vector2d* b, Vec3* grad,
+                               Mat3* hess);
+
+/// Distortion of the linear triangle (x0, x1, x2) with reference normal n (any length > 0),
+/// ideal element given by Winv. When grad/hess are non-null, also the gradient (3) and Hessian
+/// (3×3) with respect to x0 (the free node). A degenerate triangle (zero area or zero edge) is
+/// tangled; with δ > 0 it still gets a finite value and derivatives.
+ElementEval triangleDistortion(const PlanarMeasure& m, const Vec3& x0, const Vec3& x1,
+                               const Vec3& x2, const Vec3& n, double delta, const Mat2& Winv,
+                               Vec3* grad = nullptr, Mat3* hess = nullptr);
+
+/// Distortion of any supported element. `x` holds the element's node positions (Gmsh order),
+/// `n` its reference normal (see elementReferenceNormal()). When `freeLocal`
+/// is ≥ 0 and grad/hess are non-null, fills the derivatives with respect to x[freeLocal].
+///   Tri3       — triangleDistortion with the equilateral ideal;
+///   Quad4      — the four corner triangles with the square corner as ideal (Knupp):
+///                η = (¼ Σ_k η_k²)^½, tangled when any corner is;
+///   Tri6…Tri21 — paper Definition 4: η̂ = (∫ η² / |t|)^½ by quadrature over the element,
+///                tangled when det S ≤ 0 at any quadrature point.
+ElementEval elementDistortion(const PlanarMeasure& m, ElementType type, const Vec3* x,
+                              const Vec3& n, double delta, int freeLocal = -1, Vec3* grad = nullptr,
+                              Mat3* hess = nullptr);
+
+/// Quad4 implementation of elementDistortion (see above).
+ElementEval quadDistortion(const PlanarMeasure& m, const Vec3* x, const Vec3& n, double delta,
+                           int freeLocal, Vec3* grad, Mat3* hess);
+/// High-order triangle implementation of elementDistortion (see above).
+ElementEval highOrderTriangleDistortion(const PlanarMeasure& m, ElementType type, const Vec3* x,
+                                        const Vec3& n, double delta, int freeLocal, Vec3* grad,
+                                        Mat3* hess);
+
+/// Carries a gradient g (3) and Hessian H (3×3) in x to the surface parameters (u,v) through
+/// x = φ(u,v): g_u = Jᵀ g, H_u = Jᵀ H J + Σ_m g_m ∇²φ_m, with J = [φ_u φ_v].
+void chainToSurface(const SurfaceD2& d, const Vec3& g, const Mat3& H, Vec2* gu, Mat2* Hu);
+
+/// Same through x = C(t): g_t = C'·g, H_t = C'ᵀ H C' + g·C''.
+void chainToCurve(const CurveD2& d, const Vec3& g, const Mat3& H, double* gt, double* Ht);
+
+/// Reference normal of element e of `mesh`: normalized sum over its corners of
+/// mesh.referenceNormal(face, cornerUV), skipping degenerate corners. Zero if every corner is
+/// degenerate.
+Vec3 elementReferenceNormal(const SurfaceMesh& mesh, std::size_t e);
+
+}  // namespace surfmesh

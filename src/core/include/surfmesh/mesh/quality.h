@@ -1,0 +1,38 @@
+// SurfMesh — per-element quality of a surface mesh and the statistics of the paper's tables.
+#pragma once
+
+#include "surfmesh/measures/measure.h"
+#include "surfmesh/mesh/surface_mesh.h"
+
+#include <vector>
+
+namespace surfmesh {
+
+/// Min, max, mean and standard deviation of the quality q = 1/η (0 for tangled elements), and
+/// the number of tangled elements: the columns of the paper's Tables 1–4.
+struct QualityStats {
+  double min = 0.0;
+  double max = 0.0;
+  double mean = 0.0;
+  double stddev = 0.0;  ///< population standard deviation
+  std::size_t tangled = 0;
+  std::size_t elements = 0;
+};
+
+struct MeshQuality {
+  std::vector<double> quality;         ///< per element, q ∈ [0, 1], 0 for tangled/degenerate
+  std::vector<double> distortion;      ///< per element, η ∈ [1, ∞]
+  std::vector<unsigned char> tangled;  ///< per element, 1 when tangled or degenerate
+  std::vector<double> minSigma;        ///< per element, smallest scaled det S (≤ 0: tangled)
+  QualityStats stats;
+};
+
+/// Statistics of a list of qualities (tangled = number of entries flagged in `tangled`).
+QualityStats computeStats(const std::vector<double>& quality,
+                          const std::vector<unsigned char>& tangled);
+
+/// Quality of every element of `mesh` with measure `m` (δ = 0). Never throws for finite input;
+/// elements with non-finite coordinates are reported as tangled.
+MeshQuality measureQuality(const SurfaceMesh& mesh, const PlanarMeasure& m);
+
+}  // namespace surfmesh

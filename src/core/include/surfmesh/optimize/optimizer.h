@@ -1,0 +1,88 @@
+// SurfMesh — simultaneous smoothing and untangling in parametric coordinates (paper §4).
+//
+// Minimizes f = ½ Σ_e (η_e − 1)² over the (u,v) of the Face nodes (and the t of the Edge
+// nodes) by a nonlinear Gauss–Seidel sweep: each movable node takes a safeguarded Newton step
+// on its local merit function f̂ (eq. 18–19) with a backtracking line search, and its new
+// position is φ(u,v) (or C(t)) — the nodes never leave the CAD geometry.
+//
+// Untangling: while the mesh has tangled elements, η is evaluated with σ replaced by
+// σ*(σ; δ). δ is chosen every sweep from the smallest scaled det S over the mesh, σ_min
+// (Escobar et al. 2003):  δ = √(ε(ε − σ_min)) when σ_min < ε, else 0, with ε = deltaEpsilon.
+// Scaled means divided by a local size² of the node's submesh, so the policy does not depend
+// on units. Once no element is tangled, δ = 0: the barrier measure keeps the mesh valid.
+//
+// Nodes are swept color by color (no two nodes of one color share an element), which makes
+// the result independent of the number of threads.
+#pragma once
+
+#include "surfmesh/mesh/quality.h"
+#include "surfmesh/mesh/surface_mesh.h"
+
+#include <functional>
+#include <string>
+
+namespace surfmesh {
+
+struct OptimizeOptions {
+  /// Distortion measure (a name of measureNames()).
+  std::string measure = "shape";
+  /// Maximum number of sweeps over the movable nodes.
+  int maxSweeps = 100;
+  /// Stop when the relative decrease of f over a sweep is below this…
+  double relTol = 1e-5;
+  /// …and the largest node move of the sweep, relative to the node's local size, is below this.
+  double moveTol = 1e-4;
+  /// Newton iterations per node and sweep (the paper uses 1).
+  int innerIterations = 1;
+  /// Maximum halvings of the line search.
+  int maxLineSearch = 30;
+  /// δ policy: "auto" (Escobar, from σ_min each sweep) or "fixed" (use `delta` while tangled).
+  std::string deltaPolicy = "auto";
+  /// ε of the automatic δ policy (dimensionless, relative to the local size²).
+  double deltaEpsilon = 1e-2;
+  /// δ of the fixed policy (dimensionless).
+  double delta = 1e-2;
+  /// Reject any move that lowers the minimum quality of the node's submesh (when the submesh
+  /// is valid), so that the global minimum quality of a valid mesh never decreases.
+  bool monotone = true;
+  /// Worker threads for the sweeps; 0 = all hardware threads.
+  int threads = 0;
+};
+
+enum class StopReason { Converged, MaxSweeps, Cancelled, NothingToDo };
+const char* stopReasonName(StopReason r);
+
+/// Reported after every sweep; return false from the callback to cancel the run.
+struct OptimizeProgress {
+  int sweep = 0;
+  int maxSweeps = 0;
+  double objective = 0.0;  ///< f = ½ Σ (η − 1)² with the δ of the sweep
+  std::size_t tangled = 0;
+  double minQuality = 0.0;
+  double delta = 0.0;
+};
+using ProgressCallback = std::function<bool(const OptimizeProgress&)>;
+
+struct OptimizeResult {
+  QualityStats before;
+  QualityStats after;
+  int sweeps = 0;
+  double seconds = 0.0;
+  StopReason reason = StopReason::Converged;
+  double initialObjective = 0.0;
+  double finalObjective = 0.0;
+  std::size_t movedNodes = 0;  ///< nodes whose position changed
+  int threadsUsed = 1;
+};
+
+/// Optimizes `mesh` in place (xyz, uv, nodeT, cornerUV of movable nodes). On cancellation
+/// (callback returned false) or on an exception the mesh is left exactly as it was.
+/// Throws std::invalid_argument for an invalid mesh or options.
+OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& options = {},
+                            const ProgressCallback& progress = {});
+
+/// Greedy coloring of the movable nodes such that no two nodes of one color share an element.
+/// Returns colors[c] = list of node ids.
+std::vector<std::vector<std::int32_t>> colorMovableNodes(const SurfaceMesh& mesh);
+
+}  // namespace surfmesh

@@ -1,0 +1,241 @@
+// SurfMesh — a B-rep shape with indexed faces, edges and vertices (see cad_shape.h).
+#include "surfmesh/cad/cad_shape.h"
+
+#include <BRepBndLib.hxx>
+#include <BRepTools.hxx>
+#include <BRep_Builder.hxx>
+#include <BRep_Tool.hxx>
+#include <IFSelect_ReturnStatus.hxx>
+#include <IGESControl_Reader.hxx>
+#include <STEPControl_Reader.hxx>
+#include <Standard_Failure.hxx>
+#include <TopExp.hxx>
+#include <TopExp_Explorer.hxx>
+#include <TopTools_IndexedDataMapOfShapeListOfShape.hxx>
+#include <TopTools_ListOfShape.hxx>
+#include <TopoDS.hxx>
+#include <TopoDS_Edge.hxx>
+#include <TopoDS_Face.hxx>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+namespace surfmesh {
+
+namespace {
+
+std::string lower(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+void sortUnique(std::vector<int>& v) {
+  std::sort(v.begin(), v.end());
+  v.erase(std::unique(v.begin(), v.end()), v.end());
+}
+
+}  // namespace
+
+CadShape::CadShape(const TopoDS_Shape& shape) : shape_(shape) {
+  if (shape_.IsNull()) throw std::invalid_argument("CadShape: the shape is null (empty)");
+  TopExp::MapShapes(shape_, TopAbs_FACE, faces_);
+  TopExp::MapShapes(shape_, TopAbs_EDGE, edges_);
+  TopExp::MapShapes(shape_, TopAbs_VERTEX, vertices_);
+  if (faces_.Extent() == 0)
+    throw std::invalid_argument("CadShape: the shape has no faces (a mesh needs surfaces)");
+
+  const int nf = faces_.Extent(), ne = edges_.Extent(), nv = vertices_.Extent();
+  surfaces_.reserve(static_cast<std::size_t>(nf));
+  faceBoxes_.resize(static_cast<std::size_t>(nf));
+  for (int f = 0; f < nf; ++f) {
+    const TopoDS_Face& face = TopoDS::Face(faces_(f + 1));
+    surfaces_.push_back(std::make_unique<OccFaceSurface>(face, f));
+    BRepBndLib::Add(face, faceBoxes_[static_cast<std::size_t>(f)], Standard_False);
+  }
+  BRepBndLib::Add(shape_, bbox_, Standard_False);
+  if (!bbox_.IsVoid()) diagonal_ = std::sqrt(bbox_.SquareExtent());
+
+  // Adjacency.
+  edgeFaces_.assign(static_cast<std::size_t>(ne), {});
+  faceEdges_.assign(static_cast<std::size_t>(nf), {});
+  edgeVertices_.assign(static_cast<std::size_t>(ne), {});
+  vertexEdges_.assign(static_cast<std::size_t>(nv), {});
+  vertexFaces_.assign(static_cast<std::size_t>(nv), {});
+  for (int f = 0; f < nf; ++f) {
+    for (TopExp_Explorer ex(faces_(f + 1), TopAbs_EDGE); ex.More(); ex.Next()) {
+      const int e = edges_.FindIndex(ex.Current()) - 1;
+      if (e < 0) continue;
+      edgeFaces_[static_cast<std::size_t>(e)].push_back(f);
+      faceEdges_[static_cast<std::size_t>(f)].push_back(e);
+    }
+  }
+  for (int e = 0; e < ne; ++e) {
+    auto& ev = edgeVertices_[static_cast<std::size_t>(e)];
+    for (TopExp_Explorer ex(edges_(e + 1), TopAbs_VERTEX); ex.More(); ex.Next()) {
+      const int v = vertices_.FindIndex(ex.Current()) - 1;
+      if (v >= 0) ev.push_back(v);
+    }
+    sortUnique(ev);
+    sortUnique(edgeFaces_[static_cast<std::size_t>(e)]);
+    for (int v : ev) {
+      vertexEdges_[static_cast<std::size_t>(v)].push_back(e);
+      for (int f : edgeFaces_[static_cast<std::size_t>(e)])
+        vertexFaces_[static_cast<std::size_t>(v)].push_back(f);
+    }
+  }
+  for (auto& l : faceEdges_) sortUnique(l);
+  for (auto& l : vertexEdges_) sortUnique(l);
+  for (auto& l : vertexFaces_) sortUnique(l);
+
+  // Curves with their pcurves on the adjacent faces.
+  curves_.reserve(static_cast<std::size_t>(ne));
+  for (int e = 0; e < ne; ++e) {
+    const TopoDS_Edge& edge = TopoDS::Edge(edges_(e + 1));
+    std::vector<EdgeFaceUse> uses;
+    for (int f : edgeFaces_[static_cast<std::size_t>(e)]) {
+      EdgeFaceUse u;
+      u.faceId = f;
+      u.face = TopoDS::Face(faces_(f + 1));
+      const OccFaceSurface& s = *surfaces_[static_cast<std::size_t>(f)];
+      u.uPeriod = s.isUPeriodic() ? s.uPeriod() : 0.0;
+      u.vPeriod = s.isVPeriodic() ? s.vPeriod() : 0.0;
+      double a = 0, b = 0;
+      try {
+        const TopoDS_Edge fwd = TopoDS::Edge(edge.Oriented(TopAbs_FORWARD));
+        u.pcurve = BRep_Tool::CurveOnSurface(fwd, u.face, a, b);
+        if (BRep_Tool::IsClosed(edge, u.face)) {
+          const TopoDS_Edge rev = TopoDS::Edge(edge.Oriented(TopAbs_REVERSED));
+          u.pcurve2 = BRep_Tool::CurveOnSurface(rev, u.face, a, b);
+        }
+      } catch (const Standard_Failure&) {
+      }
+      uses.push_back(u);
+    }
+    curves_.push_back(std::make_unique<OccEdgeCurve>(edge, e, std::move(uses)));
+  }
+}
+
+CadShape::~CadShape() = default;
+
+std::shared_ptr<CadShape> CadShape::fromBrepString(const std::string& brep) {
+  if (brep.empty()) throw std::invalid_argument("CadShape::fromBrepString: empty BREP string");
+  TopoDS_Shape s;
+  BRep_Builder builder;
+  try {
+    std::istringstream in(brep);
+    BRepTools::Read(s, in, builder);
+  } catch (const Standard_Failure& e) {
+    throw std::invalid_argument(std::string("CadShape::fromBrepString: not a readable BREP (") +
+                                e.GetMessageString() + ")");
+  }
+  if (s.IsNull())
+    throw std::invalid_argument(
+        "CadShape::fromBrepString: not a readable BREP string (expected \"CASCADE Topology "
+        "V1\" text as written by Shape.exportBrepToString())");
+  return std::make_shared<CadShape>(s);
+}
+
+std::shared_ptr<CadShape> CadShape::fromFile(const std::string& path) {
+  {
+    std::ifstream probe(path);
+    if (!probe.good())
+      throw std::invalid_argument("CadShape::fromFile: cannot open '" + path +
+                                  "' (missing or unreadable)");
+  }
+  const std::size_t dot = path.find_last_of('.');
+  const std::string ext = dot == std::string::npos ? "" : lower(path.substr(dot + 1));
+  TopoDS_Shape s;
+  try {
+    if (ext == "brep" || ext == "brp" || ext == "rle") {
+      BRep_Builder builder;
+      if (!BRepTools::Read(s, path.c_str(), builder)) s.Nullify();
+    } else if (ext == "step" || ext == "stp") {
+      STEPControl_Reader reader;
+      if (reader.ReadFile(path.c_str()) != IFSelect_RetDone)
+        throw std::invalid_argument("CadShape::fromFile: '" + path +
+                                    "' is not a readable STEP file");
+      reader.TransferRoots();
+      s = reader.OneShape();
+    } else if (ext == "iges" || ext == "igs") {
+      IGESControl_Reader reader;
+      if (reader.ReadFile(path.c_str()) != IFSelect_RetDone)
+        throw std::invalid_argument("CadShape::fromFile: '" + path +
+                                    "' is not a readable IGES file");
+      reader.TransferRoots();
+      s = reader.OneShape();
+    } else {
+      throw std::invalid_argument("CadShape::fromFile: unknown extension of '" + path +
+                                  "' (expected .brep, .brp, .step, .stp, .iges or .igs)");
+    }
+  } catch (const Standard_Failure& e) {
+    throw std::invalid_argument("CadShape::fromFile: cannot read '" + path + "' (" +
+                                e.GetMessageString() + ")");
+  }
+  if (s.IsNull()) throw std::invalid_argument("CadShape::fromFile: '" + path + "' holds no shape");
+  TopExp_Explorer ex(s, TopAbs_FACE);
+  if (!ex.More())
+    throw std::invalid_argument("CadShape::fromFile: the shape in '" + path + "' has no faces");
+  return std::make_shared<CadShape>(s);
+}
+
+void CadShape::checkId(int id, int n, const char* what) const {
+  if (id < 0 || id >= n) {
+    std::ostringstream os;
+    os << "CadShape: " << what << " id " << id << " out of range [0, " << n << ")";
+    throw std::out_of_range(os.str());
+  }
+}
+
+const TopoDS_Face& CadShape::face(int id) const {
+  checkId(id, faceCount(), "face");
+  return TopoDS::Face(faces_(id + 1));
+}
+
+const TopoDS_Edge& CadShape::edge(int id) const {
+  checkId(id, edgeCount(), "edge");
+  return TopoDS::Edge(edges_(id + 1));
+}
+
+const TopoDS_Vertex& CadShape::vertex(int id) const {
+  checkId(id, vertexCount(), "vertex");
+  return TopoDS::Vertex(vertices_(id + 1));
+}
+
+const OccFaceSurface& CadShape::surface(int id) const {
+  checkId(id, faceCount(), "face");
+  return *surfaces_[static_cast<std::size_t>(id)];
+}
+
+const OccEdgeCurve& CadShape::curve(int id) const {
+  checkId(id, edgeCount(), "edge");
+  return *curves_[static_cast<std::size_t>(id)];
+}
+
+Vec3 CadShape::vertexPoint(int id) const {
+  const gp_Pnt p = BRep_Tool::Pnt(vertex(id));
+  return Vec3(p.X(), p.Y(), p.Z());
+}
+
+double CadShape::vertexTolerance(int id) const { return BRep_Tool::Tolerance(vertex(id)); }
+
+std::string CadShape::faceType(int id) const { return occSurfaceTypeName(face(id)); }
+
+std::string CadShape::describe() const {
+  std::ostringstream os;
+  os << faceCount() << " faces, " << edgeCount() << " edges, " << vertexCount()
+     << " vertices, bounding box diagonal " << diagonal_ << "\n";
+  for (int f = 0; f < faceCount(); ++f) {
+    TopTools_IndexedMapOfShape wires;
+    TopExp::MapShapes(face(f), TopAbs_WIRE, wires);
+    os << "face " << f << ": " << faceType(f)
+       << (face(f).Orientation() == TopAbs_REVERSED ? ", Reversed" : "") << ", " << wires.Extent()
+       << (wires.Extent() == 1 ? " wire" : " wires") << "\n";
+  }
+  return os.str();
+}
+
+}  // namespace surfmesh

@@ -1,0 +1,261 @@
+// SurfMesh — OpenCASCADE face and edge adapters (see occ_surface.h).
+#include "surfmesh/cad/occ_surface.h"
+
+#include <BRepTools.hxx>
+#include <BRepTopAdaptor_FClass2d.hxx>
+#include <BRep_Tool.hxx>
+#include <Geom2d_Curve.hxx>
+#include <Precision.hxx>
+#include <Standard_Failure.hxx>
+#include <TopAbs_State.hxx>
+#include <TopExp.hxx>
+#include <TopoDS.hxx>
+#include <TopoDS_Vertex.hxx>
+#include <gp_Pnt.hxx>
+#include <gp_Pnt2d.hxx>
+#include <gp_Vec.hxx>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+
+namespace surfmesh {
+
+namespace {
+
+Vec3 toVec(const gp_Pnt& p) { return Vec3(p.X(), p.Y(), p.Z()); }
+Vec3 toVec(const gp_Vec& v) { return Vec3(v.X(), v.Y(), v.Z()); }
+
+const char* surfaceTypeName(GeomAbs_SurfaceType t) {
+  switch (t) {
+    case GeomAbs_Plane:
+      return "Plane";
+    case GeomAbs_Cylinder:
+      return "Cylinder";
+    case GeomAbs_Cone:
+      return "Cone";
+    case GeomAbs_Sphere:
+      return "Sphere";
+    case GeomAbs_Torus:
+      return "Torus";
+    case GeomAbs_BezierSurface:
+      return "BezierSurface";
+    case GeomAbs_BSplineSurface:
+      return "BSplineSurface";
+    case GeomAbs_SurfaceOfRevolution:
+      return "SurfaceOfRevolution";
+    case GeomAbs_SurfaceOfExtrusion:
+      return "SurfaceOfExtrusion";
+    case GeomAbs_OffsetSurface:
+      return "OffsetSurface";
+    default:
+      return "OtherSurface";
+  }
+}
+
+const char* curveTypeName(GeomAbs_CurveType t) {
+  switch (t) {
+    case GeomAbs_Line:
+      return "Line";
+    case GeomAbs_Circle:
+      return "Circle";
+    case GeomAbs_Ellipse:
+      return "Ellipse";
+    case GeomAbs_Hyperbola:
+      return "Hyperbola";
+    case GeomAbs_Parabola:
+      return "Parabola";
+    case GeomAbs_BezierCurve:
+      return "BezierCurve";
+    case GeomAbs_BSplineCurve:
+      return "BSplineCurve";
+    case GeomAbs_OffsetCurve:
+      return "OffsetCurve";
+    default:
+      return "OtherCurve";
+  }
+}
+
+// Shifts x by whole periods p to be as close as possible to ref.
+double unwrapCoord(double x, double ref, double p) {
+  if (p <= 0.0) return x;
+  return x + p * std::round((ref - x) / p);
+}
+
+}  // namespace
+
+std::string occSurfaceTypeName(const TopoDS_Face& face) {
+  BRepAdaptor_Surface ad(face, Standard_False);
+  return surfaceTypeName(ad.GetType());
+}
+
+// ---- OccFaceSurface ------------------------------------------------------------------------
+
+OccFaceSurface::OccFaceSurface(const TopoDS_Face& face, int faceId)
+    : face_(face), faceId_(faceId), adaptor_(face, Standard_True) {
+  if (face.IsNull()) throw std::invalid_argument("OccFaceSurface: null face");
+  double u0 = 0, u1 = 0, v0 = 0, v1 = 0;
+  BRepTools::UVBounds(face_, u0, u1, v0, v1);
+  faceBounds_ = {u0, u1, v0, v1};
+  bounds_ = faceBounds_;
+  uPeriodic_ = adaptor_.IsUPeriodic();
+  vPeriodic_ = adaptor_.IsVPeriodic();
+  if (uPeriodic_) {
+    uPeriod_ = adaptor_.UPeriod();
+    const double c = 0.5 * (u0 + u1);
+    bounds_.umin = (u1 - u0 >= uPeriod_ - Precision::PConfusion()) ? u0 : c - 0.5 * uPeriod_;
+    bounds_.umax = bounds_.umin + uPeriod_;
+  }
+  if (vPeriodic_) {
+    vPeriod_ = adaptor_.VPeriod();
+    const double c = 0.5 * (v0 + v1);
+    bounds_.vmin = (v1 - v0 >= vPeriod_ - Precision::PConfusion()) ? v0 : c - 0.5 * vPeriod_;
+    bounds_.vmax = bounds_.vmin + vPeriod_;
+  }
+  normalSign_ = face_.Orientation() == TopAbs_REVERSED ? -1 : 1;
+  // (u,v) tolerance of the classifier: the resolution of the face's 3D tolerance.
+  const double tol3d = std::max(BRep_Tool::Tolerance(face_), Precision::Confusion());
+  double ures = 0.0, vres = 0.0;
+  try {
+    ures = adaptor_.UResolution(tol3d);
+    vres = adaptor_.VResolution(tol3d);
+  } catch (const Standard_Failure&) {
+  }
+  uvTol_ = std::max({ures, vres, Precision::PConfusion()});
+  if (!std::isfinite(uvTol_)) uvTol_ = Precision::PConfusion();
+}
+
+OccFaceSurface::~OccFaceSurface() = default;
+
+Vec3 OccFaceSurface::value(double u, double v) const {
+  gp_Pnt p;
+  adaptor_.D0(u, v, p);
+  return toVec(p);
+}
+
+SurfaceD1 OccFaceSurface::d1(double u, double v) const {
+  gp_Pnt p;
+  gp_Vec du, dv;
+  adaptor_.D1(u, v, p, du, dv);
+  return {toVec(p), toVec(du), toVec(dv)};
+}
+
+SurfaceD2 OccFaceSurface::d2(double u, double v) const {
+  gp_Pnt p;
+  gp_Vec du, dv, duu, dvv, duv;
+  adaptor_.D2(u, v, p, du, dv, duu, dvv, duv);
+  return {toVec(p), toVec(du), toVec(dv), toVec(duu), toVec(duv), toVec(dvv)};
+}
+
+bool OccFaceSurface::contains(double u, double v) const {
+  if (!std::isfinite(u) || !std::isfinite(v)) return false;
+  const Vec2 w = wrap(Vec2(u, v));
+  // Quick rejection outside the face's parameter box (non-periodic directions).
+  const double tol = uvTol_;
+  if (!uPeriodic_ && (w.x() < faceBounds_.umin - tol || w.x() > faceBounds_.umax + tol))
+    return false;
+  if (!vPeriodic_ && (w.y() < faceBounds_.vmin - tol || w.y() > faceBounds_.vmax + tol))
+    return false;
+  if (!classifier_) classifier_ = std::make_unique<BRepTopAdaptor_FClass2d>(face_, tol);
+  const TopAbs_State st = classifier_->Perform(gp_Pnt2d(w.x(), w.y()), Standard_True);
+  return st == TopAbs_IN || st == TopAbs_ON;
+}
+
+std::unique_ptr<Surface> OccFaceSurface::clone() const {
+  return std::make_unique<OccFaceSurface>(face_, faceId_);
+}
+
+std::string OccFaceSurface::describe() const {
+  std::ostringstream os;
+  os << "OCC face " << faceId_ << " (" << surfaceTypeName(adaptor_.GetType()) << ")";
+  return os.str();
+}
+
+// ---- OccEdgeCurve --------------------------------------------------------------------------
+
+OccEdgeCurve::OccEdgeCurve(const TopoDS_Edge& edge, int edgeId, std::vector<EdgeFaceUse> faces)
+    : edge_(edge), edgeId_(edgeId), faces_(std::move(faces)) {
+  if (edge.IsNull()) throw std::invalid_argument("OccEdgeCurve: null edge");
+  degenerated_ = BRep_Tool::Degenerated(edge_);
+  double f = 0.0, l = 0.0;
+  BRep_Tool::Range(edge_, f, l);
+  tmin_ = std::min(f, l);
+  tmax_ = std::max(f, l);
+  if (degenerated_) {
+    TopoDS_Vertex v1, v2;
+    TopExp::Vertices(edge_, v1, v2);
+    if (!v1.IsNull()) degeneratePoint_ = toVec(BRep_Tool::Pnt(v1));
+  } else {
+    adaptor_.Initialize(edge_);
+    tmin_ = adaptor_.FirstParameter();
+    tmax_ = adaptor_.LastParameter();
+    if (adaptor_.IsPeriodic() && BRep_Tool::IsClosed(edge_)) {
+      const double p = adaptor_.Period();
+      if (std::abs((tmax_ - tmin_) - p) <= 1e-9 * std::max(1.0, p)) {
+        periodic_ = true;
+        period_ = p;
+      }
+    }
+  }
+}
+
+Vec3 OccEdgeCurve::value(double t) const {
+  if (degenerated_) return degeneratePoint_;
+  gp_Pnt p;
+  adaptor_.D0(t, p);
+  return toVec(p);
+}
+
+CurveD2 OccEdgeCurve::d2(double t) const {
+  if (degenerated_) return {degeneratePoint_, Vec3::Zero(), Vec3::Zero()};
+  gp_Pnt p;
+  gp_Vec d1, d2;
+  adaptor_.D2(t, p, d1, d2);
+  return {toVec(p), toVec(d1), toVec(d2)};
+}
+
+const EdgeFaceUse& OccEdgeCurve::use(int faceId) const {
+  for (const EdgeFaceUse& u : faces_)
+    if (u.faceId == faceId) return u;
+  std::ostringstream os;
+  os << "OccEdgeCurve::uvOnFace: edge " << edgeId_ << " does not bound face " << faceId;
+  throw std::invalid_argument(os.str());
+}
+
+bool OccEdgeCurve::isSeamOf(int faceId) const {
+  for (const EdgeFaceUse& u : faces_)
+    if (u.faceId == faceId) return !u.pcurve2.IsNull();
+  return false;
+}
+
+Vec2 OccEdgeCurve::uvOnFace(int faceId, double t, const Vec2& near) const {
+  const EdgeFaceUse& u = use(faceId);
+  auto eval = [&](const Handle(Geom2d_Curve) & c) {
+    const gp_Pnt2d p = c->Value(t);
+    return Vec2(unwrapCoord(p.X(), near.x(), u.uPeriod), unwrapCoord(p.Y(), near.y(), u.vPeriod));
+  };
+  if (u.pcurve.IsNull()) {
+    std::ostringstream os;
+    os << "OccEdgeCurve::uvOnFace: edge " << edgeId_ << " has no pcurve on face " << faceId;
+    throw std::invalid_argument(os.str());
+  }
+  const Vec2 a = eval(u.pcurve);
+  if (u.pcurve2.IsNull()) return a;
+  const Vec2 b = eval(u.pcurve2);
+  return (a - near).squaredNorm() <= (b - near).squaredNorm() ? a : b;
+}
+
+std::unique_ptr<Curve> OccEdgeCurve::clone() const {
+  return std::make_unique<OccEdgeCurve>(edge_, edgeId_, faces_);
+}
+
+std::string OccEdgeCurve::describe() const {
+  std::ostringstream os;
+  os << "OCC edge " << edgeId_ << " ("
+     << (degenerated_ ? "Degenerated" : curveTypeName(adaptor_.GetType())) << ")";
+  return os.str();
+}
+
+}  // namespace surfmesh

@@ -1,0 +1,206 @@
+#include "surfmesh/measures/element_measure.h"
+
+#include <cmath>
+#include <limits>
+
+namespace surfmesh {
+
+namespace {
+Mat3 crossMatrix(const Vec3& w) {
+  Mat3 m;
+  m << 0.0, -w.z(), w.y(), w.z(), 0.0, -w.x(), -w.y(), w.x(), 0.0;
+  return m;
+}
+constexpr double kInf = std::numeric_limits<double>::infinity();
+}  // namespace
+
+ElementEval jacobianDistortion(const PlanarMeasure& m, const Jacobian32& J, const Mat2& Winv,
+                               const Vec3& n, double delta, const Eigen::Vector2d* b, Vec3* grad,
+                               Mat3* hess) {
+  ElementEval r;
+  const Jacobian32 K = J * Winv;
+  const double F = K.squaredNorm();
+  const Vec3 c = J.col(0).cross(J.col(1));
+  const double cn = c.norm();
+  const double detWinv = Winv.determinant();
+  if (!std::isfinite(F) || !std::isfinite(cn) || !(F > 0.0)) {
+    r.eta = kInf;
+    r.minSigma = -1.0;
+    r.tangled = true;
+    if (grad) grad->setZero();
+    if (hess) hess->setZero();
+    return r;
+  }
+  const double orient = c.dot(n);
+  const bool regular = cn > 1e-14 * F && orient != 0.0;
+  const double gamma = (regular && orient > 0.0) ? 1.0 : -1.0;
+  // σ = γ‖c‖ det W⁻¹ ; a degenerate or perpendicular element has σ ≤ 0.
+  const double sigma = regular ? gamma * cn * detWinv : 0.0;
+  r.minSigma = 2.0 * sigma / F;
+  r.tangled = !(sigma > 0.0);
+  if (delta == 0.0 && r.tangled) {
+    r.eta = kInf;
+    if (grad) grad->setZero();
+    if (hess) hess->setZero();
+    return r;
+  }
+  const RegularizedSigma rs = regularizedSigma(sigma, delta);
+  const InvariantDerivs d = m.invariants(F, sigma, rs);
+  r.eta = d.h;
+  if (b && (grad || hess)) {
+    const Eigen::Vector2d beta = Winv.transpose() * (*b);
+    const Vec3 gF = 2.0 * K * beta;
+    // c is affine in x: dc = w × dx with w = b1 J₁ − b0 J₂ (J taken without the free node's
+    // increment; the increment's own cross product vanishes).
+    const Vec3 w = (*b)(1) * J.col(0) - (*b)(0) * J.col(1);
+    Vec3 nu;  // unit normal of the element plane, oriented by n
+    if (regular)
+      nu = gamma * c / cn;
+    else
+      nu = n.normalized();
+    const Vec3 gs = detWinv * nu.cross(w);
+    if (grad) *grad = d.hF * gF + d.hs * gs;
+    if (hess) {
+      Mat3 H = d.hFF * gF * gF.transpose() + d.hFs * (gF * gs.transpose() + gs * gF.transpose()) +
+               d.hss * gs * gs.transpose();
+      H.diagonal().array() += d.hF * 2.0 * beta.squaredNorm();
+      if (regular) {
+        const Mat3 Wx = crossMatrix(w);
+        const Mat3 P = Mat3::Identity() - nu * nu.transpose();
+        H += d.hs * detWinv * gamma * (Wx.transpose() * P * Wx) / cn;
+      }
+      *hess = H;
+    }
+  }
+  return r;
+}
+
+ElementEval triangleDistortion(const PlanarMeasure& m, const Vec3& x0, const Vec3& x1,
+                               const Vec3& x2, const Vec3& n, double delta, const Mat2& Winv,
+                               Vec3* grad, Mat3* hess) {
+  Jacobian32 J;
+  J.col(0) = x1 - x0;
+  J.col(1) = x2 - x0;
+  if (grad || hess) {
+    const Eigen::Vector2d b(-1.0, -1.0);  // J = [x1, x2] − x0 (1, 1)
+    return jacobianDistortion(m, J, Winv, n, delta, &b, grad, hess);
+  }
+  return jacobianDistortion(m, J, Winv, n, delta, nullptr, nullptr, nullptr);
+}
+
+ElementEval elementDistortion(const PlanarMeasure& m, ElementType type, const Vec3* x,
+                              const Vec3& n, double delta, int freeLocal, Vec3* grad, Mat3* hess) {
+  switch (type) {
+    case ElementType::Tri3: {
+      if (freeLocal < 0 || (!grad && !hess))
+        return triangleDistortion(m, x[0], x[1], x[2], n, delta, equilateralWinv());
+      // Cyclic relabeling keeps the orientation; the equilateral ideal makes η invariant.
+      const int k = freeLocal;
+      return triangleDistortion(m, x[k], x[(k + 1) % 3], x[(k + 2) % 3], n, delta,
+                                equilateralWinv(), grad, hess);
+    }
+    case ElementType::Quad4:
+      return quadDistortion(m, x, n, delta, freeLocal, grad, hess);
+    default:
+      return highOrderTriangleDistortion(m, type, x, n, delta, freeLocal, grad, hess);
+  }
+}
+
+ElementEval quadDistortion(const PlanarMeasure& m, const Vec3* x, const Vec3& n, double delta,
+                           int freeLocal, Vec3* grad, Mat3* hess) {
+  // Knupp: the corner k triangle (x_k, x_{k+1}, x_{k−1}) with the square corner as ideal.
+  // η = (¼ Σ η_k²)^½ ; tangled when any corner is.
+  const bool derivs = freeLocal >= 0 && (grad || hess);
+  double sum = 0.0;
+  ElementEval r;
+  r.minSigma = kInf;
+  Vec3 gsum = Vec3::Zero();
+  Mat3 Hsum = Mat3::Zero();
+  for (int k = 0; k < 4; ++k) {
+    const int i0 = k, i1 = (k + 1) % 4, i2 = (k + 3) % 4;
+    Jacobian32 J;
+    J.col(0) = x[i1] - x[i0];
+    J.col(1) = x[i2] - x[i0];
+    ElementEval e;
+    Vec3 g = Vec3::Zero();
+    Mat3 H = Mat3::Zero();
+    bool involved = false;
+    if (derivs) {
+      Eigen::Vector2d b(0.0, 0.0);
+      if (freeLocal == i0) b = Eigen::Vector2d(-1.0, -1.0);
+      if (freeLocal == i1) b = Eigen::Vector2d(1.0, 0.0);
+      if (freeLocal == i2) b = Eigen::Vector2d(0.0, 1.0);
+      involved = freeLocal == i0 || freeLocal == i1 || freeLocal == i2;
+      if (involved)
+        e = jacobianDistortion(m, J, squareCornerWinv(), n, delta, &b, &g, &H);
+      else
+        e = jacobianDistortion(m, J, squareCornerWinv(), n, delta, nullptr, nullptr, nullptr);
+    } else {
+      e = jacobianDistortion(m, J, squareCornerWinv(), n, delta, nullptr, nullptr, nullptr);
+    }
+    r.minSigma = std::min(r.minSigma, e.minSigma);
+    r.tangled = r.tangled || e.tangled;
+    if (!std::isfinite(e.eta)) {
+      r.eta = kInf;
+      continue;
+    }
+    sum += e.eta * e.eta;
+    if (involved) {
+      gsum += 2.0 * e.eta * g;
+      Hsum += 2.0 * (g * g.transpose() + e.eta * H);
+    }
+  }
+  if (!std::isfinite(r.eta)) {
+    if (grad) grad->setZero();
+    if (hess) hess->setZero();
+    return r;
+  }
+  const double Q = 0.25 * sum;  // η² of the quad
+  r.eta = std::sqrt(Q);
+  if (derivs) {
+    // η = √Q, ∇η = ∇Q / (2η), ∇²η = ∇²Q/(2η) − ∇Q∇Qᵀ/(4η³), with ∇Q = ¼ Σ ∇η_k².
+    const Vec3 gQ = 0.25 * gsum;
+    const Mat3 HQ = 0.25 * Hsum;
+    if (grad) *grad = gQ / (2.0 * r.eta);
+    if (hess) *hess = HQ / (2.0 * r.eta) - gQ * gQ.transpose() / (4.0 * r.eta * r.eta * r.eta);
+  }
+  return r;
+}
+
+void chainToSurface(const SurfaceD2& d, const Vec3& g, const Mat3& H, Vec2* gu, Mat2* Hu) {
+  Eigen::Matrix<double, 3, 2> Jp;
+  Jp.col(0) = d.du;
+  Jp.col(1) = d.dv;
+  if (gu) *gu = Jp.transpose() * g;
+  if (Hu) {
+    Mat2 h = Jp.transpose() * H * Jp;
+    h(0, 0) += g.dot(d.duu);
+    h(0, 1) += g.dot(d.duv);
+    h(1, 0) += g.dot(d.duv);
+    h(1, 1) += g.dot(d.dvv);
+    *Hu = h;
+  }
+}
+
+void chainToCurve(const CurveD2& d, const Vec3& g, const Mat3& H, double* gt, double* Ht) {
+  if (gt) *gt = d.dt.dot(g);
+  if (Ht) *Ht = d.dt.dot(H * d.dt) + g.dot(d.dtt);
+}
+
+Vec3 elementReferenceNormal(const SurfaceMesh& mesh, std::size_t e) {
+  const int f = mesh.elemFace[e];
+  const int nc = cornerCount(mesh.elemType[e]);
+  const Vec2* uv = mesh.elementUV(e);
+  Vec3 n = Vec3::Zero();
+  for (int k = 0; k < nc; ++k) n += mesh.referenceNormal(f, uv[k]);
+  if (n.squaredNorm() == 0.0) {
+    // Every corner degenerate (all at a pole): use the parametric centroid.
+    Vec2 c = Vec2::Zero();
+    for (int k = 0; k < nc; ++k) c += uv[k];
+    n = mesh.referenceNormal(f, c / nc);
+  }
+  const double len = n.norm();
+  return len > 0.0 ? Vec3(n / len) : Vec3::Zero();
+}
+
+}  // namespace surfmesh
