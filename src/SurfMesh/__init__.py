@@ -1,0 +1,36 @@
+"""SurfMesh: measure, smooth and untangle surface meshes lying on CAD (OpenCASCADE) surfaces.
+
+Headless API (freecadcmd or the GUI)::
+
+    import SurfMesh
+    rep = SurfMesh.measure(mesh, shape, measure="shape")     # .quality .tangled .stats
+    res = SurfMesh.optimize(mesh, shape, measure="shape", boundary="fixed")
+    res.mesh, res.before, res.after, res.sweeps, res.seconds
+
+Document functions (colors, stored stats, undo)::
+
+    SurfMesh.measure_object(obj)          SurfMesh.optimize_object(obj)
+    SurfMesh.clear_colors(obj)
+
+See SurfMesh.app.api for the options. Importing this package never imports FreeCADGui.
+"""
+
+from SurfMesh.app.api import (  # noqa: F401
+    BOUNDARY_MODES,
+    OPTIMIZE_DEFAULTS,
+    Cancelled,
+    OptimizeResult,
+    QualityReport,
+    measure,
+    measure_names,
+    optimize,
+)
+from SurfMesh.app.document import (  # noqa: F401
+    apply_colors,
+    clear_colors,
+    measure_object,
+    optimize_object,
+    stats_of,
+)
+
+__version__ = "0.1.0"

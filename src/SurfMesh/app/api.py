@@ -1,0 +1,314 @@
+"""SurfMesh's headless Python API: measure and optimize a mesh lying on a CAD shape.
+
+    import SurfMesh
+    rep = SurfMesh.measure(mesh, shape, measure="shape")
+    rep.quality   # numpy float64, one value per element, in [0, 1], 0 for tangled
+    rep.tangled   # numpy bool, one per element
+    rep.stats     # dict: min, max, mean, std, tangled, elements
+    res = SurfMesh.optimize(mesh, shape, measure="shape", boundary="fixed")  # or "slide"
+    res.mesh      # a NEW Mesh.Mesh / Fem.FemMesh; the input is untouched
+    res.before, res.after, res.sweeps, res.seconds
+
+``mesh`` is a ``Mesh.Mesh``, a ``Fem.FemMesh`` or a document object holding one; ``shape`` a
+``Part.Shape`` or a document object with ``.Shape``.  Element order, element ids and (FEM)
+node ids and node order are preserved.  Precision of the results: FEM meshes store doubles, so
+their optimized nodes lie on the CAD surfaces to double precision; ``Mesh.Mesh`` stores float32
+points, so there the nodes lie on the surfaces to float32 rounding (~1e-7 × model size).
+
+Bad input raises ``ValueError`` with a message naming the problem; a run cancelled through the
+``progress`` callback raises :class:`Cancelled` and changes nothing.
+
+This module never imports FreeCADGui.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from typing import Callable, Optional
+
+import numpy as np
+
+from SurfMesh.app import conversion, shapes
+from SurfMesh.app.native import core
+
+BOUNDARY_MODES = ("fixed", "slide")
+
+#: Options of :func:`optimize` that map to the core's OptimizeOptions, with their defaults.
+OPTIMIZE_DEFAULTS = {
+    "max_sweeps": 100,  # maximum number of Gauss-Seidel sweeps over the movable nodes
+    "rel_tol": 1e-5,  # stop when the objective's relative decrease over a sweep is below…
+    "move_tol": 1e-4,  # …and the largest move, relative to the local size, is below this
+    "inner_iterations": 1,  # Newton iterations per node and sweep (the paper uses 1)
+    "max_line_search": 30,  # maximum halvings of the backtracking line search
+    "delta_policy": "auto",  # "auto": δ from the smallest det S each sweep; "fixed": `delta`
+    "delta_epsilon": 1e-2,  # ε of the automatic δ policy (relative to the local size²)
+    "delta": 1e-2,  # δ of the fixed policy (dimensionless)
+    "monotone": True,  # reject moves that lower the minimum quality of a valid submesh
+    "threads": 0,  # worker threads; 0 = all hardware threads (result independent of it)
+}
+
+
+class Cancelled(RuntimeError):
+    """Raised by :func:`optimize` when the progress callback asked to stop; nothing changed."""
+
+
+def measure_names():
+    """Names of the distortion measures the core provides ("shape", "oddy", …)."""
+    return list(core().measure_names())
+
+
+@dataclasses.dataclass
+class QualityReport:
+    """Per-element quality of a mesh with one measure, and the paper's statistics."""
+
+    measure: str
+    quality: np.ndarray  # (E,) float64 in [0, 1], q = 1/η, 0 for tangled elements
+    tangled: np.ndarray  # (E,) bool
+    distortion: np.ndarray  # (E,) float64 η ≥ 1, inf for tangled elements
+    min_sigma: np.ndarray  # (E,) float64 smallest scaled det S (≤ 0: tangled)
+    stats: dict  # min, max, mean, std, tangled, elements
+    element_ids: np.ndarray  # (E,) int64 ids of the elements (FEM ids, or facet indices)
+    element_types: list = dataclasses.field(default_factory=list)
+    bridge: dict = dataclasses.field(default_factory=dict)  # how nodes were put on the shape
+
+    def __repr__(self):
+        s = self.stats
+        return (
+            f"<QualityReport {self.measure}: min {s['min']:.4f} max {s['max']:.4f} "
+            f"mean {s['mean']:.4f} std {s['std']:.4f} tangled {s['tangled']}/{s['elements']}>"
+        )
+
+    def to_dict(self, arrays=False):
+        d = {"measure": self.measure, "stats": dict(self.stats)}
+        if arrays:
+            d["quality"] = self.quality.tolist()
+            d["element_ids"] = self.element_ids.tolist()
+        return d
+
+
+@dataclasses.dataclass
+class OptimizeResult:
+    """Result of :func:`optimize`."""
+
+    mesh: object  # new Mesh.Mesh / Fem.FemMesh (None for array input)
+    nodes: np.ndarray  # (N, 3) float64 optimized node positions (double precision)
+    before: QualityReport
+    after: QualityReport
+    sweeps: int
+    seconds: float  # wall time of the optimization itself
+    reason: str  # "converged", "max_sweeps", "nothing_to_do"
+    moved_nodes: int = 0
+    threads: int = 1
+    options: dict = dataclasses.field(default_factory=dict)
+    bridge: dict = dataclasses.field(default_factory=dict)
+
+    def __repr__(self):
+        b, a = self.before.stats, self.after.stats
+        return (
+            f"<OptimizeResult {self.before.measure}: {self.sweeps} sweeps, {self.seconds:.2f} s, "
+            f"{self.reason}; min {b['min']:.4f} -> {a['min']:.4f}, "
+            f"tangled {b['tangled']} -> {a['tangled']}>"
+        )
+
+    def to_dict(self):
+        return {
+            "measure": self.before.measure,
+            "before": dict(self.before.stats),
+            "after": dict(self.after.stats),
+            "sweeps": self.sweeps,
+            "seconds": self.seconds,
+            "reason": self.reason,
+            "moved_nodes": self.moved_nodes,
+            "threads": self.threads,
+            "options": dict(self.options),
+            "bridge": self.bridge,
+        }
+
+
+# ---- building the core mesh ------------------------------------------------------------------
+
+
+def _check_measure(name):
+    names = measure_names()
+    if not isinstance(name, str) or name not in names:
+        raise ValueError(f"unknown measure {name!r}; known measures: {', '.join(names)}")
+    return name
+
+
+def _check_boundary(boundary):
+    if boundary not in BOUNDARY_MODES:
+        raise ValueError(f"unknown boundary mode {boundary!r}; use 'fixed' or 'slide'")
+    return boundary
+
+
+def _core_shape(shape):
+    """Core CadShape from a Part.Shape (through BREP text)."""
+    return core().CadShape.from_brep_string(shapes.brep_string(shape))
+
+
+def prepare(mesh, shape, boundary="fixed", tolerance=None, hints="auto"):
+    """Reads ``mesh`` and ``shape`` and builds the core's surface mesh.
+
+    Returns ``(data, handle)``: the :class:`~SurfMesh.app.conversion.MeshData` read from the
+    input and the core mesh handle (``handle.report`` says how every node was classified).
+
+    hints: "auto" (FEM inputs: edge and vertex hints from FreeCAD's ``getNodesByEdge/Vertex``;
+    face nodes are classified by the core), "all" (also ``getNodesByFace``: slow on big parts),
+    "none", or a MeshData whose hint arrays are already filled.
+    """
+    _check_boundary(boundary)
+    if tolerance is not None and not (tolerance > 0 and np.isfinite(tolerance)):
+        raise ValueError(f"tolerance must be a positive number, got {tolerance!r}")
+    data = conversion.read_mesh(mesh)
+    part_shape = shapes.shape_of(shape) if not _is_core_shape(shape) else None
+    if data.element_count == 0:
+        raise ValueError("the mesh has no elements")
+    if hints not in ("auto", "all", "none", "given"):
+        raise ValueError(f"unknown hints mode {hints!r}; use 'auto', 'all' or 'none'")
+    if data.kind == "fem" and hints in ("auto", "all") and part_shape is not None:
+        conversion.fem_hints(data, part_shape, faces=(hints == "all"))
+    cshape = shape if part_shape is None else _core_shape(part_shape)
+    handle = core().cad_mesh(
+        cshape,
+        data.nodes,
+        data.types,
+        data.offsets,
+        data.conn,
+        hint_face=data.hint_face,
+        hint_edge=data.hint_edge,
+        hint_vertex=data.hint_vertex,
+        tolerance=0.0 if tolerance is None else float(tolerance),
+        boundary=boundary,
+    )
+    return data, handle
+
+
+def _is_core_shape(obj):
+    try:
+        return isinstance(obj, core().CadShape)
+    except ImportError:
+        return False
+
+
+def _report(data, handle, name, bridge=None) -> QualityReport:
+    r = handle.measure(name)
+    stats = dict(r["stats"])
+    return QualityReport(
+        measure=name,
+        quality=np.asarray(r["quality"], dtype=np.float64),
+        tangled=np.asarray(r["tangled"], dtype=bool),
+        distortion=np.asarray(r["distortion"], dtype=np.float64),
+        min_sigma=np.asarray(r["min_sigma"], dtype=np.float64),
+        stats=stats,
+        element_ids=data.element_ids,
+        element_types=data.type_names(),
+        bridge=bridge if bridge is not None else dict(handle.report),
+    )
+
+
+# ---- public API ------------------------------------------------------------------------------
+
+
+def measure(mesh, shape, measure="shape", *, tolerance=None, hints="auto") -> QualityReport:
+    """Quality of every element of ``mesh`` on ``shape`` with the named measure.
+
+    Args:
+        mesh: Mesh.Mesh, Fem.FemMesh or a document object holding one (or a MeshData).
+        shape: Part.Shape or a document object with ``.Shape``.
+        measure: a name of :func:`measure_names` ("shape": Knupp's shape measure, "oddy").
+        tolerance: distance under which a node counts as lying on the shape (default: chosen
+            by the core from the shape's size and its tolerances).
+        hints: see :func:`prepare`.
+
+    Returns:
+        QualityReport with ``quality`` (1/η, 0 tangled), ``tangled``, ``stats``.
+    """
+    _check_measure(measure)
+    data, handle = prepare(mesh, shape, "fixed", tolerance, hints)
+    return _report(data, handle, measure)
+
+
+def optimize(
+    mesh,
+    shape,
+    measure="shape",
+    boundary="fixed",
+    *,
+    tolerance=None,
+    hints="auto",
+    progress: Optional[Callable[[dict], Optional[bool]]] = None,
+    **options,
+) -> OptimizeResult:
+    """Smooths and untangles ``mesh`` on ``shape``; the input is not modified.
+
+    Args:
+        mesh, shape, measure, tolerance, hints: as in :func:`measure`.
+        boundary: "fixed" (nodes on CAD edges and vertices stay) or "slide" (nodes on CAD edges
+            slide along their edge; vertices stay).
+        progress: called after every sweep with a dict (sweep, max_sweeps, objective, tangled,
+            min_quality, delta); return False to cancel (then :class:`Cancelled` is raised).
+        **options: the core's optimizer options, see :data:`OPTIMIZE_DEFAULTS`.
+
+    Returns:
+        OptimizeResult: ``mesh`` (new, same kind as the input), ``nodes``, ``before``,
+        ``after``, ``sweeps``, ``seconds``, ``reason``.
+    """
+    _check_measure(measure)
+    unknown = sorted(set(options) - set(OPTIMIZE_DEFAULTS))
+    if unknown:
+        raise ValueError(
+            f"unknown option(s) {', '.join(unknown)}; known: {', '.join(OPTIMIZE_DEFAULTS)}"
+        )
+    opts = dict(OPTIMIZE_DEFAULTS)
+    opts.update(options)
+    _check_options(opts)
+    if progress is not None and not callable(progress):
+        raise ValueError("progress must be callable (or None)")
+    data, handle = prepare(mesh, shape, boundary, tolerance, hints)
+    bridge = dict(handle.report)
+    before = _report(data, handle, measure, bridge)
+    t0 = time.perf_counter()
+    r = handle.optimize(measure=measure, progress=progress, **opts)
+    if r["reason"] == "cancelled":
+        raise Cancelled(f"optimization cancelled after {r['sweeps']} sweep(s); nothing changed")
+    seconds = float(r.get("seconds", time.perf_counter() - t0))
+    new_nodes = handle.positions()
+    after = _report(data, handle, measure, bridge)
+    new_mesh = conversion.rebuild(data, new_nodes) if data.kind in ("mesh", "fem") else None
+    return OptimizeResult(
+        mesh=new_mesh,
+        nodes=new_nodes,
+        before=before,
+        after=after,
+        sweeps=int(r["sweeps"]),
+        seconds=seconds,
+        reason=str(r["reason"]),
+        moved_nodes=int(r.get("moved_nodes", 0)),
+        threads=int(r.get("threads", 1)),
+        options=dict(opts, measure=measure, boundary=boundary),
+        bridge=bridge,
+    )
+
+
+def _check_options(o):
+    def positive_int(k):
+        v = o[k]
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
+            raise ValueError(f"{k} must be a positive integer, got {v!r}")
+
+    def positive_float(k):
+        v = o[k]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (v > 0) or v == np.inf:
+            raise ValueError(f"{k} must be a positive number, got {v!r}")
+
+    for k in ("max_sweeps", "inner_iterations", "max_line_search"):
+        positive_int(k)
+    for k in ("rel_tol", "move_tol", "delta_epsilon", "delta"):
+        positive_float(k)
+    if o["delta_policy"] not in ("auto", "fixed"):
+        raise ValueError(f"delta_policy must be 'auto' or 'fixed', got {o['delta_policy']!r}")
+    t = o["threads"]
+    if isinstance(t, bool) or not isinstance(t, (int, np.integer)) or t < 0:
+        raise ValueError(f"threads must be an integer ≥ 0, got {t!r}")
+    o["monotone"] = bool(o["monotone"])

@@ -1,0 +1,344 @@
+"""Conversion of FreeCAD meshes to the arrays the core reads, and back.
+
+The interchange format is fixed once (see also ``src/bindings/arrays.h``):
+
+* ``nodes``    float64, shape (N, 3), C order: node positions in global coordinates;
+* ``types``    int64, shape (E,): core element type codes (:data:`ELEMENT_TYPES`);
+* ``offsets``  int64, shape (E + 1,): element ``e`` is ``conn[offsets[e]:offsets[e + 1]]``;
+* ``conn``     int64: 0-based node indices, Gmsh node ordering (corners counter-clockwise first,
+  then the edge nodes);
+* ``hint_face`` / ``hint_edge`` / ``hint_vertex``  int64, shape (N,): optional 0-based index of
+  the CAD face / edge / vertex (in ``shape.Faces`` / ``Edges`` / ``Vertexes`` order) a node
+  was generated on, −1 when unknown.
+
+Two kinds of FreeCAD meshes are read:
+
+``Mesh.Mesh`` (Mesh workbench)
+    triangles only; points are stored in single precision (float32) by FreeCAD, so a result
+    written back into a ``Mesh.Mesh`` lies on the CAD surface only to float32 rounding
+    (~1e-7 × model size).  Node "ids" are the 0-based point indices, element ids the 0-based
+    facet indices.
+
+``Fem.FemMesh`` (FEM workbench)
+    doubles; node and element ids are arbitrary positive integers (Gmsh meshes hold edge
+    elements first, so face ids do not start at 1).  Face elements tria3, tria6 and quad4 are
+    read; edge and volume elements are carried over untouched when the mesh is rebuilt.
+
+This module is headless: it never imports FreeCADGui.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Optional
+
+import numpy as np
+
+# Core element type codes (surfmesh::ElementType) and node counts.
+ELEMENT_TYPES = {"tri3": 0, "quad4": 1, "tri6": 2, "tri10": 3, "tri15": 4, "tri21": 5}
+ELEMENT_NAMES = {code: name for name, code in ELEMENT_TYPES.items()}
+NODES_PER_TYPE = {"tri3": 3, "quad4": 4, "tri6": 6, "tri10": 10, "tri15": 15, "tri21": 21}
+
+# FEM face elements by node count (SMESH ordering equals Gmsh ordering for these).
+_FEM_FACE_TYPES = {3: "tri3", 6: "tri6", 4: "quad4"}
+_FEM_UNSUPPORTED = {8: "quad8", 9: "quad9", 7: "tria7"}
+
+
+@dataclasses.dataclass
+class MeshData:
+    """A surface mesh as flat arrays, plus what is needed to rebuild the FreeCAD mesh."""
+
+    kind: str  # "mesh" (Mesh.Mesh), "fem" (Fem.FemMesh) or "arrays" (files, tests)
+    nodes: np.ndarray  # (N, 3) float64
+    types: np.ndarray  # (E,) int64 core codes
+    offsets: np.ndarray  # (E + 1,) int64
+    conn: np.ndarray  # (offsets[-1],) int64, 0-based
+    node_ids: np.ndarray  # (N,) int64: FEM node ids, or 0..N-1
+    element_ids: np.ndarray  # (E,) int64: FEM element ids, or 0..E-1
+    hint_face: Optional[np.ndarray] = None
+    hint_edge: Optional[np.ndarray] = None
+    hint_vertex: Optional[np.ndarray] = None
+    source: object = None  # the Mesh.Mesh / Fem.FemMesh the arrays were read from
+
+    @property
+    def node_count(self) -> int:
+        return int(self.nodes.shape[0])
+
+    @property
+    def element_count(self) -> int:
+        return int(self.types.shape[0])
+
+    def type_names(self):
+        """Sorted list of the element type names present."""
+        return sorted({ELEMENT_NAMES.get(int(t), str(int(t))) for t in np.unique(self.types)})
+
+    def element(self, e):
+        """0-based node indices of element ``e``."""
+        return self.conn[self.offsets[e] : self.offsets[e + 1]]
+
+
+def from_arrays(nodes, elements, element_type="tri3", node_ids=None, element_ids=None):
+    """MeshData from plain arrays: ``elements`` is (E, k) with 0-based node indices."""
+    nodes = np.ascontiguousarray(nodes, dtype=np.float64)
+    if nodes.ndim != 2 or nodes.shape[1] != 3:
+        raise ValueError(f"nodes must have shape (N, 3), got {nodes.shape}")
+    elements = np.asarray(elements, dtype=np.int64)
+    if elements.ndim != 2:
+        raise ValueError(f"elements must have shape (E, k), got {elements.shape}")
+    if element_type not in ELEMENT_TYPES:
+        raise ValueError(
+            f"unknown element type {element_type!r}; known: {', '.join(ELEMENT_TYPES)}"
+        )
+    k = NODES_PER_TYPE[element_type]
+    if elements.shape[1] != k:
+        raise ValueError(f"{element_type} elements have {k} nodes, got {elements.shape[1]}")
+    n_el = elements.shape[0]
+    return MeshData(
+        kind="arrays",
+        nodes=nodes,
+        types=np.full(n_el, ELEMENT_TYPES[element_type], dtype=np.int64),
+        offsets=np.arange(0, k * n_el + 1, k, dtype=np.int64),
+        conn=np.ascontiguousarray(elements.reshape(-1)),
+        node_ids=(
+            np.arange(nodes.shape[0], dtype=np.int64)
+            if node_ids is None
+            else np.asarray(node_ids, dtype=np.int64)
+        ),
+        element_ids=(
+            np.arange(n_el, dtype=np.int64)
+            if element_ids is None
+            else np.asarray(element_ids, dtype=np.int64)
+        ),
+    )
+
+
+# ---- recognising inputs ----------------------------------------------------------------------
+
+
+def _type_id(obj):
+    try:
+        return obj.TypeId
+    except Exception:
+        return ""
+
+
+def is_mesh_kernel(obj) -> bool:
+    """Whether ``obj`` is a Mesh.Mesh (its TypeId is not reliable: "BadType")."""
+    import Mesh
+
+    return isinstance(obj, Mesh.Mesh)
+
+
+def is_fem_mesh(obj) -> bool:
+    import Fem
+
+    return isinstance(obj, Fem.FemMesh)
+
+
+def mesh_of(obj):
+    """The Mesh.Mesh or Fem.FemMesh held by ``obj`` (itself, or a document object's
+    ``Mesh`` / ``FemMesh`` property). Raises ValueError otherwise."""
+    if is_mesh_kernel(obj) or is_fem_mesh(obj):
+        return obj
+    for attr in ("FemMesh", "Mesh"):
+        inner = getattr(obj, attr, None) if hasattr(obj, "isDerivedFrom") else None
+        if inner is not None and (is_mesh_kernel(inner) or is_fem_mesh(inner)):
+            return inner
+    label = getattr(obj, "Label", None)
+    what = f"object {label!r} ({_type_id(obj) or type(obj).__name__})" if label else repr(obj)
+    raise ValueError(
+        f"{what} is not a mesh: expected a Mesh.Mesh, a Fem.FemMesh or a document object "
+        "holding one"
+    )
+
+
+# ---- reading ---------------------------------------------------------------------------------
+
+
+def read_mesh(obj) -> MeshData:
+    """MeshData of a Mesh.Mesh, Fem.FemMesh or document object holding one."""
+    if isinstance(obj, MeshData):
+        return obj
+    mesh = mesh_of(obj)
+    if is_mesh_kernel(mesh):
+        return _read_mesh_kernel(mesh)
+    return _read_fem_mesh(mesh)
+
+
+def _vectors_to_array(vectors) -> np.ndarray:
+    return np.array([(v.x, v.y, v.z) for v in vectors], dtype=np.float64).reshape(-1, 3)
+
+
+def _read_mesh_kernel(mesh) -> MeshData:
+    points, facets = mesh.Topology  # global coordinates
+    nodes = _vectors_to_array(points)
+    tris = np.array(facets, dtype=np.int64).reshape(-1, 3)
+    data = from_arrays(nodes, tris, "tri3")
+    data.kind = "mesh"
+    data.source = mesh
+    return data
+
+
+def _read_fem_mesh(fem) -> MeshData:
+    node_map = fem.Nodes  # id -> Vector (global coordinates)
+    node_ids = np.fromiter(node_map.keys(), dtype=np.int64, count=len(node_map))
+    nodes = _vectors_to_array(node_map.values())
+    face_ids = list(fem.Faces)
+    if not face_ids:
+        detail = ""
+        if fem.VolumeCount:
+            detail = f" (it has {fem.VolumeCount} volume elements: mesh the surfaces, 2D)"
+        elif fem.EdgeCount:
+            detail = f" (it has only {fem.EdgeCount} edge elements)"
+        raise ValueError(f"the FEM mesh has no face elements{detail}")
+    element_nodes = [fem.getElementNodes(e) for e in face_ids]
+    counts = np.fromiter((len(n) for n in element_nodes), dtype=np.int64, count=len(face_ids))
+    bad = [i for i, c in enumerate(counts) if int(c) not in _FEM_FACE_TYPES]
+    if bad:
+        c = int(counts[bad[0]])
+        name = _FEM_UNSUPPORTED.get(c, f"{c}-node")
+        raise ValueError(
+            f"unsupported FEM element type {name}: {len(bad)} element(s), first id "
+            f"{face_ids[bad[0]]}; supported face elements: tria3, tria6, quad4"
+        )
+    names = [_FEM_FACE_TYPES[int(c)] for c in counts]
+    types = np.array([ELEMENT_TYPES[n] for n in names], dtype=np.int64)
+    offsets = np.zeros(len(face_ids) + 1, dtype=np.int64)
+    np.cumsum(counts, out=offsets[1:])
+    flat_ids = np.fromiter(
+        (n for nodes_of in element_nodes for n in nodes_of), dtype=np.int64, count=int(offsets[-1])
+    )
+    order = np.argsort(node_ids, kind="stable")
+    pos = np.searchsorted(node_ids, flat_ids, sorter=order)
+    pos = np.clip(pos, 0, len(node_ids) - 1)
+    conn = order[pos]
+    missing = node_ids[conn] != flat_ids
+    if np.any(missing):
+        raise ValueError(f"FEM mesh elements reference unknown node id {int(flat_ids[missing][0])}")
+    return MeshData(
+        kind="fem",
+        nodes=nodes,
+        types=types,
+        offsets=offsets,
+        conn=np.ascontiguousarray(conn, dtype=np.int64),
+        node_ids=node_ids,
+        element_ids=np.array(face_ids, dtype=np.int64),
+        source=fem,
+    )
+
+
+# ---- hints from FreeCAD's node classification -----------------------------------------------
+
+
+def fem_hints(data: MeshData, shape, faces=True):
+    """Fills data.hint_face/edge/vertex from ``FemMesh.getNodesByVertex/Edge/Face`` on ``shape``.
+
+    These queries find, for each sub-shape, the mesh nodes within its tolerance: a node found
+    on exactly one face (and on no edge) is hinted to that face, a node on an edge to the edge
+    (to the vertex when it is on one).  Face queries are slow in FreeCAD 0.20 (a distance
+    computation per node and face: seconds on parts with a few thousand nodes); pass
+    ``faces=False`` to let the core classify the face nodes by projection.
+    """
+    if data.kind != "fem":
+        raise ValueError("FEM hints need a Fem.FemMesh input")
+    fem = data.source
+    n = data.node_count
+    index = {int(i): k for k, i in enumerate(data.node_ids)}
+    hint_vertex = np.full(n, -1, dtype=np.int64)
+    hint_edge = np.full(n, -1, dtype=np.int64)
+    hint_face = np.full(n, -1, dtype=np.int64)
+    for k, v in enumerate(shape.Vertexes):
+        for node in fem.getNodesByVertex(v):
+            if node in index:
+                hint_vertex[index[node]] = k
+    edge_count = np.zeros(n, dtype=np.int64)
+    for k, e in enumerate(shape.Edges):
+        for node in fem.getNodesByEdge(e):
+            if node in index:
+                i = index[node]
+                edge_count[i] += 1
+                hint_edge[i] = k
+    # A node found on several edges lies on a vertex (or a tolerance overlap): no edge hint.
+    hint_edge[edge_count > 1] = -1
+    hint_edge[hint_vertex >= 0] = -1
+    if faces:
+        face_count = np.zeros(n, dtype=np.int64)
+        for k, f in enumerate(shape.Faces):
+            for node in fem.getNodesByFace(f):
+                if node in index:
+                    i = index[node]
+                    face_count[i] += 1
+                    hint_face[i] = k
+        hint_face[(face_count != 1) | (edge_count > 0) | (hint_vertex >= 0)] = -1
+    data.hint_face, data.hint_edge, data.hint_vertex = hint_face, hint_edge, hint_vertex
+    return data
+
+
+# ---- writing back ----------------------------------------------------------------------------
+
+
+def _vector_list(nodes: np.ndarray):
+    import FreeCAD
+
+    vec = FreeCAD.Vector
+    return [vec(float(x), float(y), float(z)) for x, y, z in nodes]
+
+
+def rebuild(data: MeshData, new_nodes: np.ndarray):
+    """A NEW mesh of the input's kind with the node positions ``new_nodes`` (N, 3); ids,
+    element order, segments / groups and non-face elements are kept; ``data.source`` is not
+    modified."""
+    new_nodes = np.asarray(new_nodes, dtype=np.float64)
+    if new_nodes.shape != data.nodes.shape:
+        raise ValueError(f"expected {data.nodes.shape} node positions, got {new_nodes.shape}")
+    if data.kind == "mesh":
+        return _rebuild_mesh_kernel(data, new_nodes)
+    if data.kind == "fem":
+        return _rebuild_fem(data, new_nodes)
+    raise ValueError(f"cannot rebuild a FreeCAD mesh from {data.kind!r} data")
+
+
+def _rebuild_mesh_kernel(data: MeshData, new_nodes: np.ndarray):
+    import FreeCAD
+
+    mesh = data.source.copy()  # keeps facets, segments and placement
+    vec = FreeCAD.Vector
+    changed = np.nonzero(np.any(new_nodes != data.nodes, axis=1))[0]
+    for i in changed:
+        x, y, z = new_nodes[i]
+        mesh.setPoint(int(i), vec(float(x), float(y), float(z)))  # global coordinates
+    return mesh
+
+
+def _rebuild_fem(data: MeshData, new_nodes: np.ndarray):
+    import Fem
+
+    old = data.source
+    fem = Fem.FemMesh()
+    for nid, (x, y, z) in zip(data.node_ids.tolist(), new_nodes.tolist()):
+        fem.addNode(x, y, z, nid)
+    # Elements in id order, whatever their dimension, so that every id is kept.
+    elements = []
+    for e in old.Edges:
+        elements.append((e, 1))
+    for e in old.Faces:
+        elements.append((e, 2))
+    for e in old.Volumes:
+        elements.append((e, 3))
+    elements.sort()
+    for eid, dim in elements:
+        nodes = list(old.getElementNodes(eid))
+        if dim == 1:
+            fem.addEdge(nodes, eid)
+        elif dim == 2:
+            fem.addFace(nodes, eid)
+        else:
+            fem.addVolume(nodes, eid)
+    for gid in old.Groups:
+        name = old.getGroupName(gid)
+        gtype = old.getGroupElementType(gid)
+        new_gid = fem.addGroup(name, gtype)
+        members = list(old.getGroupElements(gid))
+        if members:
+            fem.addGroupElements(new_gid, members)
+    return fem

@@ -1,0 +1,256 @@
+"""Document-level functions (Draft / FEM "make" style), usable with and without the GUI.
+
+    import SurfMesh
+    rep = SurfMesh.measure_object(doc.FEMMeshGmsh)             # colors it, stores the stats
+    new = SurfMesh.optimize_object(doc.FEMMeshGmsh, measure="shape")   # "<name>_optimized"
+    SurfMesh.clear_colors(new)
+
+The shape defaults to the one the mesh was made from (``FemMeshGmsh.Part``, the source of a
+MeshPart mesh, or the shape SurfMesh recorded on an optimized mesh).
+
+What is stored on a measured object (property group "SurfMesh"):
+    SurfMeshMeasure (String), SurfMeshStats (Map: min, max, mean, std, tangled, elements),
+    SurfMeshQuality (FloatList, one per element in element order; 0 = tangled),
+    SurfMeshColors (ColorList, Mesh objects only: one color per facet, drawn with Coloring).
+An optimized object also gets SurfMeshStatsBefore, SurfMeshQualityBefore, SurfMeshSource
+(link to the shape) and SurfMeshOriginal (link to the input mesh object).
+
+Colors in the 3D view are applied when the object has a view provider (GUI up): Mesh objects
+through ``Coloring``, FEM tria3 meshes through ``ElementColor``, other FEM meshes (tria6, quad4,
+mixed) through per-node colors (``ElementColor`` draws wrong colors on tria6 in FreeCAD 0.20).
+
+Headless: never imports FreeCADGui.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from SurfMesh.app import api, coloring, conversion, progress, shapes
+
+GROUP = "SurfMesh"
+STAT_KEYS = ("min", "max", "mean", "std", "tangled", "elements")
+
+
+# ---- helpers ---------------------------------------------------------------------------------
+
+
+def _ensure(obj, ptype, name, doc=""):
+    if name not in obj.PropertiesList:
+        obj.addProperty(ptype, name, GROUP, doc)
+
+
+def _is_fem_object(obj):
+    return "FemMesh" in obj.PropertiesList
+
+
+def _mesh_kind(obj):
+    if "FemMesh" in obj.PropertiesList:
+        return "fem"
+    if "Mesh" in obj.PropertiesList and conversion.is_mesh_kernel(obj.Mesh):
+        return "mesh"
+    raise ValueError(
+        f"object {obj.Label!r} ({obj.TypeId}) holds no mesh: select a Mesh or FEM mesh object"
+    )
+
+
+def resolve_shape(obj, shape=None):
+    """The shape to use for mesh object ``obj``: ``shape`` if given, else the shape the mesh
+    was made from; ValueError when none is known."""
+    if shape is not None:
+        return shapes.shape_of(shape)
+    src = shapes.source_shape_object(obj)
+    if src is None:
+        raise ValueError(
+            f"no shape known for mesh {obj.Label!r}: pass the shape (or select it together "
+            "with the mesh)"
+        )
+    return src.Shape
+
+
+def _stats_map(stats):
+    return {k: (str(int(stats[k])) if k in ("tangled", "elements") else repr(float(stats[k])))
+            for k in STAT_KEYS}
+
+
+def stats_of(obj, before=False):
+    """The stats stored on ``obj`` by :func:`measure_object` / :func:`optimize_object` as a
+    dict (None when it has none)."""
+    name = "SurfMeshStatsBefore" if before else "SurfMeshStats"
+    if name not in obj.PropertiesList:
+        return None
+    m = getattr(obj, name)
+    if not m:
+        return None
+    return {k: (int(m[k]) if k in ("tangled", "elements") else float(m[k])) for k in STAT_KEYS}
+
+
+def store_report(obj, report, before=False):
+    """Stores a QualityReport's measure, stats and per-element quality on ``obj``."""
+    suffix = "Before" if before else ""
+    _ensure(obj, "App::PropertyString", "SurfMeshMeasure", "Measure of the stored quality")
+    _ensure(obj, "App::PropertyMap", "SurfMeshStats" + suffix, "Quality statistics")
+    _ensure(obj, "App::PropertyFloatList", "SurfMeshQuality" + suffix,
+            "Quality per element (element order), 0 = tangled")
+    obj.SurfMeshMeasure = report.measure
+    setattr(obj, "SurfMeshStats" + suffix, _stats_map(report.stats))
+    setattr(obj, "SurfMeshQuality" + suffix, [float(q) for q in report.quality])
+
+
+# ---- colors ----------------------------------------------------------------------------------
+
+
+def apply_colors(obj, report=None):
+    """Colors ``obj`` by quality (``report``, or the quality stored on it)."""
+    if report is not None:
+        quality = np.asarray(report.quality, dtype=float)
+        tangled = np.asarray(report.tangled, dtype=bool)
+    elif "SurfMeshQuality" in obj.PropertiesList and obj.SurfMeshQuality:
+        quality = np.asarray(obj.SurfMeshQuality, dtype=float)
+        tangled = quality <= 0.0
+    else:
+        raise ValueError(f"{obj.Label!r} has no quality to show: measure it first")
+    kind = _mesh_kind(obj)
+    rgb = coloring.quality_rgb(quality, tangled)
+    if kind == "mesh":
+        if len(rgb) != obj.Mesh.CountFacets:
+            raise ValueError("stored quality does not match the mesh's facets: measure again")
+        _ensure(obj, "App::PropertyColorList", "SurfMeshColors", "Quality color per facet")
+        obj.SurfMeshColors = [tuple(map(float, c)) for c in rgb]
+    vo = getattr(obj, "ViewObject", None)
+    if vo is None:
+        return rgb
+    if kind == "mesh":
+        vo.Coloring = False  # toggle: the view keeps stale colors otherwise
+        vo.Coloring = True
+        return rgb
+    data = conversion.read_mesh(obj.FemMesh)
+    if len(rgb) != data.element_count:
+        raise ValueError("stored quality does not match the mesh's elements: measure again")
+    tri3 = conversion.ELEMENT_TYPES["tri3"]
+    if np.all(data.types == tri3):
+        vo.resetNodeColor()
+        vo.ElementColor = {int(e): tuple(map(float, c)) for e, c in zip(data.element_ids, rgb)}
+    else:
+        vo.ElementColor = {}
+        node_q = coloring.node_values(data, np.where(tangled, 0.0, quality), reduce="min")
+        node_rgb = coloring.quality_rgb(node_q, node_q <= 0.0)
+        vo.NodeColor = {int(n): tuple(map(float, c)) for n, c in zip(data.node_ids, node_rgb)}
+    return rgb
+
+
+def clear_colors(obj):
+    """Removes the quality colors from ``obj`` (the stored stats are kept)."""
+    kind = _mesh_kind(obj)
+    if kind == "mesh" and "SurfMeshColors" in obj.PropertiesList:
+        obj.removeProperty("SurfMeshColors")
+    vo = getattr(obj, "ViewObject", None)
+    if vo is None:
+        return
+    if kind == "mesh":
+        vo.Coloring = False
+    else:
+        vo.ElementColor = {}
+        vo.resetNodeColor()
+
+
+# ---- make functions --------------------------------------------------------------------------
+
+
+def measure_object(obj, shape=None, measure="shape", color=True, **kwargs):
+    """Measures mesh object ``obj`` on ``shape`` (default: its source shape), stores the
+    stats on it and colors it. Returns the QualityReport."""
+    shp = resolve_shape(obj, shape)
+    rep = api.measure(obj, shp, measure=measure, **kwargs)
+    doc = obj.Document
+    doc.openTransaction("SurfMesh measure")
+    try:
+        store_report(obj, rep)
+        if color:
+            apply_colors(obj, rep)
+    except Exception:
+        doc.abortTransaction()
+        raise
+    doc.commitTransaction()
+    return rep
+
+
+def optimize_object(obj, shape=None, measure="shape", boundary="fixed", name=None, color=True,
+                    progress_callback=None, **options):
+    """Optimizes mesh object ``obj``; creates ``<name>_optimized`` (the original is kept) in
+    one undo transaction, stores before/after stats on it and colors it. Returns the new
+    object (its ``SurfMeshStats`` / ``SurfMeshStatsBefore`` hold the result).
+
+    ``progress_callback`` is called after every sweep (see SurfMesh.optimize); returning
+    False cancels: then SurfMesh.Cancelled is raised and the document is unchanged.
+    """
+    kind = _mesh_kind(obj)
+    shp = resolve_shape(obj, shape)
+    src = shape if (shape is not None and hasattr(shape, "isDerivedFrom")) else \
+        shapes.source_shape_object(obj)
+    total = int(options.get("max_sweeps", api.OPTIMIZE_DEFAULTS["max_sweeps"]))
+    callback, finish = progress.make_callback(progress_callback, total=total)
+    try:
+        res = api.optimize(obj, shp, measure=measure, boundary=boundary, progress=callback,
+                           **options)
+    finally:
+        finish()
+    doc = obj.Document
+    doc.openTransaction("SurfMesh optimize")
+    try:
+        new_name = name or f"{obj.Name}_optimized"
+        if kind == "mesh":
+            new = doc.addObject("Mesh::Feature", new_name)
+            new.Mesh = res.mesh
+        else:
+            new = doc.addObject("Fem::FemMeshObject", new_name)
+            new.FemMesh = res.mesh
+        new.Label = f"{obj.Label}_optimized" if name is None else name
+        _ensure(new, "App::PropertyLink", "SurfMeshOriginal", "The mesh this one was optimized from")
+        new.SurfMeshOriginal = obj
+        if src is not None and hasattr(src, "Shape"):
+            _ensure(new, "App::PropertyLink", "SurfMeshSource", "The shape the mesh lies on")
+            new.SurfMeshSource = src
+        _ensure(new, "App::PropertyMap", "SurfMeshRun", "Optimization run")
+        new.SurfMeshRun = {
+            "measure": measure,
+            "boundary": boundary,
+            "sweeps": str(res.sweeps),
+            "seconds": f"{res.seconds:.3f}",
+            "reason": res.reason,
+        }
+        store_report(new, res.before, before=True)
+        store_report(new, res.after)
+        if color:
+            apply_colors(new, res.after)
+        doc.recompute()
+    except Exception:
+        doc.abortTransaction()
+        raise
+    doc.commitTransaction()
+    return new
+
+
+def report_rows(obj, measures=None, shape=None):
+    """Rows for the paper-style table of ``obj``: for an optimized object, (measure, "Initial",
+    stats) of its original and (measure, "Optimized", stats) of itself for every measure;
+    otherwise (measure, label, stats). Also returns histogram series for the object's stored
+    measure. Returns (rows, series)."""
+    measures = measures or api.measure_names()
+    shp = resolve_shape(obj, shape)
+    original = getattr(obj, "SurfMeshOriginal", None) if "SurfMeshOriginal" in obj.PropertiesList else None
+    rows, series = [], []
+    main = obj.SurfMeshMeasure if "SurfMeshMeasure" in obj.PropertiesList else measures[0]
+    for m in measures:
+        if original is not None:
+            r0 = api.measure(original, shp, measure=m)
+            rows.append((m, "Initial", r0.stats))
+        r1 = api.measure(obj, shp, measure=m)
+        rows.append((m, "Optimized" if original is not None else obj.Label, r1.stats))
+        if m == main:
+            if original is not None:
+                series.append(("before", r0.quality, r0.stats["tangled"]))
+                series.append(("after", r1.quality, r1.stats["tangled"]))
+            else:
+                series.append((obj.Label, r1.quality, r1.stats["tangled"]))
+    return rows, series

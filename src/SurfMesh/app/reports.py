@@ -1,0 +1,131 @@
+"""Reports: the paper's statistics table, JSON, and the quality histogram (matplotlib, Agg).
+
+Headless: never imports FreeCADGui; matplotlib is used through its object API and the Agg
+canvas, so no GUI backend is touched.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+COLUMNS = ("Min. Q.", "Max. Q.", "Mean Q.", "Std. Dev.", "Tang. el.")
+
+
+def stats_row(stats):
+    return [
+        f"{stats['min']:.2f}",
+        f"{stats['max']:.2f}",
+        f"{stats['mean']:.2f}",
+        f"{stats['std']:.2f}",
+        f"{int(stats['tangled'])}",
+    ]
+
+
+def format_table(rows, title=None, digits=2):
+    """Plain-text table in the layout of the paper's Tables 1-4.
+
+    rows: iterable of (measure, mesh_label, stats) — consecutive rows with the same measure
+    show it once.  ``digits`` decimals for the quality columns.
+    """
+    head = ["Measure", "Mesh"] + list(COLUMNS)
+    body = []
+    last = None
+    for measure, label, stats in rows:
+        cells = [
+            f"{stats['min']:.{digits}f}",
+            f"{stats['max']:.{digits}f}",
+            f"{stats['mean']:.{digits}f}",
+            f"{stats['std']:.{digits}f}",
+            f"{int(stats['tangled'])}",
+        ]
+        body.append([measure.capitalize() if measure != last else "", label] + cells)
+        last = measure
+    widths = [max(len(r[i]) for r in [head] + body) for i in range(len(head))]
+    lines = []
+    if title:
+        lines.append(title)
+    fmt = "  ".join("{:<%d}" % w if i < 2 else "{:>%d}" % w for i, w in enumerate(widths))
+    lines.append(fmt.format(*head))
+    lines.append("  ".join("-" * w for w in widths))
+    for r in body:
+        lines.append(fmt.format(*r))
+    return "\n".join(lines)
+
+
+def table_html(rows, digits=2):
+    """The same table as HTML (for the GUI's report dialog)."""
+    out = ["<table border='1' cellspacing='0' cellpadding='4'>", "<tr>"]
+    for h in ["Measure", "Mesh"] + list(COLUMNS):
+        out.append(f"<th>{h}</th>")
+    out.append("</tr>")
+    last = None
+    for measure, label, stats in rows:
+        cells = [
+            f"{stats['min']:.{digits}f}",
+            f"{stats['max']:.{digits}f}",
+            f"{stats['mean']:.{digits}f}",
+            f"{stats['std']:.{digits}f}",
+            f"{int(stats['tangled'])}",
+        ]
+        name = measure.capitalize() if measure != last else ""
+        last = measure
+        out.append("<tr><td>%s</td><td>%s</td>" % (name, label))
+        out.extend(f"<td align='right'>{c}</td>" for c in cells)
+        out.append("</tr>")
+    out.append("</table>")
+    return "".join(out)
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _jsonable(x.tolist())
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, (np.floating, float)):
+        v = float(x)
+        return v if np.isfinite(v) else None
+    return x
+
+
+def write_json(path, data):
+    with open(path, "w", encoding="utf-8") as fh:
+        json.dump(_jsonable(data), fh, indent=2, sort_keys=False)
+        fh.write("\n")
+
+
+def histogram_figure(series, title="Element quality", bins=20):
+    """A matplotlib Figure (Agg canvas) with one quality histogram per entry of ``series``:
+    a list of (label, quality array, tangled count)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(6.4, 4.0), dpi=100)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(111)
+    edges = np.linspace(0.0, 1.0, bins + 1)
+    colors = ["#d62728", "#2ca02c", "#1f77b4", "#ff7f0e"]
+    for k, (label, quality, tangled) in enumerate(series):
+        q = np.asarray(quality, dtype=float)
+        lab = f"{label} (min {q.min():.2f}, mean {q.mean():.2f}, tangled {int(tangled)})"
+        ax.hist(q, bins=edges, alpha=0.55, color=colors[k % len(colors)], label=lab,
+                edgecolor="black", linewidth=0.4)
+    ax.set_xlim(0.0, 1.0)
+    ax.set_xlabel("quality q = 1/η  (0 = tangled)")
+    ax.set_ylabel("elements")
+    ax.set_title(title)
+    ax.legend(loc="upper left", fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def save_histogram(path, series, title="Element quality", bins=20):
+    """Writes the histogram of :func:`histogram_figure` to ``path`` (PNG by extension)."""
+    fig = histogram_figure(series, title=title, bins=bins)
+    fig.savefig(path)
+    return path

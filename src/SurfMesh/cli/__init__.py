@@ -1,0 +1,1 @@
+"""Command line entry (run with freecadcmd): see surfmesh_cli.py."""

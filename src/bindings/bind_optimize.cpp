@@ -1,0 +1,89 @@
+// SurfMesh bindings — SurfaceMesh.optimize(): smoothing and untangling with a cancellable
+// Python progress callback.
+#include <pybind11/functional.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <stdexcept>
+
+#include "handle.h"
+#include "surfmesh/optimize/optimizer.h"
+
+namespace surfmesh::bindings {
+
+py::dict statsToDict(const QualityStats& s);
+
+void bind_optimize(MeshClass& cls) {
+  cls.def(
+      "optimize",
+      [](MeshHandle& h, const std::string& measure, int max_sweeps, double rel_tol,
+         double move_tol, int inner_iterations, int max_line_search,
+         const std::string& delta_policy, double delta_epsilon, double delta, bool monotone,
+         int threads, py::object progress) {
+        OptimizeOptions o;
+        o.measure = measure;
+        o.maxSweeps = max_sweeps;
+        o.relTol = rel_tol;
+        o.moveTol = move_tol;
+        o.innerIterations = inner_iterations;
+        o.maxLineSearch = max_line_search;
+        o.deltaPolicy = delta_policy;
+        o.deltaEpsilon = delta_epsilon;
+        o.delta = delta;
+        o.monotone = monotone;
+        o.threads = threads;
+        if (!progress.is_none() && !PyCallable_Check(progress.ptr()))
+          throw std::invalid_argument("progress must be callable or None");
+        // The callback runs on the calling thread after each sweep (GIL released around the
+        // sweeps): it takes the GIL, and a Python exception cancels the run and is re-raised.
+        std::unique_ptr<py::error_already_set> pyError;
+        ProgressCallback cb;
+        if (!progress.is_none()) {
+          cb = [&](const OptimizeProgress& p) -> bool {
+            py::gil_scoped_acquire gil;
+            try {
+              py::dict d;
+              d["sweep"] = p.sweep;
+              d["max_sweeps"] = p.maxSweeps;
+              d["objective"] = p.objective;
+              d["tangled"] = p.tangled;
+              d["min_quality"] = p.minQuality;
+              d["delta"] = p.delta;
+              py::object r = progress(d);
+              return r.is_none() || r.cast<bool>();
+            } catch (py::error_already_set& e) {
+              pyError = std::make_unique<py::error_already_set>(std::move(e));
+              return false;
+            }
+          };
+        }
+        SurfaceMesh& mesh = h.get();
+        OptimizeResult r;
+        {
+          py::gil_scoped_release release;
+          r = optimizeMesh(mesh, o, cb);
+        }
+        if (pyError) throw std::move(*pyError);
+        py::dict d;
+        d["before"] = statsToDict(r.before);
+        d["after"] = statsToDict(r.after);
+        d["sweeps"] = r.sweeps;
+        d["seconds"] = r.seconds;
+        d["reason"] = std::string(stopReasonName(r.reason));
+        d["initial_objective"] = r.initialObjective;
+        d["final_objective"] = r.finalObjective;
+        d["moved_nodes"] = r.movedNodes;
+        d["threads"] = r.threadsUsed;
+        return d;
+      },
+      py::arg("measure") = "shape", py::arg("max_sweeps") = 100, py::arg("rel_tol") = 1e-5,
+      py::arg("move_tol") = 1e-4, py::arg("inner_iterations") = 1,
+      py::arg("max_line_search") = 30, py::arg("delta_policy") = "auto",
+      py::arg("delta_epsilon") = 1e-2, py::arg("delta") = 1e-2, py::arg("monotone") = true,
+      py::arg("threads") = 0, py::arg("progress") = py::none(),
+      "Optimizes the mesh in place (nodes stay on their surfaces). progress(dict) is called "
+      "after every sweep; returning False cancels (reason 'cancelled', mesh unchanged). "
+      "Returns a dict: before, after (stats), sweeps, seconds, reason, moved_nodes, threads.");
+}
+
+}  // namespace surfmesh::bindings

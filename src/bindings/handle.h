@@ -1,0 +1,34 @@
+// SurfMesh bindings — the Python-side owner of a SurfaceMesh and of the geometry it points to.
+#pragma once
+
+#include <pybind11/pybind11.h>
+
+#include <memory>
+#include <string>
+
+#include "surfmesh/mesh/surface_mesh.h"
+
+namespace surfmesh::bindings {
+
+namespace py = pybind11;
+
+/// A SurfaceMesh together with whatever keeps its surfaces and curves alive (an analytic
+/// surface, or the CAD bridge's mesh and its CadShape). Exposed to Python as `SurfaceMesh`.
+struct MeshHandle {
+  std::shared_ptr<void> owner;  ///< keeps `mesh` and its geometry alive
+  SurfaceMesh* mesh = nullptr;  ///< the mesh (owned through `owner`)
+  py::dict report;              ///< how the mesh was built (bridge report), as a dict
+  std::string source;           ///< "cad" or "surface"
+
+  SurfaceMesh& get() const;
+};
+
+using MeshClass = py::class_<MeshHandle, std::shared_ptr<MeshHandle>>;
+
+void bind_geometry(py::module_& m);
+void bind_measures(py::module_& m);
+MeshClass bind_mesh(py::module_& m);
+void bind_cad(py::module_& m);
+void bind_optimize(MeshClass& cls);
+
+}  // namespace surfmesh::bindings
