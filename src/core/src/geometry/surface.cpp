@@ -61,7 +61,8 @@ bool isDegenerate(const SurfaceD1& d) {
   const double a = d.du.norm();
   const double b = d.dv.norm();
   if (!(a > 0.0) || !(b > 0.0)) return true;
-  return d.du.cross(d.dv).norm() <= kDegenerateTol * a * b;
+  const double m = std::max(a, b);
+  return d.du.cross(d.dv).norm() <= kDegenerateTol * m * m;
 }
 
 }  // namespace surfmesh

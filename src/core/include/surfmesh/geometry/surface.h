@@ -8,7 +8,7 @@
 // works on its own copy obtained with clone().
 #pragma once
 
-#include <Eigen/Core>
+#include <Eigen/Dense>
 
 #include <memory>
 #include <string>
@@ -97,8 +97,8 @@ class Surface {
 };
 
 /// Relative threshold under which ‖φ_u × φ_v‖ is considered degenerate (a pole):
-/// ‖φ_u × φ_v‖ ≤ kDegenerateTol · ‖φ_u‖ · ‖φ_v‖ (or either derivative vanishes).
-constexpr double kDegenerateTol = 1e-10;
+/// ‖φ_u × φ_v‖ ≤ kDegenerateTol · max(‖φ_u‖, ‖φ_v‖)² (or either derivative vanishes).
+constexpr double kDegenerateTol = 1e-12;
 
 /// True where the parameterization is degenerate (φ_u × φ_v ≈ 0).
 bool isDegenerate(const SurfaceD1& d);

@@ -15,7 +15,7 @@
 // and the base class turns them into the gradient and the Hessian with respect to S.
 #pragma once
 
-#include <Eigen/Core>
+#include <Eigen/Dense>
 
 #include <memory>
 #include <string>

@@ -1,0 +1,363 @@
+// Conformance of every registered planar measure, and of the surface extension (paper §3).
+#include "surfmesh/measures/measure.h"
+
+#include "surfmesh/geometry/analytic_surfaces.h"
+#include "surfmesh/measures/element_measure.h"
+#include "surfmesh/mesh/quality.h"
+#include "test_meshes.h"
+
+#include <Eigen/Geometry>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+using namespace surfmesh;
+
+namespace {
+
+const double kPi = 3.14159265358979323846;
+
+Mat2 rotation(double a) {
+  Mat2 R;
+  R << std::cos(a), -std::sin(a), std::sin(a), std::cos(a);
+  return R;
+}
+
+Mat2 randomS(std::mt19937& rng, bool positive) {
+  std::uniform_real_distribution<double> u(-2.0, 2.0);
+  for (;;) {
+    Mat2 S;
+    S << u(rng), u(rng), u(rng), u(rng);
+    const double d = S.determinant();
+    if (positive ? d > 0.2 : std::abs(d) > 0.2) return S;
+  }
+}
+
+// Planar triangle → S with the equilateral ideal, straight from the definition.
+Mat2 planarS(const Vec2& y0, const Vec2& y1, const Vec2& y2) {
+  Mat2 A;
+  A.col(0) = y1 - y0;
+  A.col(1) = y2 - y0;
+  return A * equilateralWinv();
+}
+
+// Verdict tri_shape: 4√3·A / Σ l² (unsigned), computed independently.
+double verdictTriShape(const Vec3& a, const Vec3& b, const Vec3& c) {
+  const double area = 0.5 * (b - a).cross(c - a).norm();
+  const double l2 = (b - a).squaredNorm() + (c - b).squaredNorm() + (a - c).squaredNorm();
+  return 4.0 * std::sqrt(3.0) * area / l2;
+}
+
+class MeasureConformance : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(MeasureConformance, IdealElementIsOne) {
+  const PlanarMeasure& m = measureByName(GetParam());
+  const Vec2 y0(0, 0), y1(1, 0), y2(0.5, std::sqrt(3.0) / 2);
+  EXPECT_NEAR(m.value(planarS(y0, y1, y2), 0.0), 1.0, 1e-14);
+  // Square corner ideal for quads.
+  EXPECT_NEAR(m.value(Mat2::Identity() * squareCornerWinv(), 0.0), 1.0, 1e-14);
+}
+
+TEST_P(MeasureConformance, InvariantUnderRotationTranslationScaling) {
+  const PlanarMeasure& m = measureByName(GetParam());
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-3.0, 3.0);
+  for (int trial = 0; trial < 200; ++trial) {
+    Vec2 y[3] = {{u(rng), u(rng)}, {u(rng), u(rng)}, {u(rng), u(rng)}};
+    Mat2 A;
+    A.col(0) = y[1] - y[0];
+    A.col(1) = y[2] - y[0];
+    if (A.determinant() < 0) std::swap(y[1], y[2]);
+    if (std::abs(A.determinant()) < 0.1) continue;
+    const double ref = m.value(planarS(y[0], y[1], y[2]), 0.0);
+    ASSERT_TRUE(std::isfinite(ref));
+    ASSERT_GE(ref, 1.0 - 1e-12);
+    const Mat2 R = rotation(u(rng));
+    const Vec2 t(u(rng), u(rng));
+    const double s = std::exp(u(rng));
+    Vec2 z[3];
+    for (int k = 0; k < 3; ++k) z[k] = s * (R * y[k]) + t;
+    EXPECT_NEAR(m.value(planarS(z[0], z[1], z[2]), 0.0), ref, 1e-10 * ref);
+    // A reflected (clockwise) triangle is tangled: η = ∞.
+    EXPECT_TRUE(std::isinf(m.value(planarS(y[0], y[2], y[1]), 0.0)));
+  }
+}
+
+// Finite-difference checks in the manner of MFEM's tmop-check-metric: the error of the
+// central difference falls at rate 2 when h is halved.
+double fdGradError(const PlanarMeasure& m, const Mat2& S, double delta, double h) {
+  Mat2 g;
+  m.evaluate(S, delta, &g, nullptr);
+  double err = 0.0;
+  for (int i = 0; i < 2; ++i)
+    for (int j = 0; j < 2; ++j) {
+      Mat2 Sp = S, Sm = S;
+      Sp(i, j) += h;
+      Sm(i, j) -= h;
+      const double fd = (m.value(Sp, delta) - m.value(Sm, delta)) / (2 * h);
+      err = std::max(err, std::abs(fd - g(i, j)));
+    }
+  return err;
+}
+
+double fdHessError(const PlanarMeasure& m, const Mat2& S, double delta, double h) {
+  Mat4 H;
+  m.evaluate(S, delta, nullptr, &H);
+  double err = 0.0;
+  for (int a = 0; a < 4; ++a) {
+    Mat2 Sp = S, Sm = S;
+    Sp(a / 2, a % 2) += h;
+    Sm(a / 2, a % 2) -= h;
+    Mat2 gp, gm;
+    m.evaluate(Sp, delta, &gp, nullptr);
+    m.evaluate(Sm, delta, &gm, nullptr);
+    for (int b = 0; b < 4; ++b) {
+      const double fd = (gp(b / 2, b % 2) - gm(b / 2, b % 2)) / (2 * h);
+      err = std::max(err, std::abs(fd - H(a, b)));
+    }
+  }
+  return err;
+}
+
+TEST_P(MeasureConformance, DerivativesConvergeAtRateTwo) {
+  const PlanarMeasure& m = measureByName(GetParam());
+  ASSERT_TRUE(m.hasHessian());
+  std::mt19937 rng(11);
+  for (double delta : {0.0, 0.3}) {
+    for (int trial = 0; trial < 20; ++trial) {
+      const Mat2 S = randomS(rng, delta == 0.0);
+      const double h = 1e-3;
+      const double e1 = fdGradError(m, S, delta, h), e2 = fdGradError(m, S, delta, h / 2);
+      const double h1 = fdHessError(m, S, delta, h), h2 = fdHessError(m, S, delta, h / 2);
+      if (e1 > 1e-9) EXPECT_NEAR(e1 / e2, 4.0, 0.5) << "gradient, delta=" << delta;
+      if (h1 > 1e-9) EXPECT_NEAR(h1 / h2, 4.0, 0.5) << "Hessian, delta=" << delta;
+      EXPECT_LT(e1, 1e-3 * (1 + m.value(S, delta)));
+      EXPECT_LT(h1, 1e-2 * (1 + m.value(S, delta)));
+    }
+  }
+}
+
+TEST_P(MeasureConformance, RegularizedIsFiniteForTangledAndTendsToBarrier) {
+  const PlanarMeasure& m = measureByName(GetParam());
+  Mat2 S;
+  S << 1.0, 0.3, 0.2, -0.8;  // det < 0
+  EXPECT_TRUE(std::isinf(m.value(S, 0.0)));
+  EXPECT_TRUE(std::isfinite(m.value(S, 0.1)));
+  S(1, 1) = 0.9;  // valid: σ* → σ as δ → 0
+  EXPECT_NEAR(m.value(S, 1e-9), m.value(S, 0.0), 1e-8);
+}
+
+INSTANTIATE_TEST_SUITE_P(AllMeasures, MeasureConformance, ::testing::ValuesIn(measureNames()));
+
+TEST(MeasureRegistry, KnowsShapeAndOddyAndRejectsUnknown) {
+  const auto names = measureNames();
+  EXPECT_NE(std::find(names.begin(), names.end(), "shape"), names.end());
+  EXPECT_NE(std::find(names.begin(), names.end(), "oddy"), names.end());
+  try {
+    measureByName("nope");
+    FAIL() << "no exception";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("shape"), std::string::npos);
+  }
+}
+
+TEST(ShapeMeasure, HandComputedValues) {
+  const PlanarMeasure& shape = measureByName("shape");
+  const PlanarMeasure& oddy = measureByName("oddy");
+  // Right isosceles triangle (0,0),(1,0),(0,1): tri_shape = 4√3·½ / 4 = √3/2.
+  const Mat2 S = planarS({0, 0}, {1, 0}, {0, 1});
+  EXPECT_NEAR(1.0 / shape.value(S, 0.0), std::sqrt(3.0) / 2, 1e-14);
+  // Oddy of the same: S = A W⁻¹ with A = I; F = ‖W⁻¹‖² = 1 + 1/3 + 4/3 = 8/3, σ = 2/√3:
+  // η = (F² − 3σ²)/σ² = (64/9 − 4)/(4/3) = 7/3.
+  EXPECT_NEAR(oddy.value(S, 0.0), 7.0 / 3.0, 1e-13);
+}
+
+// ---- surface extension ---------------------------------------------------------------------
+
+TEST(SurfaceMeasure, PlanarConsistencyWithPlanarMeasureAndVerdict) {
+  const PlaneSurface plane;  // φ(u,v) = (u, v, 0)
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-5.0, 5.0);
+  int checked = 0;
+  for (int trial = 0; trial < 500; ++trial) {
+    Vec2 p[3] = {{u(rng), u(rng)}, {u(rng), u(rng)}, {u(rng), u(rng)}};
+    Vec3 x[3];
+    for (int k = 0; k < 3; ++k) x[k] = plane.value(p[k].x(), p[k].y());
+    const Vec3 n = plane.normal(0, 0);
+    for (const auto& name : measureNames()) {
+      const PlanarMeasure& m = measureByName(name);
+      const ElementEval ev = triangleDistortion(m, x[0], x[1], x[2], n, 0.0, equilateralWinv());
+      const double planar = m.value(planarS(p[0], p[1], p[2]), 0.0);
+      if (std::isinf(planar)) {
+        EXPECT_TRUE(ev.tangled);
+        continue;
+      }
+      EXPECT_NEAR(ev.eta, planar, 1e-13 * planar);
+      if (name == "shape") EXPECT_NEAR(1.0 / ev.eta, verdictTriShape(x[0], x[1], x[2]), 1e-13);
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 300);
+}
+
+TEST(SurfaceMeasure, FlippedTriangleIsTangledOnCurvedSurfaces) {
+  const TorusSurface torus(10, 4);
+  const SphereSurface sphere(3);
+  const CylinderSurface cyl(2, 0, 5);
+  const Surface* surfaces[] = {&torus, &sphere, &cyl};
+  for (const Surface* s : surfaces) {
+    // A small counter-clockwise triangle in (u,v) around (0.7, 0.3).
+    const Vec2 c(0.7, 0.3);
+    const double h = 0.05;
+    Vec3 x[3] = {s->value(c.x(), c.y()), s->value(c.x() + h, c.y()),
+                 s->value(c.x() + h / 2, c.y() + h)};
+    const Vec3 n = s->normal(c.x(), c.y());
+    for (const auto& name : measureNames()) {
+      const PlanarMeasure& m = measureByName(name);
+      const ElementEval good = triangleDistortion(m, x[0], x[1], x[2], n, 0, equilateralWinv());
+      const ElementEval flip = triangleDistortion(m, x[0], x[2], x[1], n, 0, equilateralWinv());
+      EXPECT_FALSE(good.tangled) << s->describe();
+      EXPECT_GT(good.minSigma, 0.0);
+      EXPECT_TRUE(flip.tangled) << s->describe();
+      EXPECT_EQ(1.0 / flip.eta, 0.0);
+      // A reversed face flips what tangled means.
+      const ElementEval rev = triangleDistortion(m, x[0], x[1], x[2], -n, 0, equilateralWinv());
+      EXPECT_TRUE(rev.tangled);
+    }
+  }
+}
+
+// Restricted measure of a free node in (u,v): exact gradient and Hessian vs finite differences
+// (rate 2), on a torus and on a polynomial patch.
+void checkRestrictedDerivatives(const Surface& s, const Vec2 uv[3], double delta) {
+  for (const auto& name : measureNames()) {
+    const PlanarMeasure& m = measureByName(name);
+    const Vec3 x1 = s.value(uv[1].x(), uv[1].y()), x2 = s.value(uv[2].x(), uv[2].y());
+    const Vec3 n = s.normal(uv[0].x(), uv[0].y());
+    auto f = [&](const Vec2& p) {
+      return triangleDistortion(m, s.value(p.x(), p.y()), x1, x2, n, delta, equilateralWinv()).eta;
+    };
+    auto grad = [&](const Vec2& p, Mat2* H) {
+      const SurfaceD2 d = s.d2(p.x(), p.y());
+      Vec3 g;
+      Mat3 Hx;
+      triangleDistortion(m, d.p, x1, x2, n, delta, equilateralWinv(), &g, &Hx);
+      Vec2 gu;
+      chainToSurface(d, g, Hx, &gu, H);
+      return gu;
+    };
+    Mat2 H;
+    const Vec2 g = grad(uv[0], &H);
+    double err[2] = {0, 0}, herr[2] = {0, 0};
+    for (int level = 0; level < 2; ++level) {
+      const double h = 2e-4 / (1 << level);
+      for (int k = 0; k < 2; ++k) {
+        Vec2 e = Vec2::Zero();
+        e(k) = h;
+        const double fd = (f(uv[0] + e) - f(uv[0] - e)) / (2 * h);
+        err[level] = std::max(err[level], std::abs(fd - g(k)));
+        const Vec2 gfd = (grad(uv[0] + e, nullptr) - grad(uv[0] - e, nullptr)) / (2 * h);
+        for (int j = 0; j < 2; ++j) herr[level] = std::max(herr[level], std::abs(gfd(j) - H(k, j)));
+      }
+    }
+    if (err[0] > 1e-9) EXPECT_NEAR(err[0] / err[1], 4.0, 0.6) << name << " " << s.describe();
+    if (herr[0] > 1e-9) EXPECT_NEAR(herr[0] / herr[1], 4.0, 0.6) << name << " " << s.describe();
+    EXPECT_LT(err[0], 1e-4 * (1 + g.norm())) << name << " " << s.describe();
+    EXPECT_LT(herr[0], 1e-3 * (1 + H.norm())) << name << " " << s.describe();
+  }
+}
+
+TEST(SurfaceMeasure, RestrictedDerivativesOnTorusMatchFiniteDifferences) {
+  const TorusSurface torus(10, 4);
+  const Vec2 uv[3] = {{0.31, 1.2}, {0.45, 1.25}, {0.36, 1.42}};
+  checkRestrictedDerivatives(torus, uv, 0.0);
+  // A tangled configuration with the regularized measure.
+  const Vec2 tangled[3] = {{0.31, 1.2}, {0.36, 1.42}, {0.45, 1.25}};
+  checkRestrictedDerivatives(torus, tangled, 0.05);
+}
+
+TEST(SurfaceMeasure, RestrictedDerivativesOnPolynomialPatchMatchFiniteDifferences) {
+  PolynomialPatch::Coeffs c;
+  for (auto& row : c)
+    for (auto& v : row) v = Vec3::Zero();
+  c[1][0] = {1, 0, 0.2};
+  c[0][1] = {0, 1, -0.1};
+  c[2][0] = {0, 0, 0.7};
+  c[1][1] = {0.1, 0, 0.5};
+  c[0][2] = {0, 0.2, -0.4};
+  const PolynomialPatch patch(c);
+  const Vec2 uv[3] = {{0.3, 0.3}, {0.5, 0.35}, {0.38, 0.55}};
+  checkRestrictedDerivatives(patch, uv, 0.0);
+}
+
+TEST(SurfaceMeasure, ChainRulesForAnalyticSurfaces) {
+  // d2 of every analytic surface against finite differences of d1.
+  const TorusSurface torus(10, 4);
+  const SphereSurface sphere(2);
+  const CylinderSurface cyl(1.5, -1, 1);
+  const PolynomialPatch bil =
+      PolynomialPatch::bilinear({0, 0, 0}, {1, 0, 0.3}, {0, 1, -0.2}, {1.2, 1.1, 0.5});
+  const Surface* ss[] = {&torus, &sphere, &cyl, &bil};
+  for (const Surface* s : ss) {
+    const double u = 0.4, v = 0.3, h = 1e-6;
+    const SurfaceD2 d = s->d2(u, v);
+    const SurfaceD1 up = s->d1(u + h, v), um = s->d1(u - h, v), vp = s->d1(u, v + h),
+                    vm = s->d1(u, v - h);
+    EXPECT_LT(((up.p - um.p) / (2 * h) - d.du).norm(), 1e-7) << s->describe();
+    EXPECT_LT(((vp.p - vm.p) / (2 * h) - d.dv).norm(), 1e-7) << s->describe();
+    EXPECT_LT(((up.du - um.du) / (2 * h) - d.duu).norm(), 1e-6) << s->describe();
+    EXPECT_LT(((vp.du - vm.du) / (2 * h) - d.duv).norm(), 1e-6) << s->describe();
+    EXPECT_LT(((vp.dv - vm.dv) / (2 * h) - d.dvv).norm(), 1e-6) << s->describe();
+  }
+}
+
+TEST(SurfaceMeasure, OutwardNormalsAndPeriodicity) {
+  const TorusSurface torus(10, 4);
+  const Vec3 p = torus.value(0.0, 0.0);  // outer equator (14, 0, 0)
+  EXPECT_NEAR(torus.normal(0.0, 0.0).dot(Vec3(1, 0, 0)), 1.0, 1e-14);
+  EXPECT_NEAR(p.x(), 14.0, 1e-14);
+  const SphereSurface sphere(2);
+  EXPECT_NEAR(sphere.normal(1.0, 0.2).dot(sphere.value(1.0, 0.2).normalized()), 1.0, 1e-14);
+  EXPECT_EQ(sphere.normal(1.0, kPi / 2).norm(), 0.0);  // pole: degenerate
+  const Vec2 w = torus.wrap({-0.1, 7.0});
+  EXPECT_NEAR(w.x(), 2 * kPi - 0.1, 1e-14);
+  EXPECT_NEAR(w.y(), 7.0 - 2 * kPi, 1e-14);
+  const Vec2 un = torus.unwrapNear({6.2, 0.1}, {0.05, 0.1});
+  EXPECT_NEAR(un.x(), 6.2 - 2 * kPi, 1e-14);
+  const ReversedSurface rev(torus.clone());
+  EXPECT_NEAR(rev.normal(0.0, 0.0).dot(Vec3(1, 0, 0)), -1.0, 1e-14);
+}
+
+TEST(QualityStats, MatchHandComputedValues) {
+  const std::vector<double> q = {0.0, 0.5, 1.0, 0.5};
+  const std::vector<unsigned char> t = {1, 0, 0, 0};
+  const QualityStats s = computeStats(q, t);
+  EXPECT_EQ(s.min, 0.0);
+  EXPECT_EQ(s.max, 1.0);
+  EXPECT_DOUBLE_EQ(s.mean, 0.5);
+  EXPECT_DOUBLE_EQ(s.stddev, std::sqrt(0.125));
+  EXPECT_EQ(s.tangled, 1u);
+  EXPECT_EQ(s.elements, 4u);
+}
+
+TEST(QualityStats, PaperTable1PlanarSquareSurfaceEqualsPlanar) {
+  const PlaneSurface plane;
+  const auto g = testmesh::squareMesh(12);
+  const SurfaceMesh m = makeSingleSurfaceMesh(plane, g.uv, ElementType::Tri3, g.conn, g.fixed);
+  const MeshQuality mq = measureQuality(m, measureByName("shape"));
+  // Planar reference: Verdict's formula on the same triangles.
+  std::vector<double> planar;
+  for (std::size_t e = 0; e < m.elementCount(); ++e) {
+    const auto* nd = m.elementNodes(e);
+    planar.push_back(verdictTriShape(m.xyz[nd[0]], m.xyz[nd[1]], m.xyz[nd[2]]));
+    EXPECT_NEAR(mq.quality[e], planar.back(), 1e-13);
+  }
+  const QualityStats ref = computeStats(planar, std::vector<unsigned char>(planar.size(), 0));
+  testmesh::printTableRow("planar shape (Verdict)", ref);
+  testmesh::printTableRow("surface shape", mq.stats);
+  EXPECT_NEAR(mq.stats.mean, ref.mean, 1e-13);
+  EXPECT_EQ(mq.stats.tangled, 0u);
+}
+
+}  // namespace

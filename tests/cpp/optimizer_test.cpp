@@ -1,0 +1,262 @@
+// Simultaneous smoothing and untangling on analytic surfaces: the paper's cases (§6) and the
+// optimizer's guarantees.
+#include "surfmesh/optimize/optimizer.h"
+
+#include "surfmesh/geometry/analytic_surfaces.h"
+#include "surfmesh/mesh/quality.h"
+#include "test_meshes.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+
+using namespace surfmesh;
+using namespace surfmesh::testmesh;
+
+namespace {
+
+const double kPi = 3.14159265358979323846;
+
+struct Case {
+  SurfaceMesh mesh;
+  QualityStats unperturbed;
+  QualityStats perturbed;
+};
+
+Case makeCase(const Surface& s, const GridMesh& g, std::size_t tangledTarget, double amp,
+              unsigned seed, const std::string& measure = "shape") {
+  Case c;
+  c.mesh = makeSingleSurfaceMesh(s, g.uv, ElementType::Tri3, g.conn, g.fixed);
+  c.unperturbed = measureQuality(c.mesh, measureByName(measure)).stats;
+  // Perturbation amplitude in (u,v): `amp` times the mean parametric edge length.
+  double lu = 0, lv = 0;
+  for (std::size_t e = 0; e < c.mesh.elementCount(); ++e) {
+    const Vec2* uv = c.mesh.elementUV(e);
+    lu += std::abs(uv[1].x() - uv[0].x()) + std::abs(uv[2].x() - uv[1].x());
+    lv += std::abs(uv[1].y() - uv[0].y()) + std::abs(uv[2].y() - uv[1].y());
+  }
+  lu /= 2.0 * c.mesh.elementCount();
+  lv /= 2.0 * c.mesh.elementCount();
+  perturbUntilTangled(c.mesh, s, tangledTarget, amp * lu, amp * lv, seed);
+  c.perturbed = measureQuality(c.mesh, measureByName(measure)).stats;
+  return c;
+}
+
+void expectOnSurfaceAndInDomain(const SurfaceMesh& m) {
+  EXPECT_LE(maxDistanceToSurface(m), 1e-12);
+  for (std::size_t i = 0; i < m.nodeCount(); ++i) {
+    if (m.nodeKind[i] != NodeKind::Face) continue;
+    const Surface& s = *m.surfaces[static_cast<std::size_t>(m.nodeFace[i])];
+    ASSERT_TRUE(s.contains(m.uv[i].x(), m.uv[i].y())) << "node " << i;
+    const ParamBounds b = s.bounds();
+    if (s.isUPeriodic()) {
+      EXPECT_GE(m.uv[i].x(), b.umin);
+      EXPECT_LT(m.uv[i].x(), b.umin + s.uPeriod());
+    }
+  }
+}
+
+OptimizeResult runAndReport(const std::string& title, Case& c, OptimizeOptions opt) {
+  std::vector<std::size_t> tangledPerSweep;
+  const OptimizeResult r = optimizeMesh(c.mesh, opt, [&](const OptimizeProgress& p) {
+    tangledPerSweep.push_back(p.tangled);
+    return true;
+  });
+  std::printf("%s (%s measure): %d sweeps, %.3f s, %s\n", title.c_str(), opt.measure.c_str(),
+              r.sweeps, r.seconds, stopReasonName(r.reason));
+  printTableRow("unperturbed", c.unperturbed);
+  printTableRow("tangled (input)", r.before);
+  printTableRow("smoothed and untangled", r.after);
+  // The number of tangled elements never increases across the run.
+  std::size_t prev = r.before.tangled;
+  for (std::size_t t : tangledPerSweep) {
+    EXPECT_LE(t, prev);
+    prev = t;
+  }
+  return r;
+}
+
+GridMesh readSquareMesh() {
+  // Frontal-Delaunay mesh of the unit square by gmsh (tests/data/make_square_mesh.py).
+  std::ifstream in(std::string(SURFMESH_TEST_DATA_DIR) + "/square_frontal.txt");
+  GridMesh g;
+  std::size_t n = 0, e = 0, b = 0;
+  in >> n >> e >> b;
+  g.uv.resize(n);
+  for (auto& p : g.uv) in >> p.x() >> p.y();
+  g.conn.resize(3 * e);
+  for (auto& i : g.conn) in >> i;
+  g.fixed.resize(b);
+  for (auto& i : g.fixed) in >> i;
+  return g;
+}
+
+TEST(Optimizer, PlanarSquareWithFiftyTangledElements) {
+  const PlaneSurface plane({0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0.0, 1.0, 0.0, 1.0});
+  const GridMesh g = readSquareMesh();
+  ASSERT_GT(g.uv.size(), 300u);
+  Case c = makeCase(plane, g, 50, 1.5, 1);
+  ASSERT_GE(c.perturbed.tangled, 50u);
+  OptimizeOptions opt;
+  const OptimizeResult r = runAndReport("planar square", c, opt);
+  EXPECT_EQ(r.after.tangled, 0u);
+  EXPECT_GE(r.after.min, 0.9);
+  // The frontal mesh is already at the optimum in mean quality (0.992); the untangled mesh
+  // must come back to it.
+  EXPECT_GE(r.after.mean, c.unperturbed.mean - 1e-3);
+  EXPECT_GE(r.after.min, c.unperturbed.min);
+  expectOnSurfaceAndInDomain(c.mesh);
+}
+
+class TorusTable2 : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(TorusTable2, UntanglesAbout73ElementsOnAClosedTorus) {
+  const TorusSurface torus(10, 4);
+  // 50 × 32 = 1600 nodes, 3200 triangles, no fixed node.
+  const GridMesh g = periodicGridMesh(50, 32, 0, 2 * kPi, 0, 2 * kPi, true);
+  ASSERT_EQ(g.uv.size(), 1600u);
+  ASSERT_TRUE(g.fixed.empty());
+  Case c = makeCase(torus, g, 73, 1.2, 5, GetParam());
+  ASSERT_GE(c.perturbed.tangled, 73u);
+  ASSERT_LE(c.perturbed.tangled, 90u);
+  OptimizeOptions opt;
+  opt.measure = GetParam();
+  const OptimizeResult r = runAndReport("torus R=10 r=4", c, opt);
+  EXPECT_EQ(r.after.tangled, 0u);
+  if (GetParam() == "shape") {
+    EXPECT_GE(r.after.min, 0.75);
+  }
+  EXPECT_GT(r.after.min, 0.0);
+  EXPECT_GE(r.after.mean, c.unperturbed.mean);
+  EXPECT_LT(r.after.stddev, c.perturbed.stddev);
+  expectOnSurfaceAndInDomain(c.mesh);
+}
+
+INSTANTIATE_TEST_SUITE_P(ShapeAndOddy, TorusTable2, ::testing::Values("shape", "oddy"));
+
+TEST(Optimizer, SphereWithPolesUntangles) {
+  const SphereSurface sphere(5);
+  const GridMesh g = sphereMesh(40, 24);
+  Case c = makeCase(sphere, g, 40, 1.2, 9);
+  ASSERT_GE(c.perturbed.tangled, 40u);
+  const Vec3 north = c.mesh.xyz[g.fixed[1]];
+  const OptimizeResult r = runAndReport("sphere r=5 (poles fixed)", c, {});
+  EXPECT_EQ(r.after.tangled, 0u);
+  EXPECT_GE(r.after.mean, c.unperturbed.mean);
+  EXPECT_EQ(c.mesh.xyz[g.fixed[1]], north);  // poles stay fixed
+  expectOnSurfaceAndInDomain(c.mesh);
+}
+
+TEST(Optimizer, CylinderWithBoundaryCirclesUntangles) {
+  const CylinderSurface cyl(3, 0, 10);
+  GridMesh g = periodicGridMesh(40, 30, 0, 2 * kPi, 0, 10, false);
+  // Graded rows (denser towards v = 0), so that smoothing has something to improve.
+  for (auto& p : g.uv) p.y() = 10.0 * std::pow(p.y() / 10.0, 1.4);
+  Case c = makeCase(cyl, g, 40, 1.2, 13);
+  ASSERT_GE(c.perturbed.tangled, 40u);
+  const OptimizeResult r = runAndReport("cylinder r=3 h=10", c, {});
+  EXPECT_EQ(r.after.tangled, 0u);
+  EXPECT_GE(r.after.mean, c.unperturbed.mean);
+  expectOnSurfaceAndInDomain(c.mesh);
+  // Boundary circles did not move.
+  for (std::int32_t i : g.fixed) {
+    const Vec2 uv = cyl.wrap(g.uv[static_cast<std::size_t>(i)]);
+    EXPECT_EQ(c.mesh.xyz[static_cast<std::size_t>(i)], cyl.value(uv.x(), uv.y()));
+  }
+}
+
+TEST(Optimizer, MonotoneModeNeverLowersTheMinimumQualityOfAValidMesh) {
+  const TorusSurface torus(10, 4);
+  const GridMesh g = periodicGridMesh(30, 16, 0, 2 * kPi, 0, 2 * kPi, true);
+  for (const auto& name : measureNames()) {
+    Case c = makeCase(torus, g, 0, 0.0, 1, name);  // unperturbed, valid
+    // Mild perturbation that keeps the mesh valid.
+    perturbUntilTangled(c.mesh, torus, 0, 0.0, 0.0, 1);
+    std::mt19937 rng(17);
+    std::uniform_real_distribution<double> u(-0.02, 0.02);
+    for (std::size_t i = 0; i < c.mesh.nodeCount(); ++i) c.mesh.uv[i] += Vec2(u(rng), u(rng));
+    syncFaceNodes(c.mesh);
+    const QualityStats before = measureQuality(c.mesh, measureByName(name)).stats;
+    ASSERT_EQ(before.tangled, 0u);
+    double prevMin = before.min;
+    OptimizeOptions opt;
+    opt.measure = name;
+    const OptimizeResult r = optimizeMesh(c.mesh, opt, [&](const OptimizeProgress& p) {
+      EXPECT_GE(p.minQuality, prevMin - 1e-15) << name << " sweep " << p.sweep;
+      prevMin = p.minQuality;
+      return true;
+    });
+    EXPECT_EQ(r.after.tangled, 0u);
+    EXPECT_GE(r.after.min, before.min);
+    EXPECT_GT(r.after.mean, before.mean);
+  }
+}
+
+TEST(Optimizer, CancellationLeavesTheMeshUnchanged) {
+  const TorusSurface torus(10, 4);
+  Case c = makeCase(torus, periodicGridMesh(30, 16, 0, 2 * kPi, 0, 2 * kPi, true), 20, 1.2, 3);
+  const SurfaceMesh copy = c.mesh;
+  int calls = 0;
+  const OptimizeResult r =
+      optimizeMesh(c.mesh, {}, [&](const OptimizeProgress&) { return ++calls < 2; });
+  EXPECT_EQ(r.reason, StopReason::Cancelled);
+  EXPECT_EQ(calls, 2);
+  EXPECT_EQ(c.mesh.xyz, copy.xyz);
+  EXPECT_EQ(c.mesh.uv, copy.uv);
+  EXPECT_EQ(c.mesh.cornerUV, copy.cornerUV);
+}
+
+TEST(Optimizer, ResultDoesNotDependOnTheThreadCount) {
+  const TorusSurface torus(10, 4);
+  Case c1 = makeCase(torus, periodicGridMesh(50, 32, 0, 2 * kPi, 0, 2 * kPi, true), 73, 1.2, 5);
+  Case c2 = c1;
+  OptimizeOptions o1, o2;
+  o1.threads = 1;
+  o2.threads = 2;
+  const OptimizeResult r1 = optimizeMesh(c1.mesh, o1);
+  const OptimizeResult r2 = optimizeMesh(c2.mesh, o2);
+  EXPECT_EQ(r2.threadsUsed, 2);
+  EXPECT_EQ(r1.sweeps, r2.sweeps);
+  EXPECT_NEAR(r1.after.min, r2.after.min, 1e-9);
+  EXPECT_NEAR(r1.after.mean, r2.after.mean, 1e-9);
+  EXPECT_NEAR(r1.after.stddev, r2.after.stddev, 1e-9);
+  EXPECT_EQ(r1.after.tangled, r2.after.tangled);
+}
+
+TEST(Optimizer, NodesCrossThePeriodicSeamAndStayWrapped) {
+  // A cylinder strip whose nodes straddle u = 0: shift every free node's u by half a cell
+  // towards the seam; the optimizer moves them back across it.
+  const CylinderSurface cyl(2, 0, 4);
+  GridMesh g = periodicGridMesh(24, 8, 0, 2 * kPi, 0, 4, false);
+  SurfaceMesh m = makeSingleSurfaceMesh(cyl, g.uv, ElementType::Tri3, g.conn, g.fixed);
+  for (std::size_t i = 0; i < m.nodeCount(); ++i)
+    if (m.nodeKind[i] == NodeKind::Face && m.uv[i].x() < 0.3) m.uv[i].x() -= 0.25;
+  syncFaceNodes(m);
+  const OptimizeResult r = optimizeMesh(m, {});
+  EXPECT_EQ(r.after.tangled, 0u);
+  EXPECT_GT(r.after.min, r.before.min);
+  bool crossed = false;
+  for (std::size_t i = 0; i < m.nodeCount(); ++i)
+    if (m.nodeKind[i] == NodeKind::Face && m.uv[i].x() < 0.3) crossed = true;
+  EXPECT_TRUE(crossed);
+  expectOnSurfaceAndInDomain(m);
+}
+
+TEST(Optimizer, RejectsBadOptions) {
+  const TorusSurface torus(10, 4);
+  const GridMesh g = periodicGridMesh(10, 8, 0, 2 * kPi, 0, 2 * kPi, true);
+  SurfaceMesh m = makeSingleSurfaceMesh(torus, g.uv, ElementType::Tri3, g.conn, g.fixed);
+  OptimizeOptions o;
+  o.measure = "nope";
+  EXPECT_THROW(optimizeMesh(m, o), std::invalid_argument);
+  o = {};
+  o.relTol = -1;
+  EXPECT_THROW(optimizeMesh(m, o), std::invalid_argument);
+  o = {};
+  o.deltaPolicy = "sometimes";
+  EXPECT_THROW(optimizeMesh(m, o), std::invalid_argument);
+}
+
+}  // namespace
