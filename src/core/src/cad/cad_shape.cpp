@@ -93,6 +93,7 @@ CadShape::CadShape(const TopoDS_Shape& shape) : shape_(shape) {
 
   // Curves with their pcurves on the adjacent faces.
   curves_.reserve(static_cast<std::size_t>(ne));
+  edgeBoxes_.resize(static_cast<std::size_t>(ne));
   for (int e = 0; e < ne; ++e) {
     const TopoDS_Edge& edge = TopoDS::Edge(edges_(e + 1));
     std::vector<EdgeFaceUse> uses;
@@ -116,6 +117,8 @@ CadShape::CadShape(const TopoDS_Shape& shape) : shape_(shape) {
       uses.push_back(u);
     }
     curves_.push_back(std::make_unique<OccEdgeCurve>(edge, e, std::move(uses)));
+    if (!BRep_Tool::Degenerated(edge))
+      BRepBndLib::Add(edge, edgeBoxes_[static_cast<std::size_t>(e)], Standard_False);
   }
 }
 

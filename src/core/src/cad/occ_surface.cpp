@@ -102,17 +102,30 @@ OccFaceSurface::OccFaceSurface(const TopoDS_Face& face, int faceId)
   bounds_ = faceBounds_;
   uPeriodic_ = adaptor_.IsUPeriodic();
   vPeriodic_ = adaptor_.IsVPeriodic();
+  const double ptol = 1e-6;
   if (uPeriodic_) {
     uPeriod_ = adaptor_.UPeriod();
-    const double c = 0.5 * (u0 + u1);
-    bounds_.umin = (u1 - u0 >= uPeriod_ - Precision::PConfusion()) ? u0 : c - 0.5 * uPeriod_;
-    bounds_.umax = bounds_.umin + uPeriod_;
+    if (u1 - u0 > uPeriod_ * (1.0 + ptol)) {  // more than one turn: not periodic for us
+      uTurn_ = uPeriod_;
+      uPeriodic_ = false;
+      uPeriod_ = 0.0;
+    } else {
+      const double c = 0.5 * (u0 + u1);
+      bounds_.umin = (u1 - u0 >= uPeriod_ * (1.0 - ptol)) ? u0 : c - 0.5 * uPeriod_;
+      bounds_.umax = bounds_.umin + uPeriod_;
+    }
   }
   if (vPeriodic_) {
     vPeriod_ = adaptor_.VPeriod();
-    const double c = 0.5 * (v0 + v1);
-    bounds_.vmin = (v1 - v0 >= vPeriod_ - Precision::PConfusion()) ? v0 : c - 0.5 * vPeriod_;
-    bounds_.vmax = bounds_.vmin + vPeriod_;
+    if (v1 - v0 > vPeriod_ * (1.0 + ptol)) {
+      vTurn_ = vPeriod_;
+      vPeriodic_ = false;
+      vPeriod_ = 0.0;
+    } else {
+      const double c = 0.5 * (v0 + v1);
+      bounds_.vmin = (v1 - v0 >= vPeriod_ * (1.0 - ptol)) ? v0 : c - 0.5 * vPeriod_;
+      bounds_.vmax = bounds_.vmin + vPeriod_;
+    }
   }
   normalSign_ = face_.Orientation() == TopAbs_REVERSED ? -1 : 1;
   // (u,v) tolerance of the classifier: the resolution of the face's 3D tolerance.
@@ -159,7 +172,8 @@ bool OccFaceSurface::contains(double u, double v) const {
   if (!vPeriodic_ && (w.y() < faceBounds_.vmin - tol || w.y() > faceBounds_.vmax + tol))
     return false;
   if (!classifier_) classifier_ = std::make_unique<BRepTopAdaptor_FClass2d>(face_, tol);
-  const TopAbs_State st = classifier_->Perform(gp_Pnt2d(w.x(), w.y()), Standard_True);
+  const TopAbs_State st = classifier_->Perform(
+      gp_Pnt2d(w.x(), w.y()), uTurn_ == 0.0 && vTurn_ == 0.0 ? Standard_True : Standard_False);
   return st == TopAbs_IN || st == TopAbs_ON;
 }
 

@@ -78,6 +78,8 @@ class CadShape {
   double diagonal() const { return diagonal_; }
   /// Per-face bounding boxes (conservative).
   const Bnd_Box& faceBox(int face) const { return faceBoxes_.at(face); }
+  /// Per-edge bounding boxes (conservative; void for degenerated edges).
+  const Bnd_Box& edgeBox(int edge) const { return edgeBoxes_.at(edge); }
 
   /// Surface type of face `id`: "Plane", "Cylinder", "BSplineSurface", … (occSurfaceTypeName).
   std::string faceType(int id) const;
@@ -92,7 +94,7 @@ class CadShape {
   std::vector<std::unique_ptr<OccFaceSurface>> surfaces_;
   std::vector<std::unique_ptr<OccEdgeCurve>> curves_;
   std::vector<std::vector<int>> edgeFaces_, faceEdges_, edgeVertices_, vertexEdges_, vertexFaces_;
-  std::vector<Bnd_Box> faceBoxes_;
+  std::vector<Bnd_Box> faceBoxes_, edgeBoxes_;
   Bnd_Box bbox_;
   double diagonal_ = 0.0;
 };

@@ -7,6 +7,9 @@
 //     one period [c − P/2, c + P/2) centred on the middle c of the face's own range (so a face
 //     that covers a full period gets [umin, umin + P), and a partial face never straddles the
 //     wrap point: a node slightly outside its face's range is not sent a period away);
+//     A face whose own range exceeds one period (a helical thread flank wound on a cylinder)
+//     is NOT reported periodic: its bounds are its own range, on which its (u,v) are unique;
+//     uTurnPeriod()/vTurnPeriod() give the underlying period to find a point's (u,v) there;
 //   * normalSign() = −1 when face.Orientation() == TopAbs_REVERSED;
 //   * contains(u,v) classifies (u,v) against the face's trimming loops (holes, inner wires)
 //     with BRepTopAdaptor_FClass2d, after wrapping periodic coordinates; ON counts as inside.
@@ -64,6 +67,10 @@ class OccFaceSurface final : public Surface {
   const ParamBounds& faceUVBounds() const { return faceBounds_; }
   /// Tolerance in (u,v) used by contains() (resolution of the face's 3D tolerance).
   double uvTolerance() const { return uvTol_; }
+  /// Period of the underlying surface in u (v) when the face spans more than one period
+  /// (then isUPeriodic() is false and (u,v) must be taken in faceUVBounds()); else 0.
+  double uTurnPeriod() const { return uTurn_; }
+  double vTurnPeriod() const { return vTurn_; }
   const TopoDS_Face& face() const { return face_; }
   const BRepAdaptor_Surface& adaptor() const { return adaptor_; }
   int faceId() const { return faceId_; }
@@ -75,6 +82,7 @@ class OccFaceSurface final : public Surface {
   ParamBounds bounds_, faceBounds_;
   bool uPeriodic_ = false, vPeriodic_ = false;
   double uPeriod_ = 0.0, vPeriod_ = 0.0;
+  double uTurn_ = 0.0, vTurn_ = 0.0;
   int normalSign_ = 1;
   double uvTol_ = 1e-9;
   mutable std::unique_ptr<BRepTopAdaptor_FClass2d> classifier_;  // built on first contains()

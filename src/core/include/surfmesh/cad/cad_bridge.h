@@ -1,0 +1,149 @@
+// SurfMesh — the CAD bridge: a surface mesh made by someone else (BRepMesh, Mefisto, Gmsh,
+// an STL…) plus the B-rep it was made on → a SurfaceMesh whose nodes know where they live on
+// the B-rep (vertex, edge with curve parameter t, or face with (u,v)).
+//
+// Classification (CadMesh constructor):
+//   1. Every node gets the set C(n) of faces within `tolerance` of it: candidate faces from
+//      their bounding boxes, the point projected on the face's surface
+//      (ShapeAnalysis_Surface::NextValueOfUV, started from the previous node's (u,v) on that
+//      face), the result classified against the trimming loops (BRepTopAdaptor_FClass2d);
+//      outside the loops the distance is the one to the face's boundary edges
+//      (ShapeAnalysis_Curve::Project). Hints (Gmsh's node → face/edge/vertex) replace the search
+//      when they check out; a hint farther than the tolerance is ignored with a warning.
+//   2. Every element is assigned the face shared by all its nodes (∩ C(n)); when several faces
+//      qualify, the one nearest to the element's centroid. An element whose nodes share no
+//      face is an error (std::invalid_argument naming the element and its nodes' faces).
+//   3. Every node gets the faces F(n) of its elements. One face → a face node (seam edges of
+//      periodic faces are inside the face), except on the mesh's own boundary, where the node
+//      is put on the nearest CAD edge of its face. Several faces → the node is on a CAD vertex
+//      shared by them (when closer than a tenth of its shortest mesh edge) or else on their
+//      nearest common CAD edge. Nodes on degenerated edges (poles) are vertex nodes.
+//   4. Node kinds: face nodes move in (u,v) (NodeKind::Face); vertex nodes, poles and nodes in
+//      no element are Fixed; edge nodes are Fixed (boundary "fixed", the paper's setting) or
+//      slide along their edge (boundary "slide": NodeKind::Edge with nodeEdge / nodeT).
+//   5. Orientation: the reference normal of face f is its outward normal (normalSign · φ_u×φ_v).
+//      When most of f's elements are wound against it, faceOrientation[f] = −1 and f is reported
+//      as flipped, so a consistently oriented mesh is never reported all tangled.
+//
+// Element corners' (u,v) (SurfaceMesh::cornerUV) are computed on the element's face for
+// every node (edge nodes through the edge's pcurve, vertex nodes through the vertex
+// parameters on the face), unwrapped across periodic seams next to the element's other
+// corners; a corner on a pole takes the mean free coordinate of the element's other corners.
+//
+// Node positions are kept as given (SurfaceMesh::xyz); only the optimizer moves them, and then
+// exactly onto φ(u,v) / C(t).
+//
+// Errors (std::invalid_argument with a message saying what and where): empty mesh,
+// non-finite coordinates, index out of range, bad element sizes/offsets, bad hints, negative
+// tolerance, unknown boundary mode, a mesh that does not lie on the shape (fails after a
+// sample of nodes), nodes farther than the tolerance (how many, the worst distance and that
+// node's id), elements whose nodes share no face.
+#pragma once
+
+#include "surfmesh/cad/cad_shape.h"
+#include "surfmesh/mesh/surface_mesh.h"
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace surfmesh {
+
+/// A mesh as plain arrays (what the bindings receive from numpy).
+struct MeshInput {
+  /// N node positions.
+  std::vector<Vec3> nodes;
+  /// E element types.
+  std::vector<ElementType> types;
+  /// E + 1 offsets into conn (offsets[0] = 0), or empty: then offsets follow from types.
+  std::vector<std::int64_t> offsets;
+  /// Connectivity, 0-based node ids, Gmsh node order per element (counter-clockwise corners
+  /// seen from the outside for a mesh wound like the B-rep).
+  std::vector<std::int32_t> conn;
+  /// Optional hints, each empty or of size N: 0-based face / edge / vertex id the node lies
+  /// on, −1 when unknown. The most specific wins (vertex, then edge, then face). A Gmsh FEM
+  /// mesh gives them through FemMesh.getNodesByFace/Edge/Vertex.
+  std::vector<std::int32_t> hintFace, hintEdge, hintVertex;
+};
+
+struct BridgeOptions {
+  /// Largest distance of a node from the shape. 0 → 1e-3 · shape diagonal; < 0 → error.
+  double tolerance = 0.0;
+  /// "fixed": nodes on CAD edges and vertices never move (the paper). "slide": nodes on CAD
+  /// edges slide along their edge (vertices and poles stay fixed).
+  std::string boundary = "fixed";
+  /// Threads for the node search; 0 = all hardware threads.
+  int threads = 0;
+};
+
+/// Where a node lies on the B-rep.
+enum class NodeClass : std::uint8_t {
+  Vertex = 0,  ///< on a CAD vertex (also nodes on a degenerated edge: poles)
+  Edge = 1,    ///< on a CAD edge (not a seam of a single face), parameter t
+  Face = 2,    ///< inside a face (seam edges included), parameters (u,v)
+  None = 3,    ///< in no element (unused node; still checked to be on the shape)
+};
+const char* nodeClassName(NodeClass c);
+
+struct BridgeReport {
+  // ---- per node ---------------------------------------------------------------------------
+  std::vector<NodeClass> nodeClass;       ///< N
+  std::vector<std::int32_t> nodeEntity;   ///< N; vertex, edge or face id (by nodeClass)
+  std::vector<double> nodeParam;          ///< N; t for Edge nodes, NaN otherwise
+  std::vector<double> nodeDistance;       ///< N; distance to the shape (nearest face)
+  // ---- per face ---------------------------------------------------------------------------
+  std::vector<unsigned char> faceFlipped;  ///< F; 1 when the mesh is wound against the face
+  std::vector<int> flippedFaces;           ///< ids of the flipped faces
+  std::vector<int> faceElements;           ///< F; number of elements on each face
+  // ---- totals -----------------------------------------------------------------------------
+  double tolerance = 0.0;    ///< the tolerance used
+  double maxDistance = 0.0;  ///< largest node distance to the shape
+  std::int32_t worstNode = -1;
+  std::size_t vertexNodes = 0, edgeNodes = 0, faceNodes = 0, unusedNodes = 0;
+  std::size_t poleNodes = 0;     ///< vertex nodes on degenerated edges
+  std::size_t fixedNodes = 0;    ///< NodeKind::Fixed
+  std::size_t slidingNodes = 0;  ///< NodeKind::Edge
+  std::size_t facesUsed = 0;     ///< faces carrying at least one element
+  std::size_t hintsRejected = 0;
+  std::vector<std::string> warnings;
+  double seconds = 0.0;  ///< time of the whole recovery
+
+  /// A few lines for the user ("1234 nodes: 12 on vertices, …; 2 faces flipped: 3, 7").
+  std::string summary() const;
+};
+
+/// A mesh recovered on a CAD shape: owns the Surface / Curve objects its SurfaceMesh points
+/// to (clones of the shape's, one set per CadMesh), so two CadMesh on one shape can be used
+/// from two threads. Movable, not copyable.
+class CadMesh {
+ public:
+  /// Classifies `input` on `shape` (see the file comment). Throws std::invalid_argument.
+  CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
+          const BridgeOptions& options = {});
+  CadMesh(CadMesh&&) = default;
+  CadMesh& operator=(CadMesh&&) = default;
+  CadMesh(const CadMesh&) = delete;
+  CadMesh& operator=(const CadMesh&) = delete;
+
+  SurfaceMesh& mesh() { return mesh_; }
+  const SurfaceMesh& mesh() const { return mesh_; }
+  const BridgeReport& report() const { return report_; }
+  const CadShape& shape() const { return *shape_; }
+  const std::shared_ptr<const CadShape>& shapePtr() const { return shape_; }
+  const BridgeOptions& options() const { return options_; }
+
+ private:
+  std::shared_ptr<const CadShape> shape_;
+  BridgeOptions options_;
+  std::vector<std::unique_ptr<Surface>> surfaces_;
+  std::vector<std::unique_ptr<Curve>> curves_;
+  SurfaceMesh mesh_;
+  BridgeReport report_;
+};
+
+/// Convenience for the bindings: a MeshInput of linear triangles from flat arrays
+/// (xyz: 3N doubles, tris: 3E node ids).
+MeshInput triangleMeshInput(const std::vector<double>& xyz, const std::vector<std::int32_t>& tris);
+
+}  // namespace surfmesh

@@ -1,0 +1,1070 @@
+// SurfMesh — the CAD bridge (see cad_bridge.h for the algorithm).
+#include "surfmesh/cad/cad_bridge.h"
+
+#include <BRepAdaptor_Curve.hxx>
+#include <BRepTopAdaptor_FClass2d.hxx>
+#include <BRep_Tool.hxx>
+#include <Geom_Surface.hxx>
+#include <Precision.hxx>
+#include <Extrema_ExtPC.hxx>
+#include <ShapeAnalysis_Surface.hxx>
+#include <Standard_Failure.hxx>
+#include <gp_Pnt.hxx>
+#include <gp_Pnt2d.hxx>
+
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <exception>
+#include <limits>
+#include <mutex>
+#include <sstream>
+#include <stdexcept>
+#include <thread>
+#include <unordered_map>
+
+namespace surfmesh {
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+const double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+using Box = std::array<double, 6>;  // xmin, ymin, zmin, xmax, ymax, zmax
+
+Box toBox(const Bnd_Box& b) {
+  if (b.IsVoid()) return {kInf, kInf, kInf, -kInf, -kInf, -kInf};
+  Box r;
+  b.Get(r[0], r[1], r[2], r[3], r[4], r[5]);
+  return r;
+}
+
+double boxDistance(const Box& b, const Vec3& p) {
+  if (b[0] > b[3]) return kInf;
+  double d2 = 0.0;
+  for (int i = 0; i < 3; ++i) {
+    const double lo = b[static_cast<std::size_t>(i)] - p[i];
+    const double hi = p[i] - b[static_cast<std::size_t>(i) + 3];
+    const double d = std::max({lo, hi, 0.0});
+    d2 += d * d;
+  }
+  return std::sqrt(d2);
+}
+
+gp_Pnt toPnt(const Vec3& v) { return gp_Pnt(v.x(), v.y(), v.z()); }
+
+/// Distance of a point to one face.
+struct FaceHit {
+  int face = -1;
+  double dist = kInf;     ///< distance to the trimmed face
+  Vec2 uv = Vec2::Zero();  ///< projection on the face's surface (wrapped)
+  bool inside = false;    ///< the surface projection lies in the trimmed domain
+  bool hasUV = false;     ///< uv holds a projection (false for hits made from hints)
+};
+
+/// Per-thread projection tools on a CadShape (OCC algorithms are not shared between threads).
+class Projector {
+ public:
+  Projector(const CadShape& s, const std::vector<Box>& faceBoxes,
+            const std::vector<Box>& edgeBoxes)
+      : s_(s),
+        faceBoxes_(faceBoxes),
+        edgeBoxes_(edgeBoxes),
+        sas_(static_cast<std::size_t>(s.faceCount())),
+        cls_(static_cast<std::size_t>(s.faceCount())),
+        last_(static_cast<std::size_t>(s.faceCount())),
+        hasLast_(static_cast<std::size_t>(s.faceCount()), 0),
+        curves_(static_cast<std::size_t>(s.edgeCount())) {
+    preci_ = std::max(Precision::Confusion(), 1e-9 * s.diagonal());
+  }
+
+  /// Distance from p to edge e and the curve parameter of the nearest point.
+  double edgeDistance(int e, const Vec3& p, double* t) {
+    const OccEdgeCurve& c = s_.curve(e);
+    if (c.isDegenerated()) {
+      *t = c.tmin();
+      return (c.value(c.tmin()) - p).norm();
+    }
+    auto& ad = curves_[static_cast<std::size_t>(e)];
+    if (!ad) ad = std::make_unique<BRepAdaptor_Curve>(s_.edge(e));
+    const gp_Pnt P = toPnt(p);
+    double param = ad->FirstParameter();
+    double d2 = ad->Value(param).SquareDistance(P);
+    const double tl = ad->LastParameter();
+    const double d2l = ad->Value(tl).SquareDistance(P);
+    if (d2l < d2) {
+      d2 = d2l;
+      param = tl;
+    }
+    try {
+      Extrema_ExtPC ext(P, *ad);
+      if (ext.IsDone())
+        for (int i = 1; i <= ext.NbExt(); ++i)
+          if (ext.IsMin(i) && ext.SquareDistance(i) < d2) {
+            d2 = ext.SquareDistance(i);
+            param = ext.Point(i).Parameter();
+          }
+    } catch (const Standard_Failure&) {
+    }
+    const double d = std::sqrt(d2);
+    *t = param;
+    return d;
+  }
+
+  /// Projection of p on the surface of face f; fills hit.uv (wrapped), hit.inside and the
+  /// distance to the untrimmed surface (returned).
+  double surfaceProjection(int f, const Vec3& p, double maxGap, FaceHit* hit) {
+    const std::size_t fi = static_cast<std::size_t>(f);
+    auto& sas = sas_[fi];
+    if (!sas) {
+      Handle(Geom_Surface) g = BRep_Tool::Surface(s_.face(f));
+      g = Handle(Geom_Surface)::DownCast(g->Copy());
+      sas = std::make_unique<ShapeAnalysis_Surface>(g);
+    }
+    const gp_Pnt P = toPnt(p);
+    gp_Pnt2d uv;
+    double gap = kInf;
+    try {
+      uv = hasLast_[fi] ? sas->NextValueOfUV(last_[fi], P, preci_, maxGap)
+                        : sas->ValueOfUV(P, preci_);
+      gap = sas->Gap();
+    } catch (const Standard_Failure&) {
+      hit->face = f;
+      hit->inside = false;
+      return kInf;
+    }
+    if (!std::isfinite(uv.X()) || !std::isfinite(uv.Y())) return kInf;
+    last_[fi] = uv;
+    hasLast_[fi] = 1;
+    const OccFaceSurface& surf = s_.surface(f);
+    hit->face = f;
+    hit->uv = surf.wrap(Vec2(uv.X(), uv.Y()));
+    hit->hasUV = true;
+    hit->inside = classify(f, hit->uv);
+    if (!hit->inside && (surf.uTurnPeriod() > 0.0 || surf.vTurnPeriod() > 0.0))
+      hit->inside = findTurn(surf, f, &hit->uv);
+    return gap;
+  }
+
+  /// For a face spanning several periods: shifts uv by whole periods of the underlying
+  /// surface to a copy inside the face, if any (else leaves it in the face's range).
+  bool findTurn(const OccFaceSurface& surf, int f, Vec2* uv) {
+    const ParamBounds& b = surf.faceUVBounds();
+    const double pu = surf.uTurnPeriod(), pv = surf.vTurnPeriod();
+    const Vec2 base = *uv;
+    auto range = [](double x, double lo, double hi, double p, int* k0, int* k1) {
+      if (p <= 0.0) {
+        *k0 = *k1 = 0;
+        return;
+      }
+      *k0 = static_cast<int>(std::ceil((lo - x) / p - 1e-9));
+      *k1 = static_cast<int>(std::floor((hi - x) / p + 1e-9));
+      if (*k1 - *k0 > 16) *k1 = *k0 + 16;
+    };
+    int iu0, iu1, iv0, iv1;
+    range(base.x(), b.umin, b.umax, pu, &iu0, &iu1);
+    range(base.y(), b.vmin, b.vmax, pv, &iv0, &iv1);
+    for (int i = iu0; i <= iu1; ++i)
+      for (int j = iv0; j <= iv1; ++j) {
+        const Vec2 c(base.x() + i * pu, base.y() + j * pv);
+        if (classify(f, c)) {
+          *uv = c;
+          return true;
+        }
+      }
+    return false;
+  }
+
+  /// Whether (u,v) is inside (or on) face f's trimming loops.
+  bool classify(int f, const Vec2& uv) {
+    auto& c = cls_[static_cast<std::size_t>(f)];
+    const OccFaceSurface& surf = s_.surface(f);
+    if (!c) c = std::make_unique<BRepTopAdaptor_FClass2d>(s_.face(f), surf.uvTolerance());
+    const Vec2 w = surf.wrap(uv);
+    TopAbs_State st = TopAbs_UNKNOWN;
+    try {
+      const bool turns = surf.uTurnPeriod() > 0.0 || surf.vTurnPeriod() > 0.0;
+      st = c->Perform(gp_Pnt2d(w.x(), w.y()), turns ? Standard_False : Standard_True);
+    } catch (const Standard_Failure&) {
+      return false;
+    }
+    return st == TopAbs_IN || st == TopAbs_ON;
+  }
+
+  /// Distance from p to the trimmed face f. Refinement through the boundary edges is skipped
+  /// when the distance is certainly above `bound` (then the returned distance is a lower
+  /// bound, > bound).
+  FaceHit faceDistance(int f, const Vec3& p, double bound) {
+    FaceHit hit;
+    hit.face = f;
+    const double gap =
+        surfaceProjection(f, p, std::isfinite(bound) ? std::max(bound, preci_) : -1.0, &hit);
+    if (hit.inside) {
+      hit.dist = gap;
+      return hit;
+    }
+    // Outside the trimming loops (or the projection failed): nearest boundary edge.
+    double best = kInf;
+    for (int e : s_.faceEdges(f)) {
+      if (s_.isDegeneratedEdge(e)) continue;
+      const double lb = boxDistance(edgeBoxes_[static_cast<std::size_t>(e)], p);
+      if (lb > std::min(best, bound)) continue;
+      double t = 0.0;
+      const double d = edgeDistance(e, p, &t);
+      if (d < best) best = d;
+    }
+    if (!std::isfinite(best) && std::isfinite(gap))  // every edge beyond the bound
+      best = std::isfinite(bound) ? std::max(gap, std::nextafter(bound, kInf)) : gap;
+    hit.dist = best;
+    return hit;
+  }
+
+  /// Exact distance from p to the whole shape (branch and bound over face boxes).
+  double shapeDistance(const Vec3& p, int* nearestFace) {
+    std::vector<std::pair<double, int>> order;
+    order.reserve(faceBoxes_.size());
+    for (std::size_t f = 0; f < faceBoxes_.size(); ++f)
+      order.emplace_back(boxDistance(faceBoxes_[f], p), static_cast<int>(f));
+    std::sort(order.begin(), order.end());
+    double best = kInf;
+    int bf = -1;
+    for (const auto& [lb, f] : order) {
+      if (lb > best) break;
+      const FaceHit h = faceDistance(f, p, kInf);
+      if (h.dist < best) {
+        best = h.dist;
+        bf = f;
+      }
+    }
+    if (nearestFace) *nearestFace = bf;
+    return best;
+  }
+
+  /// Every face within tol of p.
+  void facesNear(const Vec3& p, double tol, std::vector<FaceHit>* out) {
+    out->clear();
+    for (std::size_t f = 0; f < faceBoxes_.size(); ++f) {
+      if (boxDistance(faceBoxes_[f], p) > tol) continue;
+      FaceHit h = faceDistance(static_cast<int>(f), p, tol);
+      if (h.dist <= tol) out->push_back(h);
+    }
+  }
+
+ private:
+  const CadShape& s_;
+  const std::vector<Box>& faceBoxes_;
+  const std::vector<Box>& edgeBoxes_;
+  std::vector<std::unique_ptr<ShapeAnalysis_Surface>> sas_;
+  std::vector<std::unique_ptr<BRepTopAdaptor_FClass2d>> cls_;
+  std::vector<gp_Pnt2d> last_;
+  std::vector<unsigned char> hasLast_;
+  std::vector<std::unique_ptr<BRepAdaptor_Curve>> curves_;
+  double preci_ = 1e-7;
+};
+
+/// Runs body(i, projector) for i in [0, n) on `threads` threads, each with its own Projector.
+template <class Body>
+void parallelFor(std::size_t n, int threads, const CadShape& s, const std::vector<Box>& fb,
+                 const std::vector<Box>& eb, Body body) {
+  const std::size_t chunk = 256;
+  std::atomic<std::size_t> next{0};
+  std::exception_ptr error;
+  std::mutex errorMutex;
+  auto worker = [&]() {
+    try {
+      Projector proj(s, fb, eb);
+      for (;;) {
+        const std::size_t begin = next.fetch_add(chunk);
+        if (begin >= n) break;
+        const std::size_t end = std::min(n, begin + chunk);
+        for (std::size_t i = begin; i < end; ++i) body(i, proj);
+      }
+    } catch (...) {
+      std::lock_guard<std::mutex> lock(errorMutex);
+      if (!error) error = std::current_exception();
+      next = n;
+    }
+  };
+  const int t = std::max(1, std::min<int>(threads, static_cast<int>((n + chunk - 1) / chunk)));
+  if (t == 1) {
+    worker();
+  } else {
+    std::vector<std::thread> pool;
+    for (int k = 0; k < t; ++k) pool.emplace_back(worker);
+    for (auto& th : pool) th.join();
+  }
+  if (error) std::rethrow_exception(error);
+}
+
+std::string joinInts(const std::vector<int>& v) {
+  std::ostringstream os;
+  os << "{";
+  for (std::size_t i = 0; i < v.size(); ++i) os << (i ? ", " : "") << v[i];
+  os << "}";
+  return os.str();
+}
+
+bool includesAll(const std::vector<int>& sortedSuper, const std::vector<int>& sortedSub) {
+  return std::includes(sortedSuper.begin(), sortedSuper.end(), sortedSub.begin(),
+                       sortedSub.end());
+}
+
+// Local node index pairs of the element's boundary edges, with the high-order nodes on each
+// edge (Gmsh ordering: corners, then edge nodes edge by edge).
+struct ElementEdges {
+  int corners = 3;
+  int perEdge = 0;  // high-order nodes per edge
+};
+
+ElementEdges elementEdges(ElementType t) {
+  ElementEdges r;
+  r.corners = cornerCount(t);
+  r.perEdge = t == ElementType::Quad4 ? 0 : elementOrder(t) - 1;
+  return r;
+}
+
+void fail(const std::string& msg) { throw std::invalid_argument("CadMesh: " + msg); }
+
+}  // namespace
+
+const char* nodeClassName(NodeClass c) {
+  switch (c) {
+    case NodeClass::Vertex: return "vertex";
+    case NodeClass::Edge: return "edge";
+    case NodeClass::Face: return "face";
+    case NodeClass::None: return "none";
+  }
+  return "?";
+}
+
+std::string BridgeReport::summary() const {
+  std::ostringstream os;
+  os << nodeClass.size() << " nodes: " << vertexNodes << " on vertices (" << poleNodes
+     << " poles), " << edgeNodes << " on edges, " << faceNodes << " inside faces";
+  if (unusedNodes) os << ", " << unusedNodes << " in no element";
+  os << "; " << fixedNodes << " fixed, " << slidingNodes << " sliding\n";
+  std::size_t elems = 0;
+  for (int c : faceElements) elems += static_cast<std::size_t>(c);
+  os << elems << " elements on " << facesUsed << " faces; max distance to the shape "
+     << maxDistance << " (node " << worstNode << ", tolerance " << tolerance << ")\n";
+  if (!flippedFaces.empty()) {
+    os << flippedFaces.size() << " face(s) meshed with the opposite winding (flipped): ";
+    for (std::size_t i = 0; i < flippedFaces.size(); ++i) os << (i ? ", " : "") << flippedFaces[i];
+    os << "\n";
+  }
+  for (const auto& w : warnings) os << "warning: " << w << "\n";
+  return os.str();
+}
+
+MeshInput triangleMeshInput(const std::vector<double>& xyz,
+                            const std::vector<std::int32_t>& tris) {
+  if (xyz.size() % 3 != 0) fail("xyz must hold 3 values per node");
+  if (tris.size() % 3 != 0) fail("triangles must hold 3 node ids each");
+  MeshInput in;
+  in.nodes.resize(xyz.size() / 3);
+  for (std::size_t i = 0; i < in.nodes.size(); ++i)
+    in.nodes[i] = Vec3(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
+  in.types.assign(tris.size() / 3, ElementType::Tri3);
+  in.conn = tris;
+  return in;
+}
+
+CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
+                 const BridgeOptions& options)
+    : shape_(std::move(shape)), options_(options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (!shape_) fail("no shape given");
+  const CadShape& S = *shape_;
+  const std::size_t N = input.nodes.size();
+  const std::size_t E = input.types.size();
+  const int NF = S.faceCount(), NE = S.edgeCount(), NV = S.vertexCount();
+  const double diag = S.diagonal();
+
+  // ---- options and input validation ---------------------------------------------------------
+  if (!(options.tolerance >= 0.0) || !std::isfinite(options.tolerance))
+    fail("tolerance must be >= 0 (0 = 1e-3 x shape diagonal), got " +
+         std::to_string(options.tolerance));
+  const double tol = options.tolerance > 0.0 ? options.tolerance : 1e-3 * diag;
+  if (options.boundary != "fixed" && options.boundary != "slide")
+    fail("unknown boundary mode '" + options.boundary + "' (expected \"fixed\" or \"slide\")");
+  const bool slide = options.boundary == "slide";
+  const int threads =
+      options.threads > 0 ? options.threads
+                          : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  if (N == 0) fail("the mesh has no nodes");
+  if (E == 0) fail("the mesh has no elements");
+  for (std::size_t i = 0; i < N; ++i)
+    if (!input.nodes[i].allFinite())
+      fail("node " + std::to_string(i) + " has a non-finite coordinate (NaN or inf)");
+  std::vector<std::int64_t> offsets = input.offsets;
+  if (offsets.empty()) {
+    offsets.resize(E + 1);
+    offsets[0] = 0;
+    for (std::size_t e = 0; e < E; ++e) offsets[e + 1] = offsets[e] + nodeCount(input.types[e]);
+  }
+  if (offsets.size() != E + 1)
+    fail("offsets must have " + std::to_string(E + 1) + " entries (elements + 1), got " +
+         std::to_string(offsets.size()));
+  if (offsets[0] != 0) fail("offsets[0] must be 0");
+  for (std::size_t e = 0; e < E; ++e) {
+    const std::int64_t n = offsets[e + 1] - offsets[e];
+    if (n != nodeCount(input.types[e]))
+      fail("element " + std::to_string(e) + " has " + std::to_string(n) + " nodes, expected " +
+           std::to_string(nodeCount(input.types[e])) + " for " + elementTypeName(input.types[e]));
+  }
+  if (static_cast<std::size_t>(offsets[E]) != input.conn.size())
+    fail("connectivity has " + std::to_string(input.conn.size()) + " entries, offsets say " +
+         std::to_string(offsets[E]));
+  for (std::size_t e = 0; e < E; ++e)
+    for (std::int64_t k = offsets[e]; k < offsets[e + 1]; ++k) {
+      const std::int32_t n = input.conn[static_cast<std::size_t>(k)];
+      if (n < 0 || static_cast<std::size_t>(n) >= N)
+        fail("element " + std::to_string(e) + " references node " + std::to_string(n) +
+             ", out of range [0, " + std::to_string(N) + ")");
+      for (std::int64_t j = offsets[e]; j < k; ++j)
+        if (input.conn[static_cast<std::size_t>(j)] == n)
+          fail("element " + std::to_string(e) + " repeats node " + std::to_string(n));
+    }
+  auto checkHints = [&](const std::vector<std::int32_t>& h, int count, const char* name) {
+    if (h.empty()) return;
+    if (h.size() != N)
+      fail(std::string(name) + " must be empty or have one entry per node (" +
+           std::to_string(N) + "), got " + std::to_string(h.size()));
+    for (std::size_t i = 0; i < N; ++i)
+      if (h[i] < -1 || h[i] >= count)
+        fail(std::string(name) + "[" + std::to_string(i) + "] = " + std::to_string(h[i]) +
+             " out of range [-1, " + std::to_string(count) + ")");
+  };
+  checkHints(input.hintFace, NF, "hintFace");
+  checkHints(input.hintEdge, NE, "hintEdge");
+  checkHints(input.hintVertex, NV, "hintVertex");
+
+  std::vector<Box> faceBoxes(static_cast<std::size_t>(NF)), edgeBoxes(static_cast<std::size_t>(NE));
+  for (int f = 0; f < NF; ++f) faceBoxes[static_cast<std::size_t>(f)] = toBox(S.faceBox(f));
+  for (int e = 0; e < NE; ++e) edgeBoxes[static_cast<std::size_t>(e)] = toBox(S.edgeBox(e));
+
+  // ---- fail fast on a mesh of another shape ---------------------------------------------------
+  {
+    Box mb = {kInf, kInf, kInf, -kInf, -kInf, -kInf};
+    for (const Vec3& p : input.nodes)
+      for (int i = 0; i < 3; ++i) {
+        mb[static_cast<std::size_t>(i)] = std::min(mb[static_cast<std::size_t>(i)], p[i]);
+        mb[static_cast<std::size_t>(i) + 3] = std::max(mb[static_cast<std::size_t>(i) + 3], p[i]);
+      }
+    const Box sb = toBox(S.boundingBox());
+    auto boxText = [](const Box& b) {
+      std::ostringstream os;
+      os << "[" << b[0] << ", " << b[1] << ", " << b[2] << "] - [" << b[3] << ", " << b[4]
+         << ", " << b[5] << "]";
+      return os.str();
+    };
+    bool disjoint = false;
+    for (std::size_t i = 0; i < 3; ++i)
+      if (mb[i] > sb[i + 3] + tol || mb[i + 3] < sb[i] - tol) disjoint = true;
+    if (disjoint)
+      fail("the mesh does not lie on this shape: its bounding box " + boxText(mb) +
+           " does not meet the shape's " + boxText(sb));
+    const std::size_t samples = std::min<std::size_t>(N, 64);
+    std::vector<double> sd(samples);
+    std::vector<int> sf(samples, -1);
+    parallelFor(samples, threads, S, faceBoxes, edgeBoxes, [&](std::size_t k, Projector& pr) {
+      const std::size_t n = k * N / samples;
+      std::vector<FaceHit> hits;
+      pr.facesNear(input.nodes[n], tol, &hits);
+      sd[k] = hits.empty() ? pr.shapeDistance(input.nodes[n], nullptr) : 0.0;
+    });
+    std::size_t off = 0, worst = 0;
+    for (std::size_t k = 0; k < samples; ++k)
+      if (sd[k] > tol) {
+        ++off;
+        if (sd[k] > sd[worst] || sd[worst] <= tol) worst = k;
+      }
+    if (off * 2 > samples) {
+      std::ostringstream os;
+      os << "the mesh does not lie on this shape: " << off << " of " << samples
+         << " sampled nodes are farther than the tolerance " << tol << " from every face (e.g. node "
+         << worst * N / samples << " at distance " << sd[worst] << "); mesh bounding box "
+         << boxText(mb) << ", shape bounding box " << boxText(sb);
+      fail(os.str());
+    }
+  }
+
+  // ---- 1. faces near every node (hints first) -----------------------------------------------
+  enum class Forced : std::uint8_t { None, Vertex, Edge, Face };
+  std::vector<std::vector<FaceHit>> hits(N);
+  std::vector<Forced> forced(N, Forced::None);
+  std::vector<std::int32_t> forcedId(N, -1);
+  std::vector<double> forcedT(N, kNaN);
+  std::vector<unsigned char> hintRejected(N, 0);
+  const bool anyHints =
+      !input.hintFace.empty() || !input.hintEdge.empty() || !input.hintVertex.empty();
+  parallelFor(N, threads, S, faceBoxes, edgeBoxes, [&](std::size_t n, Projector& pr) {
+    const Vec3& p = input.nodes[n];
+    auto& h = hits[n];
+    if (anyHints) {
+      const int hv = input.hintVertex.empty() ? -1 : input.hintVertex[n];
+      const int he = input.hintEdge.empty() ? -1 : input.hintEdge[n];
+      const int hf = input.hintFace.empty() ? -1 : input.hintFace[n];
+      if (hv >= 0) {
+        const double d = (S.vertexPoint(hv) - p).norm();
+        if (d <= tol) {
+          for (int f : S.vertexFaces(hv)) h.push_back(FaceHit{f, d, Vec2::Zero(), false, false});
+          forced[n] = Forced::Vertex;
+          forcedId[n] = hv;
+          if (!h.empty()) return;
+        }
+        hintRejected[n] = 1;
+      } else if (he >= 0) {
+        double t = 0.0;
+        const double d = pr.edgeDistance(he, p, &t);
+        if (d <= tol) {
+          for (int f : S.edgeFaces(he)) h.push_back(FaceHit{f, d, Vec2::Zero(), false, false});
+          forced[n] = Forced::Edge;
+          forcedId[n] = he;
+          forcedT[n] = t;
+          if (!h.empty()) return;
+        }
+        hintRejected[n] = 1;
+      } else if (hf >= 0) {
+        const FaceHit fh = pr.faceDistance(hf, p, tol);
+        if (fh.dist <= tol) {
+          h.push_back(fh);
+          forced[n] = Forced::Face;
+          forcedId[n] = hf;
+          return;
+        }
+        hintRejected[n] = 1;
+      }
+      forced[n] = Forced::None;
+      h.clear();
+    }
+    pr.facesNear(p, tol, &h);
+  });
+
+  report_.tolerance = tol;
+  report_.nodeDistance.assign(N, kInf);
+  std::vector<std::size_t> offNodes;
+  for (std::size_t n = 0; n < N; ++n) {
+    double d = kInf;
+    for (const FaceHit& h : hits[n]) d = std::min(d, h.dist);
+    report_.nodeDistance[n] = d;
+    if (hits[n].empty()) offNodes.push_back(n);
+  }
+  if (!offNodes.empty()) {
+    const std::size_t checked = std::min<std::size_t>(offNodes.size(), 1000);
+    parallelFor(checked, threads, S, faceBoxes, edgeBoxes, [&](std::size_t k, Projector& pr) {
+      const std::size_t n = offNodes[k];
+      report_.nodeDistance[n] = pr.shapeDistance(input.nodes[n], nullptr);
+    });
+    std::size_t worst = offNodes[0];
+    for (std::size_t k = 0; k < checked; ++k)
+      if (report_.nodeDistance[offNodes[k]] > report_.nodeDistance[worst]) worst = offNodes[k];
+    std::ostringstream os;
+    os << offNodes.size() << " of " << N << " nodes are farther than the tolerance " << tol
+       << " from the shape; worst: node " << worst << " at distance "
+       << report_.nodeDistance[worst] << " (" << report_.nodeDistance[worst] / diag
+       << " x diagonal)";
+    if (checked < offNodes.size()) os << " among the first " << checked << " checked";
+    os << "; e.g. nodes";
+    for (std::size_t k = 0; k < std::min<std::size_t>(offNodes.size(), 5); ++k)
+      os << " " << offNodes[k];
+    os << ". Check that the mesh belongs to this shape (same placement), or pass a larger "
+          "tolerance.";
+    fail(os.str());
+  }
+  std::size_t rejected = 0;
+  for (unsigned char r : hintRejected) rejected += r;
+  report_.hintsRejected = rejected;
+  if (rejected) {
+    std::size_t first = 0;
+    while (!hintRejected[first]) ++first;
+    report_.warnings.push_back(std::to_string(rejected) +
+                               " node hints were farther than the tolerance from their entity "
+                               "and were ignored (e.g. node " +
+                               std::to_string(first) + ")");
+  }
+
+  // Single-threaded tools for the rest.
+  Projector proj(S, faceBoxes, edgeBoxes);
+
+  // ---- 2. element faces ---------------------------------------------------------------------
+  std::vector<std::vector<int>> nodeFaces(N);  // C(n), sorted
+  for (std::size_t n = 0; n < N; ++n) {
+    for (const FaceHit& h : hits[n]) nodeFaces[n].push_back(h.face);
+    std::sort(nodeFaces[n].begin(), nodeFaces[n].end());
+    nodeFaces[n].erase(std::unique(nodeFaces[n].begin(), nodeFaces[n].end()), nodeFaces[n].end());
+  }
+  std::vector<std::int32_t> elemFace(E, -1);
+  {
+    std::vector<int> common, tmp;
+    for (std::size_t e = 0; e < E; ++e) {
+      const std::int32_t* nd = input.conn.data() + offsets[e];
+      const int nn = static_cast<int>(offsets[e + 1] - offsets[e]);
+      common = nodeFaces[static_cast<std::size_t>(nd[0])];
+      for (int k = 1; k < nn && !common.empty(); ++k) {
+        const auto& f = nodeFaces[static_cast<std::size_t>(nd[k])];
+        tmp.clear();
+        std::set_intersection(common.begin(), common.end(), f.begin(), f.end(),
+                              std::back_inserter(tmp));
+        common.swap(tmp);
+      }
+      if (common.empty()) {
+        std::ostringstream os;
+        os << "element " << e << " lies on no single face of the shape (its nodes share no face):";
+        for (int k = 0; k < nn; ++k)
+          os << " node " << nd[k] << " on faces "
+             << joinInts(nodeFaces[static_cast<std::size_t>(nd[k])]) << (k + 1 < nn ? "," : "");
+        os << ". The mesh must conform to the B-rep faces (no element across a CAD edge).";
+        fail(os.str());
+      }
+      if (common.size() == 1) {
+        elemFace[e] = common[0];
+        continue;
+      }
+      static const char* dbgE = std::getenv("SMDBG_ELEM");
+      // Several faces qualify (small elements near an edge, tangent faces): the element's
+      // (u,v) centroid must fall inside the right face, and φ there is closest to the
+      // element's centroid.
+      Vec3 c = Vec3::Zero();
+      for (int k = 0; k < nn; ++k) c += input.nodes[static_cast<std::size_t>(nd[k])];
+      c /= nn;
+      double best = kInf;
+      bool bestInside = false;
+      for (int f : common) {
+        const OccFaceSurface& surf = S.surface(f);
+        Vec2 sum = Vec2::Zero(), ref = Vec2::Zero();
+        for (int k = 0; k < nn; ++k) {
+          const std::size_t n = static_cast<std::size_t>(nd[k]);
+          Vec2 uv;
+          bool have = false;
+          for (const FaceHit& h : hits[n])
+            if (h.face == f && h.hasUV) {
+              uv = h.uv;
+              have = true;
+            }
+          if (!have) uv = proj.faceDistance(f, input.nodes[n], kInf).uv;
+          if (k == 0)
+            ref = uv;
+          else
+            uv = surf.unwrapNear(uv, ref);
+          sum += uv;
+        }
+        const Vec2 mid = sum / nn;
+        const bool inside = proj.classify(f, mid);
+        const double d = inside ? (surf.value(mid.x(), mid.y()) - c).norm()
+                                : proj.faceDistance(f, c, kInf).dist;
+        if (dbgE && std::atoi(dbgE) == static_cast<int>(e))
+          std::fprintf(stderr, "elem %zu face %d inside %d d %g\n", e, f, inside, d);
+        if ((inside && !bestInside) || (inside == bestInside && d < best)) {
+          best = d;
+          bestInside = inside;
+          elemFace[e] = f;
+        }
+      }
+      if (elemFace[e] < 0) elemFace[e] = common[0];
+    }
+  }
+
+  // ---- 3. node classes ----------------------------------------------------------------------
+  // Faces of each node's elements, mesh boundary nodes, shortest incident mesh edge.
+  std::vector<std::vector<int>> elemFacesOfNode(N);
+  std::vector<double> hmin(N, kInf);
+  std::vector<unsigned char> onMeshBoundary(N, 0);
+  {
+    std::unordered_map<std::uint64_t, int> edgeCount;
+    edgeCount.reserve(E * 3);
+    auto key = [](std::int32_t a, std::int32_t b) {
+      if (a > b) std::swap(a, b);
+      return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(a)) << 32) |
+             static_cast<std::uint32_t>(b);
+    };
+    for (std::size_t e = 0; e < E; ++e) {
+      const std::int32_t* nd = input.conn.data() + offsets[e];
+      const int nn = static_cast<int>(offsets[e + 1] - offsets[e]);
+      for (int k = 0; k < nn; ++k)
+        elemFacesOfNode[static_cast<std::size_t>(nd[k])].push_back(elemFace[e]);
+      const ElementEdges ee = elementEdges(input.types[e]);
+      for (int k = 0; k < ee.corners; ++k) {
+        const std::int32_t a = nd[k], b = nd[(k + 1) % ee.corners];
+        ++edgeCount[key(a, b)];
+        const double len =
+            (input.nodes[static_cast<std::size_t>(a)] - input.nodes[static_cast<std::size_t>(b)])
+                .norm() /
+            (ee.perEdge + 1);
+        hmin[static_cast<std::size_t>(a)] = std::min(hmin[static_cast<std::size_t>(a)], len);
+        hmin[static_cast<std::size_t>(b)] = std::min(hmin[static_cast<std::size_t>(b)], len);
+        for (int j = 0; j < ee.perEdge; ++j) {
+          const std::size_t m = static_cast<std::size_t>(nd[ee.corners + k * ee.perEdge + j]);
+          hmin[m] = std::min(hmin[m], len);
+        }
+      }
+    }
+    for (std::size_t e = 0; e < E; ++e) {
+      const std::int32_t* nd = input.conn.data() + offsets[e];
+      const ElementEdges ee = elementEdges(input.types[e]);
+      for (int k = 0; k < ee.corners; ++k) {
+        const std::int32_t a = nd[k], b = nd[(k + 1) % ee.corners];
+        if (edgeCount[key(a, b)] != 1) continue;
+        onMeshBoundary[static_cast<std::size_t>(a)] = 1;
+        onMeshBoundary[static_cast<std::size_t>(b)] = 1;
+        for (int j = 0; j < ee.perEdge; ++j)
+          onMeshBoundary[static_cast<std::size_t>(nd[ee.corners + k * ee.perEdge + j])] = 1;
+      }
+    }
+    for (auto& l : elemFacesOfNode) {
+      std::sort(l.begin(), l.end());
+      l.erase(std::unique(l.begin(), l.end()), l.end());
+    }
+  }
+
+  report_.nodeClass.assign(N, NodeClass::None);
+  report_.nodeEntity.assign(N, -1);
+  report_.nodeParam.assign(N, kNaN);
+  std::vector<Vec2> nodeUV(N, Vec2::Zero());
+  std::vector<unsigned char> isPole(N, 0);
+  std::size_t unplaced = 0, boundaryNoEdge = 0;
+  std::size_t firstUnplaced = 0, firstBoundaryNoEdge = 0;
+
+  auto hitOn = [&](std::size_t n, int f) -> const FaceHit* {
+    for (const FaceHit& h : hits[n])
+      if (h.face == f) return &h;
+    return nullptr;
+  };
+  auto setVertex = [&](std::size_t n, int v) {
+    report_.nodeClass[n] = NodeClass::Vertex;
+    report_.nodeEntity[n] = v;
+    for (int e : S.vertexEdges(v))
+      if (S.isDegeneratedEdge(e)) isPole[n] = 1;
+  };
+  auto setFace = [&](std::size_t n, int f) {
+    report_.nodeClass[n] = NodeClass::Face;
+    report_.nodeEntity[n] = f;
+    const FaceHit* h = hitOn(n, f);
+    if (h && h->hasUV && h->uv.allFinite()) {
+      nodeUV[n] = h->uv;
+    } else {
+      nodeUV[n] = proj.faceDistance(f, input.nodes[n], kInf).uv;
+    }
+  };
+  // Edge node (or vertex node when at an end of the edge / on a degenerated edge).
+  auto setEdge = [&](std::size_t n, int e, double t) {
+    const double vs = std::min(tol, std::max(0.1 * hmin[n], 1e-9 * diag));
+    for (int v : S.edgeVertices(e))
+      if ((S.vertexPoint(v) - input.nodes[n]).norm() <= vs || S.isDegeneratedEdge(e)) {
+        setVertex(n, v);
+        return;
+      }
+    const auto& ef = S.edgeFaces(e);
+    if (ef.size() == 1 && S.isSeam(e, ef[0])) {  // a seam is inside its face
+      setFace(n, ef[0]);
+      return;
+    }
+    report_.nodeClass[n] = NodeClass::Edge;
+    report_.nodeEntity[n] = e;
+    report_.nodeParam[n] = t;
+  };
+
+  for (std::size_t n = 0; n < N; ++n) {
+    const auto& F = elemFacesOfNode[n];
+    const Vec3& p = input.nodes[n];
+    if (F.empty()) {  // in no element
+      report_.nodeClass[n] = NodeClass::None;
+      int best = -1;
+      double bd = kInf;
+      for (const FaceHit& h : hits[n])
+        if (h.dist < bd) {
+          bd = h.dist;
+          best = h.face;
+        }
+      report_.nodeEntity[n] = best;
+      continue;
+    }
+    if (forced[n] == Forced::Vertex && includesAll(S.vertexFaces(forcedId[n]), F)) {
+      setVertex(n, forcedId[n]);
+      continue;
+    }
+    if (forced[n] == Forced::Edge && includesAll(S.edgeFaces(forcedId[n]), F)) {
+      setEdge(n, forcedId[n], forcedT[n]);
+      continue;
+    }
+    if (forced[n] == Forced::Face && F.size() == 1 && F[0] == forcedId[n] &&
+        !onMeshBoundary[n]) {
+      setFace(n, F[0]);
+      continue;
+    }
+    const double vs = std::min(tol, std::max(0.1 * hmin[n], 1e-9 * diag));
+    if (F.size() == 1) {
+      const int f = F[0];
+      // Pole: on the vertex of a degenerated edge of f.
+      bool pole = false;
+      for (int e : S.faceEdges(f)) {
+        if (!S.isDegeneratedEdge(e)) continue;
+        for (int v : S.edgeVertices(e))
+          if ((S.vertexPoint(v) - p).norm() <= vs) {
+            setVertex(n, v);
+            pole = true;
+          }
+        if (pole) break;
+      }
+      if (pole) continue;
+      if (!onMeshBoundary[n]) {
+        setFace(n, f);
+        continue;
+      }
+      // On the mesh's boundary: the nearest CAD edge of f (not a seam of f).
+      int be = -1;
+      double bd = kInf, bt = 0.0;
+      for (int e : S.faceEdges(f)) {
+        if (S.isDegeneratedEdge(e) || S.isSeam(e, f)) continue;
+        if (boxDistance(edgeBoxes[static_cast<std::size_t>(e)], p) > std::min(bd, tol)) continue;
+        double t = 0.0;
+        const double d = proj.edgeDistance(e, p, &t);
+        if (d < bd) {
+          bd = d;
+          be = e;
+          bt = t;
+        }
+      }
+      if (be >= 0 && bd <= tol) {
+        setEdge(n, be, bt);
+      } else {
+        setFace(n, f);
+        report_.nodeClass[n] = NodeClass::None;  // fixed below
+        if (!boundaryNoEdge++) firstBoundaryNoEdge = n;
+      }
+      continue;
+    }
+    // Several faces: a common vertex, else a common edge.
+    int bv = -1;
+    double bvd = kInf;
+    for (int e : S.faceEdges(F[0]))
+      for (int v : S.edgeVertices(e)) {
+        if (!includesAll(S.vertexFaces(v), F)) continue;
+        const double d = (S.vertexPoint(v) - p).norm();
+        if (d < bvd) {
+          bvd = d;
+          bv = v;
+        }
+      }
+    if (bv >= 0 && bvd <= vs) {
+      setVertex(n, bv);
+      continue;
+    }
+    int be = -1;
+    double bed = kInf, bt = 0.0;
+    for (int e : S.faceEdges(F[0])) {
+      if (!includesAll(S.edgeFaces(e), F)) continue;
+      double t = 0.0;
+      const double d = proj.edgeDistance(e, p, &t);
+      if (d < bed) {
+        bed = d;
+        be = e;
+        bt = t;
+      }
+    }
+    if (be >= 0 && bed <= tol) {
+      setEdge(n, be, bt);
+    } else if (bv >= 0 && bvd <= tol) {
+      setVertex(n, bv);
+    } else {
+      report_.nodeClass[n] = NodeClass::None;
+      report_.nodeEntity[n] = -1;
+      if (!unplaced++) firstUnplaced = n;
+    }
+  }
+  if (boundaryNoEdge)
+    report_.warnings.push_back(
+        std::to_string(boundaryNoEdge) +
+        " nodes on the mesh's boundary lie on no CAD edge of their face; they are kept fixed "
+        "(e.g. node " + std::to_string(firstBoundaryNoEdge) + ")");
+  if (unplaced)
+    report_.warnings.push_back(
+        std::to_string(unplaced) +
+        " nodes touch elements of several faces but lie on none of their common CAD edges or "
+        "vertices; they are kept fixed (e.g. node " + std::to_string(firstUnplaced) + ")");
+
+  // ---- 4. the SurfaceMesh -------------------------------------------------------------------
+  surfaces_.reserve(static_cast<std::size_t>(NF));
+  for (int f = 0; f < NF; ++f) surfaces_.push_back(S.surface(f).clone());
+  curves_.reserve(static_cast<std::size_t>(NE));
+  for (int e = 0; e < NE; ++e) curves_.push_back(S.curve(e).clone());
+  SurfaceMesh& M = mesh_;
+  for (auto& s : surfaces_) M.surfaces.push_back(s.get());
+  for (auto& c : curves_) M.curves.push_back(c.get());
+  M.faceOrientation.assign(static_cast<std::size_t>(NF), 1);
+  M.xyz = input.nodes;
+  M.uv.assign(N, Vec2::Zero());
+  M.nodeFace.assign(N, -1);
+  M.nodeEdge.assign(N, -1);
+  M.nodeT.assign(N, 0.0);
+  M.nodeKind.assign(N, NodeKind::Fixed);
+  for (std::size_t n = 0; n < N; ++n) {
+    const NodeClass c = report_.nodeClass[n];
+    const bool inElements = !elemFacesOfNode[n].empty();
+    if (c == NodeClass::Face) {
+      M.nodeFace[n] = report_.nodeEntity[n];
+      M.uv[n] = nodeUV[n];
+      M.nodeKind[n] = NodeKind::Face;
+      ++report_.faceNodes;
+    } else if (c == NodeClass::Edge) {
+      M.nodeEdge[n] = report_.nodeEntity[n];
+      M.nodeT[n] = report_.nodeParam[n];
+      if (slide) M.nodeKind[n] = NodeKind::Edge;
+      ++report_.edgeNodes;
+    } else if (c == NodeClass::Vertex) {
+      ++report_.vertexNodes;
+      if (isPole[n]) ++report_.poleNodes;
+    } else if (!inElements) {
+      ++report_.unusedNodes;
+    }
+    if (M.nodeKind[n] == NodeKind::Fixed) ++report_.fixedNodes;
+    if (M.nodeKind[n] == NodeKind::Edge) ++report_.slidingNodes;
+  }
+  if (report_.unusedNodes)
+    report_.warnings.push_back(std::to_string(report_.unusedNodes) +
+                               " nodes belong to no element; they are kept fixed");
+
+  // Corner (u,v) of every element node on the element's face.
+  std::vector<Vec2> corner;
+  std::vector<Vec2> allCornerUV(input.conn.size());
+  for (std::size_t e = 0; e < E; ++e) {
+    const int f = elemFace[e];
+    const Surface& surf = *surfaces_[static_cast<std::size_t>(f)];
+    const std::int32_t* nd = input.conn.data() + offsets[e];
+    const int nn = static_cast<int>(offsets[e + 1] - offsets[e]);
+    corner.assign(static_cast<std::size_t>(nn), Vec2::Zero());
+    std::vector<unsigned char> known(static_cast<std::size_t>(nn), 0);
+    Vec2 ref = Vec2::Zero();
+    bool haveRef = false;
+    for (int k = 0; k < nn; ++k) {
+      const std::size_t n = static_cast<std::size_t>(nd[k]);
+      if (report_.nodeClass[n] == NodeClass::Face && report_.nodeEntity[n] == f) {
+        corner[static_cast<std::size_t>(k)] = haveRef ? surf.unwrapNear(nodeUV[n], ref) : nodeUV[n];
+        known[static_cast<std::size_t>(k)] = 1;
+        if (!haveRef) {
+          ref = nodeUV[n];
+          haveRef = true;
+        }
+      }
+    }
+    for (int k = 0; k < nn; ++k) {
+      if (known[static_cast<std::size_t>(k)]) continue;
+      const std::size_t n = static_cast<std::size_t>(nd[k]);
+      Vec2 uv = Vec2::Zero();
+      bool ok = false;
+      const NodeClass c = report_.nodeClass[n];
+      try {
+        if (c == NodeClass::Edge) {
+          const int ed = report_.nodeEntity[n];
+          const auto& ef = S.edgeFaces(ed);
+          if (std::binary_search(ef.begin(), ef.end(), f)) {
+            uv = curves_[static_cast<std::size_t>(ed)]->uvOnFace(f, report_.nodeParam[n],
+                                                                  haveRef ? ref : Vec2::Zero());
+            ok = uv.allFinite();
+          }
+        } else if (c == NodeClass::Vertex) {
+          const int v = report_.nodeEntity[n];
+          const auto& vf = S.vertexFaces(v);
+          if (std::binary_search(vf.begin(), vf.end(), f)) {
+            const gp_Pnt2d q = BRep_Tool::Parameters(S.vertex(v), S.face(f));
+            uv = Vec2(q.X(), q.Y());
+            ok = uv.allFinite();
+          }
+        }
+      } catch (const Standard_Failure&) {
+        ok = false;
+      }
+      if (!ok) uv = proj.faceDistance(f, input.nodes[n], kInf).uv;
+      if (haveRef) {
+        uv = surf.unwrapNear(uv, ref);
+      } else {
+        ref = uv;
+        haveRef = true;
+      }
+      corner[static_cast<std::size_t>(k)] = uv;
+    }
+    // Corners on a pole: the free coordinate follows the element's other corners.
+    for (int k = 0; k < nn; ++k) {
+      const Vec2& c = corner[static_cast<std::size_t>(k)];
+      const SurfaceD1 d = surf.d1(c.x(), c.y());
+      if (!isDegenerate(d)) continue;
+      const bool uFree = d.du.norm() <= d.dv.norm();
+      double sum = 0.0;
+      int cnt = 0;
+      for (int j = 0; j < nn; ++j) {
+        if (j == k) continue;
+        const Vec2& o = corner[static_cast<std::size_t>(j)];
+        if (isDegenerate(surf.d1(o.x(), o.y()))) continue;
+        sum += uFree ? o.x() : o.y();
+        ++cnt;
+      }
+      if (cnt == 0) continue;
+      if (uFree)
+        corner[static_cast<std::size_t>(k)].x() = sum / cnt;
+      else
+        corner[static_cast<std::size_t>(k)].y() = sum / cnt;
+    }
+    std::copy(corner.begin(), corner.end(), allCornerUV.begin() + offsets[e]);
+  }
+
+  // ---- 5. orientation -------------------------------------------------------------------------
+  std::vector<std::int64_t> agree(static_cast<std::size_t>(NF), 0),
+      disagree(static_cast<std::size_t>(NF), 0);
+  report_.faceElements.assign(static_cast<std::size_t>(NF), 0);
+  for (std::size_t e = 0; e < E; ++e) {
+    const int f = elemFace[e];
+    ++report_.faceElements[static_cast<std::size_t>(f)];
+    const Surface& surf = *surfaces_[static_cast<std::size_t>(f)];
+    const std::int32_t* nd = input.conn.data() + offsets[e];
+    const int nc = cornerCount(input.types[e]);
+    auto X = [&](int k) { return input.nodes[static_cast<std::size_t>(nd[k])]; };
+    const Vec3 g = nc == 4 ? Vec3((X(2) - X(0)).cross(X(3) - X(1)))
+                           : Vec3((X(1) - X(0)).cross(X(2) - X(0)));
+    Vec3 ref = Vec3::Zero();
+    for (int k = 0; k < nc; ++k) {
+      const Vec2& c = allCornerUV[static_cast<std::size_t>(offsets[e] + k)];
+      ref += surf.normal(c.x(), c.y());
+    }
+    const double s = g.dot(ref);
+    if (s > 0)
+      ++agree[static_cast<std::size_t>(f)];
+    else if (s < 0)
+      ++disagree[static_cast<std::size_t>(f)];
+  }
+  report_.faceFlipped.assign(static_cast<std::size_t>(NF), 0);
+  for (int f = 0; f < NF; ++f) {
+    const std::size_t fi = static_cast<std::size_t>(f);
+    if (report_.faceElements[fi] > 0) ++report_.facesUsed;
+    if (disagree[fi] > agree[fi]) {
+      M.faceOrientation[fi] = -1;
+      report_.faceFlipped[fi] = 1;
+      report_.flippedFaces.push_back(f);
+    }
+  }
+
+  // ---- elements -------------------------------------------------------------------------------
+  M.elemType.reserve(E);
+  M.elemFace.reserve(E);
+  M.elemOffset.reserve(E + 1);
+  M.elemNodes.reserve(input.conn.size());
+  M.cornerUV.reserve(input.conn.size());
+  for (std::size_t e = 0; e < E; ++e)
+    M.addElement(input.types[e], input.conn.data() + offsets[e], elemFace[e],
+                 allCornerUV.data() + offsets[e]);
+  M.validate();
+
+  report_.maxDistance = 0.0;
+  for (std::size_t n = 0; n < N; ++n)
+    if (report_.nodeDistance[n] > report_.maxDistance || report_.worstNode < 0) {
+      report_.maxDistance = report_.nodeDistance[n];
+      report_.worstNode = static_cast<std::int32_t>(n);
+    }
+  report_.seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+}  // namespace surfmesh
