@@ -1,7 +1,5 @@
 # SurfMesh — App-side initialization, run by FreeCAD at start-up (with or without the GUI).
 #
-# Run by exec (package.xml workbench): __file__ is not defined here. The headless API is the
-# Python package SurfMesh (Mod/SurfMesh/SurfMesh), importable as `import SurfMesh`.
-import FreeCAD
-
-FreeCAD.addImportType  # noqa: B018  (the module only needs FreeCAD to be up)
+# Run by exec (package.xml workbench): __file__ is not defined here. Nothing is needed at
+# start-up: the headless API is the package SurfMesh (Mod/SurfMesh/SurfMesh), imported on
+# demand with `import SurfMesh`; the test suites are run by scripts/test.sh.

@@ -10,14 +10,14 @@
 // std::invalid_argument (→ ValueError) naming the offending index.
 #pragma once
 
+#include "surfmesh/geometry/surface.h"
+
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 
 #include <cstdint>
 #include <string>
 #include <vector>
-
-#include "surfmesh/geometry/surface.h"
 
 namespace surfmesh::bindings {
 

@@ -1,4 +1,8 @@
 // SurfMesh bindings — the CAD bridge: cad_mesh(shape, arrays, hints, tolerance, boundary).
+#include "arrays.h"
+#include "handle.h"
+#include "surfmesh/cad/cad_bridge.h"
+
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
@@ -6,10 +10,6 @@
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
-
-#include "arrays.h"
-#include "handle.h"
-#include "surfmesh/cad/cad_bridge.h"
 
 namespace surfmesh::bindings {
 
@@ -39,10 +39,9 @@ py::dict reportDict(const BridgeReport& r) {
   for (std::size_t i = 0; i < r.nodeClass.size(); ++i)
     cls.mutable_data()[i] = static_cast<std::uint8_t>(r.nodeClass[i]);
   d["node_class"] = cls;
-  d["node_class_names"] = py::make_tuple(nodeClassName(NodeClass::Vertex),
-                                         nodeClassName(NodeClass::Edge),
-                                         nodeClassName(NodeClass::Face),
-                                         nodeClassName(NodeClass::None));
+  d["node_class_names"] =
+      py::make_tuple(nodeClassName(NodeClass::Vertex), nodeClassName(NodeClass::Edge),
+                     nodeClassName(NodeClass::Face), nodeClassName(NodeClass::None));
   d["node_entity"] = toArray(r.nodeEntity);
   d["node_param"] = toArray(r.nodeParam);
   d["node_distance"] = toArray(r.nodeDistance);

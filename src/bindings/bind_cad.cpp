@@ -1,13 +1,13 @@
 // SurfMesh bindings — CAD shapes (OpenCASCADE B-rep read from BREP text or a file).
+#include "handle.h"
+#include "surfmesh/cad/cad_shape.h"
+
 #include <pybind11/eigen.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
 #include <memory>
 #include <string>
-
-#include "handle.h"
-#include "surfmesh/cad/cad_shape.h"
 
 namespace surfmesh::bindings {
 
@@ -38,8 +38,7 @@ void bind_cad(py::module_& m) {
       .def_property_readonly("diagonal", &CadShape::diagonal, "Bounding box diagonal")
       .def("face_type", &CadShape::faceType, py::arg("face"))
       .def(
-          "surface",
-          [](const CadShape& s, int face) -> const Surface& { return s.surface(face); },
+          "surface", [](const CadShape& s, int face) -> const Surface& { return s.surface(face); },
           py::arg("face"), py::return_value_policy::reference_internal,
           "The Surface of a face (valid while the CadShape lives)")
       .def("vertex_point", &CadShape::vertexPoint, py::arg("vertex"))

@@ -1,12 +1,12 @@
 // SurfMesh bindings — parameterized surfaces (the analytic ones are used by tests and the demo).
+#include "handle.h"
+#include "surfmesh/geometry/analytic_surfaces.h"
+
 #include <pybind11/eigen.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
 #include <cmath>
-
-#include "handle.h"
-#include "surfmesh/geometry/analytic_surfaces.h"
 
 namespace surfmesh::bindings {
 

@@ -1,10 +1,10 @@
 // SurfMesh bindings — the registry of planar distortion measures.
+#include "handle.h"
+#include "surfmesh/measures/measure.h"
+
 #include <pybind11/eigen.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
-
-#include "handle.h"
-#include "surfmesh/measures/measure.h"
 
 namespace surfmesh::bindings {
 

@@ -1,17 +1,17 @@
 // SurfMesh bindings — SurfaceMesh handles: building one on an analytic surface, reading node
 // data back, and measuring quality.
+#include "arrays.h"
+#include "handle.h"
+#include "surfmesh/geometry/analytic_surfaces.h"
+#include "surfmesh/measures/measure.h"
+#include "surfmesh/mesh/quality.h"
+
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
 #include <sstream>
 #include <stdexcept>
-
-#include "arrays.h"
-#include "handle.h"
-#include "surfmesh/geometry/analytic_surfaces.h"
-#include "surfmesh/measures/measure.h"
-#include "surfmesh/mesh/quality.h"
 
 namespace surfmesh::bindings {
 
@@ -66,8 +66,7 @@ MeshClass bind_mesh(py::module_& m) {
   MeshClass cls(m, "SurfaceMesh",
                 "A surface mesh whose nodes lie on CAD faces or on an analytic surface. Built by "
                 "cad_mesh() or single_surface_mesh().");
-  cls.def_property_readonly("node_count",
-                            [](const MeshHandle& h) { return h.get().nodeCount(); })
+  cls.def_property_readonly("node_count", [](const MeshHandle& h) { return h.get().nodeCount(); })
       .def_property_readonly("element_count",
                              [](const MeshHandle& h) { return h.get().elementCount(); })
       .def_readonly("report", &MeshHandle::report, "How the mesh was built (dict)")
@@ -152,8 +151,8 @@ MeshClass bind_mesh(py::module_& m) {
         checkRange(fixed, 0, n, "fixed");
         auto owner = std::make_shared<SurfaceOwner>();
         owner->surface = surface.clone();
-        owner->mesh = makeSingleSurfaceMesh(*owner->surface, toVec2(uv), t, toInt32(conn),
-                                            toInt32(fixed));
+        owner->mesh =
+            makeSingleSurfaceMesh(*owner->surface, toVec2(uv), t, toInt32(conn), toInt32(fixed));
         owner->mesh.validate();
         auto h = std::make_shared<MeshHandle>();
         h->mesh = &owner->mesh;

@@ -1,13 +1,13 @@
 // SurfMesh bindings — SurfaceMesh.optimize(): smoothing and untangling with a cancellable
 // Python progress callback.
+#include "handle.h"
+#include "surfmesh/optimize/optimizer.h"
+
 #include <pybind11/functional.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
 #include <stdexcept>
-
-#include "handle.h"
-#include "surfmesh/optimize/optimizer.h"
 
 namespace surfmesh::bindings {
 
@@ -16,10 +16,9 @@ py::dict statsToDict(const QualityStats& s);
 void bind_optimize(MeshClass& cls) {
   cls.def(
       "optimize",
-      [](MeshHandle& h, const std::string& measure, int max_sweeps, double rel_tol,
-         double move_tol, int inner_iterations, int max_line_search,
-         const std::string& delta_policy, double delta_epsilon, double delta, bool monotone,
-         int threads, py::object progress) {
+      [](MeshHandle& h, const std::string& measure, int max_sweeps, double rel_tol, double move_tol,
+         int inner_iterations, int max_line_search, const std::string& delta_policy,
+         double delta_epsilon, double delta, bool monotone, int threads, py::object progress) {
         OptimizeOptions o;
         o.measure = measure;
         o.maxSweeps = max_sweeps;
@@ -77,10 +76,9 @@ void bind_optimize(MeshClass& cls) {
         return d;
       },
       py::arg("measure") = "shape", py::arg("max_sweeps") = 100, py::arg("rel_tol") = 1e-5,
-      py::arg("move_tol") = 1e-4, py::arg("inner_iterations") = 1,
-      py::arg("max_line_search") = 30, py::arg("delta_policy") = "auto",
-      py::arg("delta_epsilon") = 1e-2, py::arg("delta") = 1e-2, py::arg("monotone") = true,
-      py::arg("threads") = 0, py::arg("progress") = py::none(),
+      py::arg("move_tol") = 1e-4, py::arg("inner_iterations") = 1, py::arg("max_line_search") = 30,
+      py::arg("delta_policy") = "auto", py::arg("delta_epsilon") = 1e-2, py::arg("delta") = 1e-2,
+      py::arg("monotone") = true, py::arg("threads") = 0, py::arg("progress") = py::none(),
       "Optimizes the mesh in place (nodes stay on their surfaces). progress(dict) is called "
       "after every sweep; returning False cancels (reason 'cancelled', mesh unchanged). "
       "Returns a dict: before, after (stats), sweeps, seconds, reason, moved_nodes, threads.");

@@ -1,12 +1,12 @@
 // SurfMesh bindings — the Python-side owner of a SurfaceMesh and of the geometry it points to.
 #pragma once
 
+#include "surfmesh/mesh/surface_mesh.h"
+
 #include <pybind11/pybind11.h>
 
 #include <memory>
 #include <string>
-
-#include "surfmesh/mesh/surface_mesh.h"
 
 namespace surfmesh::bindings {
 

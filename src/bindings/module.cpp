@@ -1,9 +1,9 @@
 // SurfMesh bindings — the `SurfMesh._surfmesh` module: registers one binding file per topic.
+#include "handle.h"
+
 #include <pybind11/pybind11.h>
 
 #include <stdexcept>
-
-#include "handle.h"
 
 namespace py = pybind11;
 

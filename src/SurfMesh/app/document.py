@@ -11,7 +11,8 @@ MeshPart mesh, or the shape SurfMesh recorded on an optimized mesh).
 What is stored on a measured object (property group "SurfMesh"):
     SurfMeshMeasure (String), SurfMeshStats (Map: min, max, mean, std, tangled, elements),
     SurfMeshQuality (FloatList, one per element in element order; 0 = tangled),
-    SurfMeshColors (ColorList, Mesh objects only: one color per facet, drawn with Coloring).
+    SurfMeshColors (ColorList, one color per element: drawn by Mesh objects with Coloring;
+    on FEM objects the record of the colors given to the view).
 An optimized object also gets SurfMeshStatsBefore, SurfMeshQualityBefore, SurfMeshSource
 (link to the shape) and SurfMeshOriginal (link to the input mesh object).
 
@@ -112,11 +113,13 @@ def apply_colors(obj, report=None):
         raise ValueError(f"{obj.Label!r} has no quality to show: measure it first")
     kind = _mesh_kind(obj)
     rgb = coloring.quality_rgb(quality, tangled)
-    if kind == "mesh":
-        if len(rgb) != obj.Mesh.CountFacets:
-            raise ValueError("stored quality does not match the mesh's facets: measure again")
-        _ensure(obj, "App::PropertyColorList", "SurfMeshColors", "Quality color per facet")
-        obj.SurfMeshColors = [tuple(map(float, c)) for c in rgb]
+    count = obj.Mesh.CountFacets if kind == "mesh" else len(conversion.read_mesh(obj).types)
+    if len(rgb) != count:
+        raise ValueError("stored quality does not match the mesh's elements: measure again")
+    # Mesh objects draw this property (Coloring); FEM objects keep it as the record of the
+    # colors given to the view (ElementColor / NodeColor cannot be read back in 0.20).
+    _ensure(obj, "App::PropertyColorList", "SurfMeshColors", "Quality color per element")
+    obj.SurfMeshColors = [tuple(map(float, c)) for c in rgb]
     vo = getattr(obj, "ViewObject", None)
     if vo is None:
         return rgb
@@ -125,8 +128,6 @@ def apply_colors(obj, report=None):
         vo.Coloring = True
         return rgb
     data = conversion.read_mesh(obj.FemMesh)
-    if len(rgb) != data.element_count:
-        raise ValueError("stored quality does not match the mesh's elements: measure again")
     tri3 = conversion.ELEMENT_TYPES["tri3"]
     if np.all(data.types == tri3):
         vo.resetNodeColor()
@@ -142,7 +143,7 @@ def apply_colors(obj, report=None):
 def clear_colors(obj):
     """Removes the quality colors from ``obj`` (the stored stats are kept)."""
     kind = _mesh_kind(obj)
-    if kind == "mesh" and "SurfMeshColors" in obj.PropertiesList:
+    if "SurfMeshColors" in obj.PropertiesList:
         obj.removeProperty("SurfMeshColors")
     vo = getattr(obj, "ViewObject", None)
     if vo is None:
@@ -254,3 +255,25 @@ def report_rows(obj, measures=None, shape=None):
             else:
                 series.append((obj.Label, r1.quality, r1.stats["tangled"]))
     return rows, series
+
+
+def report_object(obj, shape=None, measures=None, histogram=None):
+    """Paper-style report of mesh object ``obj``: a dict with ``rows`` (measure, mesh, stats),
+    ``text`` (plain table), ``html`` and, when ``histogram`` is a path, the quality histogram
+    (before/after for an optimized mesh) written there as PNG."""
+    from SurfMesh.app import reports
+
+    rows, series = report_rows(obj, measures=measures, shape=shape)
+    out = {
+        "rows": rows,
+        "text": reports.format_table(rows, title=f"Quality of {obj.Label}"),
+        "html": reports.table_html(rows),
+        "histogram": None,
+    }
+    if histogram:
+        main = rows[0][0] if rows else "shape"
+        if "SurfMeshMeasure" in obj.PropertiesList and obj.SurfMeshMeasure:
+            main = obj.SurfMeshMeasure
+        reports.save_histogram(histogram, series, title=f"{obj.Label}: {main} quality")
+        out["histogram"] = histogram
+    return out

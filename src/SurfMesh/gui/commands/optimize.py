@@ -1,0 +1,37 @@
+"""SurfMesh_Optimize: smooth and untangle the selected mesh on its shape (task panel)."""
+
+from __future__ import annotations
+
+import FreeCAD
+import FreeCADGui
+
+from SurfMesh import paths
+from SurfMesh.gui import runner, selection
+
+
+class OptimizeCommand:
+    def GetResources(self):
+        return {
+            "Pixmap": paths.icon("SurfMesh_Optimize"),
+            "MenuText": "Optimize mesh",
+            "ToolTip": "Smooths and untangles the selected mesh on its CAD shape; nodes move "
+            "in the surfaces' parameters and never leave the CAD geometry.\nCreates "
+            "<name>_optimized (the original is kept). Select one mesh object, and its shape "
+            "unless the mesh was made from it.",
+        }
+
+    def IsActive(self):
+        return (
+            FreeCAD.ActiveDocument is not None
+            and len(selection.selected_meshes()) == 1
+            and FreeCADGui.Control.activeDialog() is False
+        )
+
+    def Activated(self):
+        mesh, shape = selection.selected_mesh_and_shape()
+        if mesh is None:
+            runner.show_error("SurfMesh", ValueError("select one mesh object (and its shape)"))
+            return
+        from SurfMesh.gui.taskpanels.optimize_panel import OptimizePanel
+
+        FreeCADGui.Control.showDialog(OptimizePanel(mesh, shape))

@@ -1,0 +1,45 @@
+"""SurfMesh_Report: the paper-style statistics table and the quality histogram (before/after
+for an optimized mesh)."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+
+import FreeCAD
+
+from SurfMesh import paths
+from SurfMesh.gui import runner, selection
+
+
+class ReportCommand:
+    def GetResources(self):
+        return {
+            "Pixmap": paths.icon("SurfMesh_Report"),
+            "MenuText": "Quality report",
+            "ToolTip": "Shows the quality statistics of the selected mesh for every measure "
+            "(min, max, mean, std. dev., tangled elements; before and after for an optimized "
+            "mesh) and a histogram of the element quality.",
+        }
+
+    def IsActive(self):
+        return FreeCAD.ActiveDocument is not None and len(selection.selected_meshes()) == 1
+
+    def Activated(self):
+        mesh, shape = selection.selected_mesh_and_shape()
+        if mesh is None:
+            runner.show_error("SurfMesh", ValueError("select one mesh object (and its shape)"))
+            return
+        png = os.path.join(tempfile.gettempdir(), f"surfmesh_report_{mesh.Name}.png")
+        args = selection.object_ref(mesh)
+        if shape is not None:
+            args += ", shape=" + selection.object_ref(shape)
+        args += f", histogram={png!r}"
+        try:
+            report = runner.run(f"SurfMesh.app.document.report_object({args})")
+        except Exception as exc:
+            runner.show_error("SurfMesh: report", exc)
+            return
+        from SurfMesh.gui.report_dialog import show_report
+
+        show_report(mesh.Label, report)

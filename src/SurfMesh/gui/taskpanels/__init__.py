@@ -1,0 +1,1 @@
+"""Task panels of the SurfMesh workbench."""

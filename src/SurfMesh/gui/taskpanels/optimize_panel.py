@@ -1,0 +1,180 @@
+"""Task panel of SurfMesh_Optimize: measure, boundary mode, tolerances, sweeps, threads.
+
+OK (Apply) runs SurfMesh.optimize_object through FreeCADGui.doCommand with a progress hook
+that drives the panel's progress bar; Cancel (or Stop) during a run stops it and leaves the
+document unchanged; Cancel when idle closes the panel.
+"""
+
+from __future__ import annotations
+
+import FreeCAD
+import FreeCADGui
+from PySide import QtCore, QtGui
+
+from SurfMesh.app import api, progress
+from SurfMesh.gui import preferences, runner, selection
+
+
+class OptimizePanel:
+    def __init__(self, mesh, shape):
+        self.mesh = mesh
+        self.shape = shape
+        self.running = False
+        self.stop_requested = False
+        self.result = None
+        self.form = self._build_form()
+
+    # ---- form ------------------------------------------------------------------------------
+    def _build_form(self):
+        w = QtGui.QWidget()
+        w.setObjectName("SurfMeshOptimizePanel")
+        w.setWindowTitle("Optimize surface mesh")
+        lay = QtGui.QFormLayout(w)
+        info = QtGui.QLabel(
+            f"Mesh: <b>{self.mesh.Label}</b><br>Shape: <b>"
+            f"{self.shape.Label if self.shape is not None else '(none: select one)'}</b>"
+        )
+        lay.addRow(info)
+        self.measure = QtGui.QComboBox()
+        self.measure.setObjectName("measure")
+        names = api.measure_names()
+        self.measure.addItems(names)
+        cur = preferences.measure()
+        if cur in names:
+            self.measure.setCurrentIndex(names.index(cur))
+        lay.addRow("Measure", self.measure)
+        self.boundary = QtGui.QComboBox()
+        self.boundary.setObjectName("boundary")
+        self.boundary.addItems(list(api.BOUNDARY_MODES))
+        self.boundary.setToolTip("fixed: nodes on CAD edges stay; slide: they slide along edges")
+        lay.addRow("Boundary", self.boundary)
+        self.tolerance = QtGui.QDoubleSpinBox()
+        self.tolerance.setObjectName("tolerance")
+        self.tolerance.setDecimals(6)
+        self.tolerance.setRange(0.0, 1e6)
+        self.tolerance.setSpecialValueText("automatic")
+        self.tolerance.setToolTip("Largest distance of a node from the shape (0: automatic)")
+        lay.addRow("Shape tolerance", self.tolerance)
+        self.rel_tol = QtGui.QDoubleSpinBox()
+        self.rel_tol.setObjectName("rel_tol")
+        self.rel_tol.setDecimals(8)
+        self.rel_tol.setRange(1e-8, 1.0)
+        self.rel_tol.setSingleStep(1e-5)
+        self.rel_tol.setValue(api.OPTIMIZE_DEFAULTS["rel_tol"])
+        lay.addRow("Relative tolerance", self.rel_tol)
+        self.max_sweeps = QtGui.QSpinBox()
+        self.max_sweeps.setObjectName("max_sweeps")
+        self.max_sweeps.setRange(1, 100000)
+        self.max_sweeps.setValue(api.OPTIMIZE_DEFAULTS["max_sweeps"])
+        lay.addRow("Max. sweeps", self.max_sweeps)
+        self.threads = QtGui.QSpinBox()
+        self.threads.setObjectName("threads")
+        self.threads.setRange(0, 256)
+        self.threads.setSpecialValueText("all")
+        lay.addRow("Threads", self.threads)
+        self.bar = QtGui.QProgressBar()
+        self.bar.setObjectName("progress")
+        self.bar.setRange(0, 100)
+        self.bar.setValue(0)
+        lay.addRow(self.bar)
+        self.status = QtGui.QLabel("")
+        self.status.setObjectName("status")
+        self.status.setWordWrap(True)
+        lay.addRow(self.status)
+        self.stop = QtGui.QPushButton("Stop")
+        self.stop.setObjectName("stop")
+        self.stop.setEnabled(False)
+        self.stop.clicked.connect(self.request_stop)
+        lay.addRow(self.stop)
+        return w
+
+    def options(self):
+        return {
+            "measure": self.measure.currentText(),
+            "boundary": self.boundary.currentText(),
+            "tolerance": self.tolerance.value() or None,
+            "rel_tol": self.rel_tol.value(),
+            "max_sweeps": self.max_sweeps.value(),
+            "threads": self.threads.value(),
+        }
+
+    def command(self):
+        o = self.options()
+        args = [selection.object_ref(self.mesh)]
+        if self.shape is not None:
+            args.append("shape=" + selection.object_ref(self.shape))
+        args.append(f"measure={o['measure']!r}")
+        args.append(f"boundary={o['boundary']!r}")
+        if o["tolerance"] is not None:
+            args.append(f"tolerance={o['tolerance']!r}")
+        for k in ("rel_tol", "max_sweeps", "threads"):
+            if o[k] != api.OPTIMIZE_DEFAULTS[k]:
+                args.append(f"{k}={o[k]!r}")
+        return "SurfMesh.optimize_object(" + ", ".join(args) + ")"
+
+    # ---- running ---------------------------------------------------------------------------
+    def request_stop(self):
+        if self.running:
+            self.stop_requested = True
+            self.status.setText("stopping…")
+
+    def _hook(self, info):
+        total = max(int(info.get("max_sweeps", 1)), 1)
+        self.bar.setValue(int(100 * int(info.get("sweep", 0)) / total))
+        self.status.setText(
+            f"sweep {info.get('sweep')}: {info.get('tangled')} tangled, "
+            f"min quality {float(info.get('min_quality', 0.0)):.3f}"
+        )
+        QtGui.QApplication.processEvents(QtCore.QEventLoop.AllEvents, 50)
+        return not self.stop_requested
+
+    def run(self):
+        """Runs the optimization; returns the new object, or None (cancelled or failed)."""
+        if self.running:
+            return None
+        self.running = True
+        self.stop_requested = False
+        self.stop.setEnabled(True)
+        self.bar.setValue(0)
+        preferences.set_measure(self.measure.currentText())
+        try:
+            with progress.hook(self._hook):
+                new = runner.run(self.command())
+        except api.Cancelled:
+            self.status.setText("cancelled: the document is unchanged")
+            FreeCAD.Console.PrintMessage("SurfMesh: optimization cancelled, nothing changed\n")
+            return None
+        except Exception as exc:  # bad input, core error: the document is unchanged
+            self.status.setText(f"error: {exc}")
+            runner.show_error("SurfMesh: optimize", exc)
+            return None
+        finally:
+            self.running = False
+            self.stop.setEnabled(False)
+        self.result = new
+        self.bar.setValue(100)
+        return new
+
+    # ---- task dialog protocol --------------------------------------------------------------
+    def getStandardButtons(self):
+        return int(QtGui.QDialogButtonBox.Ok | QtGui.QDialogButtonBox.Cancel)
+
+    def accept(self):
+        if self.running:
+            return False
+        if self.shape is None:
+            self.status.setText("no shape: close, select the mesh and its shape, try again")
+            return False
+        new = self.run()
+        if new is None:
+            return False  # keep the panel open (cancelled or error shown)
+        FreeCADGui.Control.closeDialog()
+        FreeCAD.ActiveDocument.recompute()
+        return True
+
+    def reject(self):
+        if self.running:
+            self.request_stop()
+            return False
+        FreeCADGui.Control.closeDialog()
+        return True
