@@ -1,0 +1,393 @@
+"""Reading shapes and meshes from files and writing optimized meshes, with existing readers:
+
+* shapes: STEP / IGES / BREP through FreeCAD's Part; FCStd through FreeCAD documents;
+* meshes: Gmsh .msh (v2 and v4) through Gmsh's own API (node and element tags, entities and
+  physical groups are kept on write-back); .unv / .inp / .vtk / .vtu / .med / .z88 / .dat /
+  .bdf through FreeCAD's FEM readers; .stl / .obj / .ply / .off / .ast / .bms through FreeCAD's
+  Mesh; anything else meshio reads, through meshio.
+
+Headless: never imports FreeCADGui.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+
+import numpy as np
+
+from SurfMesh.app import conversion
+
+SHAPE_EXTS = {".step", ".stp", ".iges", ".igs", ".brep", ".brp", ".rle", ".fcstd"}
+GMSH_EXTS = {".msh"}
+FEM_EXTS = {".unv", ".inp", ".vtk", ".vtu", ".med", ".z88", ".dat", ".bdf"}
+MESH_EXTS = {".stl", ".obj", ".ply", ".off", ".ast", ".bms"}
+
+# Gmsh element type codes ↔ SurfMesh element names (complete Lagrange triangles, quad4).
+GMSH_TYPES = {2: "tri3", 3: "quad4", 9: "tri6", 21: "tri10", 23: "tri15", 25: "tri21"}
+GMSH_CODES = {name: code for code, name in GMSH_TYPES.items()}
+_GMSH_OTHER = {10: "quad9", 16: "quad8", 20: "tri9 (incomplete)", 22: "tri12 (incomplete)"}
+
+
+def _ext(path):
+    return os.path.splitext(path)[1].lower()
+
+
+def _check_file(path, what):
+    if not os.path.exists(path):
+        raise ValueError(f"{what} file not found: {path}")
+    if not os.path.isfile(path):
+        raise ValueError(f"{what} path is not a file: {path}")
+    if os.path.getsize(path) == 0:
+        raise ValueError(f"{what} file is empty: {path}")
+
+
+# ---- shapes ----------------------------------------------------------------------------------
+
+
+def read_shape(path, object_name=None):
+    """Part.Shape from a STEP / IGES / BREP file, or from an object of an FCStd document
+    (``object_name``; default: the only object with faces that no other such object uses)."""
+    import Part
+
+    _check_file(path, "shape")
+    ext = _ext(path)
+    if ext not in SHAPE_EXTS:
+        raise ValueError(
+            f"unknown shape format {ext!r} ({path}); use STEP, IGES, BREP or FCStd"
+        )
+    if ext == ".fcstd":
+        return _shape_from_fcstd(path, object_name)
+    try:
+        if ext in (".brep", ".brp", ".rle"):
+            shape = Part.Shape()
+            shape.importBrep(path)
+        else:
+            shape = Part.read(path)
+    except Exception as exc:
+        raise ValueError(f"cannot read shape from {path}: {exc}") from exc
+    if shape.isNull() or not shape.Faces:
+        raise ValueError(f"{path} holds no faces")
+    return shape
+
+
+def _open_fcstd(path):
+    import FreeCAD
+
+    for doc in FreeCAD.listDocuments().values():
+        if os.path.abspath(doc.FileName) == os.path.abspath(path):
+            return doc
+    try:
+        return FreeCAD.openDocument(path, True)  # hidden
+    except TypeError:
+        return FreeCAD.openDocument(path)
+    except Exception as exc:
+        raise ValueError(f"cannot open FreeCAD document {path}: {exc}") from exc
+
+
+def _shape_from_fcstd(path, object_name):
+    doc = _open_fcstd(path)
+    if object_name:
+        obj = doc.getObject(object_name) or next(iter(doc.getObjectsByLabel(object_name)), None)
+        if obj is None or not hasattr(obj, "Shape") or obj.Shape.isNull():
+            raise ValueError(f"{path} has no shape object named {object_name!r}")
+        return obj.Shape
+    cands = [
+        o
+        for o in doc.Objects
+        if hasattr(o, "Shape")
+        and "FemMesh" not in o.PropertiesList
+        and not o.Shape.isNull()
+        and o.Shape.Faces
+    ]
+    roots = [o for o in cands if not any(p in cands for p in o.InList)]
+    if len(roots) != 1:
+        names = ", ".join(o.Name for o in roots) or "none"
+        raise ValueError(
+            f"{path}: cannot tell which shape to use ({names}); name one with --shape-object"
+        )
+    return roots[0].Shape
+
+
+# ---- meshes ----------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass
+class MeshFile:
+    """A mesh read from a file: its arrays, and what is needed to write it back."""
+
+    path: str
+    fmt: str  # "gmsh", "fem", "mesh", "meshio"
+    data: conversion.MeshData
+    msh_version: float = 0.0  # Gmsh input: 2.2 or 4.1
+    fem: object = None  # Fem.FemMesh for FEM inputs
+    mesh: object = None  # Mesh.Mesh for Mesh inputs
+    meshio_mesh: object = None
+
+
+def read_mesh(path, object_name=None) -> MeshFile:
+    """Reads a surface mesh file (see the module doc for the formats)."""
+    _check_file(path, "mesh")
+    ext = _ext(path)
+    if ext in GMSH_EXTS:
+        return _read_gmsh(path)
+    if ext in FEM_EXTS:
+        import Fem
+
+        try:
+            fem = Fem.read(path)
+        except Exception as exc:
+            raise ValueError(f"cannot read FEM mesh {path}: {exc}") from exc
+        return MeshFile(path, "fem", conversion.read_mesh(fem), fem=fem)
+    if ext in MESH_EXTS:
+        import Mesh
+
+        try:
+            mesh = Mesh.Mesh(path)
+        except Exception as exc:
+            raise ValueError(f"cannot read mesh {path}: {exc}") from exc
+        if mesh.CountFacets == 0:
+            raise ValueError(f"{path} holds no triangles")
+        return MeshFile(path, "mesh", conversion.read_mesh(mesh), mesh=mesh)
+    if ext == ".fcstd":
+        doc = _open_fcstd(path)
+        objs = [o for o in doc.Objects if ("FemMesh" in o.PropertiesList or (
+            "Mesh" in o.PropertiesList and o.TypeId.startswith("Mesh::")))]
+        if object_name:
+            objs = [o for o in objs if object_name in (o.Name, o.Label)]
+        if len(objs) != 1:
+            names = ", ".join(o.Name for o in objs) or "none"
+            raise ValueError(f"{path}: cannot tell which mesh to use ({names}); use --mesh-object")
+        inner = conversion.mesh_of(objs[0])
+        data = conversion.read_mesh(inner)
+        if data.kind == "fem":
+            return MeshFile(path, "fem", data, fem=inner)
+        return MeshFile(path, "mesh", data, mesh=inner)
+    return _read_meshio(path)
+
+
+_gmsh_ready = False
+
+
+def _gmsh():
+    """Gmsh's Python API, initialized once (quiet, no user configuration files)."""
+    global _gmsh_ready
+    import gmsh
+
+    if not _gmsh_ready:
+        try:
+            gmsh.initialize(readConfigFiles=False)
+        except TypeError:  # older signature
+            gmsh.initialize()
+        gmsh.option.setNumber("General.Terminal", 0)
+        _gmsh_ready = True
+    return gmsh
+
+
+def _msh_version(path):
+    with open(path, "rb") as fh:
+        head = fh.read(256).decode("latin-1", "replace").split()
+    if len(head) >= 2 and head[0] == "$MeshFormat":
+        try:
+            return float(head[1])
+        except ValueError:
+            pass
+    raise ValueError(f"{path} is not a Gmsh .msh file (no $MeshFormat header)")
+
+
+def _read_gmsh(path) -> MeshFile:
+    version = _msh_version(path)
+    gmsh = _gmsh()
+    gmsh.clear()
+    try:
+        gmsh.open(path)
+    except Exception as exc:
+        raise ValueError(f"Gmsh cannot read {path}: {exc}") from exc
+    node_tags, coords, _ = gmsh.model.mesh.getNodes()
+    if len(node_tags) == 0:
+        raise ValueError(f"{path} holds no nodes")
+    node_tags = np.asarray(node_tags, dtype=np.int64)
+    nodes = np.asarray(coords, dtype=np.float64).reshape(-1, 3)
+    order = np.argsort(node_tags)
+    node_tags, nodes = node_tags[order], nodes[order]
+    types, tags, conn_tags = gmsh.model.mesh.getElements(2)
+    el_types, el_ids, flat = [], [], []
+    for t, etags, ntags in zip(types, tags, conn_tags):
+        t = int(t)
+        if t not in GMSH_TYPES:
+            name = _GMSH_OTHER.get(t, gmsh.model.mesh.getElementProperties(t)[0])
+            raise ValueError(
+                f"{path}: unsupported element type {name} ({len(etags)} elements); supported: "
+                + ", ".join(GMSH_TYPES.values())
+            )
+        el_types.append(np.full(len(etags), conversion.ELEMENT_TYPES[GMSH_TYPES[t]]))
+        el_ids.append(np.asarray(etags, dtype=np.int64))
+        flat.append(np.asarray(ntags, dtype=np.int64))
+    if not el_types:
+        raise ValueError(f"{path} holds no surface (2D) elements")
+    el_types = np.concatenate(el_types).astype(np.int64)
+    el_ids = np.concatenate(el_ids)
+    flat = np.concatenate(flat)
+    sizes = np.array(
+        [conversion.NODES_PER_TYPE[conversion.ELEMENT_NAMES[int(t)]] for t in el_types],
+        dtype=np.int64,
+    )
+    # element id order, as FEM meshes are
+    eorder = np.argsort(el_ids, kind="stable")
+    starts = np.concatenate([[0], np.cumsum(sizes)])
+    conn_list = [flat[starts[e] : starts[e + 1]] for e in eorder]
+    el_types, el_ids, sizes = el_types[eorder], el_ids[eorder], sizes[eorder]
+    flat = np.concatenate(conn_list) if conn_list else flat
+    pos = np.searchsorted(node_tags, flat)
+    pos = np.clip(pos, 0, len(node_tags) - 1)
+    if np.any(node_tags[pos] != flat):
+        raise ValueError(f"{path}: an element references an unknown node")
+    offsets = np.zeros(len(el_types) + 1, dtype=np.int64)
+    np.cumsum(sizes, out=offsets[1:])
+    data = conversion.MeshData(
+        kind="arrays",
+        nodes=nodes,
+        types=el_types,
+        offsets=offsets,
+        conn=pos.astype(np.int64),
+        node_ids=node_tags,
+        element_ids=el_ids,
+    )
+    return MeshFile(path, "gmsh", data, msh_version=version)
+
+
+_MESHIO_TYPES = {"triangle": "tri3", "triangle6": "tri6", "quad": "quad4",
+                 "triangle10": "tri10", "triangle15": "tri15", "triangle21": "tri21"}
+
+
+def _read_meshio(path) -> MeshFile:
+    try:
+        import meshio
+    except ImportError as exc:
+        raise ValueError(f"unknown mesh format {_ext(path)!r} ({path})") from exc
+    try:
+        m = meshio.read(path)
+    except Exception as exc:
+        raise ValueError(f"cannot read mesh {path}: {exc}") from exc
+    types, conns = [], []
+    for block in m.cells:
+        if block.type in _MESHIO_TYPES:
+            name = _MESHIO_TYPES[block.type]
+            types.append(np.full(len(block.data), conversion.ELEMENT_TYPES[name], np.int64))
+            conns.append(np.asarray(block.data, np.int64).reshape(-1))
+    if not types:
+        raise ValueError(f"{path} holds no surface elements")
+    types = np.concatenate(types)
+    sizes = np.array([conversion.NODES_PER_TYPE[conversion.ELEMENT_NAMES[int(t)]] for t in types])
+    offsets = np.zeros(len(types) + 1, dtype=np.int64)
+    np.cumsum(sizes, out=offsets[1:])
+    nodes = np.asarray(m.points, dtype=np.float64)
+    if nodes.shape[1] == 2:
+        nodes = np.hstack([nodes, np.zeros((len(nodes), 1))])
+    data = conversion.MeshData(
+        kind="arrays", nodes=nodes, types=types, offsets=offsets, conn=np.concatenate(conns),
+        node_ids=np.arange(len(nodes), dtype=np.int64),
+        element_ids=np.arange(len(types), dtype=np.int64),
+    )
+    return MeshFile(path, "meshio", data, meshio_mesh=m)
+
+
+# ---- writing ---------------------------------------------------------------------------------
+
+
+def write_mesh(out, src: MeshFile, new_nodes, msh_version=None):
+    """Writes the mesh of ``src`` with node positions ``new_nodes`` to ``out`` (format by
+    extension). Ids and element order are kept where the format stores them."""
+    new_nodes = np.asarray(new_nodes, dtype=np.float64)
+    ext = _ext(out)
+    data = src.data
+    if ext in GMSH_EXTS:
+        version = msh_version or (src.msh_version if src.fmt == "gmsh" else 4.1)
+        version = 2.2 if float(version) < 3 else 4.1
+        _write_gmsh(out, src, new_nodes, version)
+    elif ext in FEM_EXTS:
+        fem = conversion.rebuild(data, new_nodes) if src.fmt == "fem" else _fem_from(data, new_nodes)
+        try:
+            fem.write(out)
+        except Exception as exc:
+            raise ValueError(f"cannot write {out}: {exc}") from exc
+    elif ext in MESH_EXTS:
+        if src.fmt == "mesh":
+            mesh = conversion.rebuild(data, new_nodes)
+        else:
+            mesh = _mesh_from(data, new_nodes)
+        mesh.write(out)
+    else:
+        import meshio
+
+        cells = _meshio_cells(data)
+        meshio.write(out, meshio.Mesh(new_nodes, cells))
+    if not os.path.exists(out):
+        raise ValueError(f"nothing was written to {out}")
+    return out
+
+
+def _write_gmsh(out, src, new_nodes, version):
+    gmsh = _gmsh()
+    data = src.data
+    if src.fmt == "gmsh":
+        gmsh.clear()
+        gmsh.open(src.path)
+        for tag, xyz in zip(data.node_ids.tolist(), new_nodes.tolist()):
+            gmsh.model.mesh.setNode(int(tag), xyz, [])
+    else:
+        gmsh.clear()
+        gmsh.model.add("surfmesh")
+        gmsh.model.addDiscreteEntity(2, 1)
+        gmsh.model.mesh.addNodes(2, 1, data.node_ids.tolist(), new_nodes.reshape(-1).tolist())
+        for code in np.unique(data.types):
+            name = conversion.ELEMENT_NAMES[int(code)]
+            sel = np.nonzero(data.types == code)[0]
+            conn = np.concatenate([data.node_ids[data.element(e)] for e in sel])
+            gmsh.model.mesh.addElementsByType(
+                1, GMSH_CODES[name], (data.element_ids[sel] + 1 if data.element_ids.min() == 0
+                                      else data.element_ids[sel]).tolist(), conn.tolist()
+            )
+    gmsh.option.setNumber("Mesh.MshFileVersion", version)
+    gmsh.option.setNumber("Mesh.SaveAll", 1)
+    gmsh.option.setNumber("Mesh.Binary", 0)
+    gmsh.write(out)
+
+
+def _fem_from(data, nodes):
+    import Fem
+
+    fem = Fem.FemMesh()
+    ids = data.node_ids if data.node_ids.min() > 0 else data.node_ids + 1
+    eids = data.element_ids if data.element_ids.min() > 0 else data.element_ids + 1
+    for nid, (x, y, z) in zip(ids.tolist(), nodes.tolist()):
+        fem.addNode(x, y, z, int(nid))
+    for e in range(data.element_count):
+        name = conversion.ELEMENT_NAMES[int(data.types[e])]
+        if name not in ("tri3", "tri6", "quad4"):
+            raise ValueError(f"FreeCAD FEM meshes cannot hold {name} elements: write .msh")
+        fem.addFace([int(i) for i in ids[data.element(e)]], int(eids[e]))
+    return fem
+
+
+def _mesh_from(data, nodes):
+    import FreeCAD
+    import Mesh
+
+    if np.any(data.types != conversion.ELEMENT_TYPES["tri3"]):
+        raise ValueError(f"{', '.join(data.type_names())} elements cannot be written as a "
+                         "triangle mesh (STL/OBJ…): write .msh or a FEM format")
+    vec = FreeCAD.Vector
+    pts = [vec(float(x), float(y), float(z)) for x, y, z in nodes]
+    tris = [tuple(int(i) for i in data.element(e)) for e in range(data.element_count)]
+    return Mesh.Mesh((pts, tris))
+
+
+def _meshio_cells(data):
+    inverse = {v: k for k, v in _MESHIO_TYPES.items()}
+    cells = []
+    for code in np.unique(data.types):
+        name = conversion.ELEMENT_NAMES[int(code)]
+        sel = np.nonzero(data.types == code)[0]
+        cells.append((inverse[name], np.array([data.element(e) for e in sel])))
+    return cells
