@@ -131,8 +131,12 @@ TEST_P(MeasureConformance, DerivativesConvergeAtRateTwo) {
       const double h = 1e-3;
       const double e1 = fdGradError(m, S, delta, h), e2 = fdGradError(m, S, delta, h / 2);
       const double h1 = fdHessError(m, S, delta, h), h2 = fdHessError(m, S, delta, h / 2);
-      if (e1 > 1e-9) EXPECT_NEAR(e1 / e2, 4.0, 0.5) << "gradient, delta=" << delta;
-      if (h1 > 1e-9) EXPECT_NEAR(h1 / h2, 4.0, 0.5) << "Hessian, delta=" << delta;
+      if (e1 > 1e-9) {
+        EXPECT_NEAR(e1 / e2, 4.0, 0.5) << "gradient, delta=" << delta;
+      }
+      if (h1 > 1e-9) {
+        EXPECT_NEAR(h1 / h2, 4.0, 0.5) << "Hessian, delta=" << delta;
+      }
       EXPECT_LT(e1, 1e-3 * (1 + m.value(S, delta)));
       EXPECT_LT(h1, 1e-2 * (1 + m.value(S, delta)));
     }
@@ -195,7 +199,9 @@ TEST(SurfaceMeasure, PlanarConsistencyWithPlanarMeasureAndVerdict) {
         continue;
       }
       EXPECT_NEAR(ev.eta, planar, 1e-13 * planar);
-      if (name == "shape") EXPECT_NEAR(1.0 / ev.eta, verdictTriShape(x[0], x[1], x[2]), 1e-13);
+      if (name == "shape") {
+        EXPECT_NEAR(1.0 / ev.eta, verdictTriShape(x[0], x[1], x[2]), 1e-13);
+      }
       ++checked;
     }
   }
