@@ -1,0 +1,217 @@
+"""SurfMesh.measure / SurfMesh.optimize on Mesh and FEM tria3 inputs (run: freecadcmd -t).
+
+References are independent of SurfMesh: planar triangle shape quality with FreeCAD's surface
+normals (surfmesh_testing.reference_tri_quality), FreeCAD's geometry queries and the torus's
+closed-form distance for node positions.
+"""
+
+import unittest
+
+import FreeCAD
+import numpy as np
+
+import SurfMesh
+import surfmesh_testing as T
+
+
+class ApiCase(unittest.TestCase):
+    def setUp(self):
+        self.doc = FreeCAD.newDocument("SurfMeshApiTest")
+
+    def tearDown(self):
+        FreeCAD.closeDocument(self.doc.Name)
+
+
+class TestMeasure(ApiCase):
+    def test_measure_names(self):
+        self.assertEqual(SurfMesh.measure_names()[:2], ["shape", "oddy"])
+
+    def test_fem_tria3_quality_matches_planar_reference(self):
+        tor, mesh = T.torus_fem(self.doc, tangled=True)
+        rep = SurfMesh.measure(mesh, tor, measure="shape")
+        data = SurfMesh.app.conversion.read_mesh(mesh)
+        tris = data.conn.reshape(-1, 3)
+        ref_q, ref_t = T.reference_tri_quality(data.nodes, tris, tor.Shape.Faces[0])
+        self.assertEqual(rep.quality.shape, (data.element_count,))
+        self.assertEqual(rep.quality.dtype, np.float64)
+        self.assertEqual(rep.tangled.dtype, bool)
+        self.assertGreater(int(ref_t.sum()), 0, "fixture must be tangled")
+        np.testing.assert_array_equal(rep.tangled, ref_t)
+        np.testing.assert_allclose(rep.quality, ref_q, atol=1e-9)
+        self.assertTrue(np.all((rep.quality >= 0) & (rep.quality <= 1)))
+        self.assertTrue(np.all(rep.quality[rep.tangled] == 0))
+        s = rep.stats
+        self.assertEqual(s["elements"], data.element_count)
+        self.assertEqual(s["tangled"], int(ref_t.sum()))
+        self.assertAlmostEqual(s["min"], 0.0)
+        self.assertAlmostEqual(s["max"], float(ref_q.max()), places=9)
+        self.assertAlmostEqual(s["mean"], float(ref_q.mean()), places=9)
+        self.assertAlmostEqual(s["std"], float(ref_q.std()), places=9)
+        # element ids are the FEM face ids, which do not start at 1 (edges come first)
+        np.testing.assert_array_equal(rep.element_ids, np.array(mesh.FemMesh.Faces))
+        self.assertGreater(int(rep.element_ids.min()), 1)
+
+    def test_mesh_input_and_document_object(self):
+        tor, mobj = T.torus_mesh(self.doc)
+        r1 = SurfMesh.measure(mobj, tor.Shape)  # object + Part.Shape
+        r2 = SurfMesh.measure(mobj.Mesh, tor)  # Mesh.Mesh + object with .Shape
+        np.testing.assert_array_equal(r1.quality, r2.quality)
+        data = SurfMesh.app.conversion.read_mesh(mobj)
+        ref_q, ref_t = T.reference_tri_quality(data.nodes, data.conn.reshape(-1, 3),
+                                               tor.Shape.Faces[0])
+        self.assertFalse(ref_t.any())
+        np.testing.assert_allclose(r1.quality, ref_q, atol=1e-9)
+        self.assertEqual(r1.stats["tangled"], 0)
+
+    def test_oddy_is_lower_than_shape(self):
+        # Oddy is more restrictive than shape (paper Table 2): q_oddy ≤ q_shape elementwise.
+        tor, mesh = T.torus_fem(self.doc, tangled=False)
+        qs = SurfMesh.measure(mesh, tor, "shape").quality
+        qo = SurfMesh.measure(mesh, tor, "oddy").quality
+        self.assertTrue(np.all(qo <= qs + 1e-12))
+        self.assertLess(qo.mean(), qs.mean())
+
+
+class TestOptimize(ApiCase):
+    def test_fem_untangled_on_surface_ids_kept_input_untouched(self):
+        tor, mesh = T.torus_fem(self.doc, tangled=True)
+        before = T.fem_snapshot(mesh.FemMesh)
+        res = SurfMesh.optimize(mesh, tor, measure="shape", boundary="fixed")
+        self.assertEqual(T.fem_snapshot(mesh.FemMesh), before, "input changed")
+        new = res.mesh
+        self.assertEqual(new.TypeId, "Fem::FemMesh")
+        self.assertIsNot(new, mesh.FemMesh)
+        nodes0, elems0 = before
+        nodes1, elems1 = T.fem_snapshot(new)
+        self.assertEqual(list(nodes1), list(nodes0))  # node ids and order
+        self.assertEqual(elems1, elems0)  # element ids (faces and edges) and connectivity
+        self.assertGreater(res.before.stats["tangled"], 0)
+        self.assertEqual(res.after.stats["tangled"], 0)
+        self.assertGreater(res.after.stats["min"], res.before.stats["min"])
+        self.assertGreater(res.after.stats["mean"], res.before.stats["mean"])
+        self.assertGreater(res.sweeps, 0)
+        self.assertGreater(res.seconds, 0.0)
+        pts = np.array(list(nodes1.values()))
+        # FEM meshes store doubles: nodes on the torus to double precision
+        self.assertLess(T.torus_distance(pts).max(), 1e-9)
+        self.assertLess(T.distance_to_surface(tor.Shape.Faces[0], pts[::25]).max(), 1e-7)
+        moved = np.linalg.norm(pts - np.array(list(nodes0.values())), axis=1)
+        self.assertGreater(int((moved > 1e-6).sum()), len(pts) // 2)
+        # the after report agrees with an independent evaluation of the new mesh
+        data = SurfMesh.app.conversion.read_mesh(new)
+        ref_q, ref_t = T.reference_tri_quality(data.nodes, data.conn.reshape(-1, 3),
+                                               tor.Shape.Faces[0])
+        self.assertFalse(ref_t.any())
+        np.testing.assert_allclose(res.after.quality, ref_q, atol=1e-9)
+
+    def test_mesh_float32_on_surface(self):
+        tor, mobj = T.torus_mesh(self.doc)
+        before = T.mesh_snapshot(mobj.Mesh)
+        res = SurfMesh.optimize(mobj, tor, measure="oddy")
+        self.assertEqual(T.mesh_snapshot(mobj.Mesh), before, "input changed")
+        self.assertTrue(SurfMesh.app.conversion.is_mesh_kernel(res.mesh))
+        pts, tris = T.mesh_snapshot(res.mesh)
+        self.assertEqual(tris, before[1])  # facets and their order kept
+        self.assertEqual(len(pts), len(before[0]))
+        pts = np.array(pts)
+        # float32 storage: on the surface to float32 rounding of coordinates ~14
+        self.assertLess(T.torus_distance(pts).max(), 14 * 4e-7)
+        d = T.distance_to_shape(tor.Shape, pts[::40])
+        self.assertLess(d.max(), 1e-5)
+        # the double-precision result itself is on the surface
+        self.assertLess(T.torus_distance(res.nodes).max(), 1e-9)
+        self.assertGreaterEqual(res.after.stats["min"], res.before.stats["min"])
+        self.assertGreater(res.after.stats["mean"], res.before.stats["mean"])
+
+    def test_slide_boundary_on_real_part(self):
+        path = T.find_part("occt_screw.step")
+        if path is None:
+            self.skipTest("occt_screw.step not available")
+        import MeshPart
+        import Part
+
+        shape = Part.read(path)
+        m = MeshPart.meshFromShape(Shape=shape, LinearDeflection=shape.BoundBox.DiagonalLength / 300)
+        res = SurfMesh.optimize(m, shape, boundary="slide", max_sweeps=20)
+        self.assertEqual(res.after.stats["tangled"], 0)
+        self.assertGreaterEqual(res.after.stats["min"], res.before.stats["min"] - 1e-12)
+        self.assertGreater(res.bridge["sliding_nodes"], 0)
+        d = T.distance_to_shape(shape, res.nodes[:: max(1, len(res.nodes) // 150)])
+        self.assertLess(d.max(), 1e-6 * shape.BoundBox.DiagonalLength + 1e-7)
+
+    def test_progress_and_cancel(self):
+        tor, mesh = T.torus_fem(self.doc, tangled=True)
+        before = T.fem_snapshot(mesh.FemMesh)
+        seen = []
+
+        def stop_at_two(info):
+            seen.append(dict(info))
+            return info["sweep"] < 2
+
+        with self.assertRaises(SurfMesh.Cancelled):
+            SurfMesh.optimize(mesh, tor, progress=stop_at_two)
+        self.assertEqual([s["sweep"] for s in seen], [1, 2])
+        self.assertIn("tangled", seen[0])
+        self.assertEqual(T.fem_snapshot(mesh.FemMesh), before)
+
+        def boom(info):
+            raise KeyError("from callback")
+
+        with self.assertRaises(KeyError):
+            SurfMesh.optimize(mesh, tor, progress=boom)
+        self.assertEqual(T.fem_snapshot(mesh.FemMesh), before)
+
+
+class TestErrors(ApiCase):
+    def assertValueError(self, fn, *words):
+        with self.assertRaises(ValueError) as cm:
+            fn()
+        msg = str(cm.exception)
+        for w in words:
+            self.assertIn(w, msg)
+        return msg
+
+    def test_bad_arguments(self):
+        tor, mobj = T.torus_mesh(self.doc, deflection=0.5)
+        self.assertValueError(lambda: SurfMesh.measure(mobj, tor, measure="nope"), "nope", "shape")
+        self.assertValueError(lambda: SurfMesh.optimize(mobj, tor, boundary="free"), "free")
+        self.assertValueError(lambda: SurfMesh.optimize(mobj, tor, max_sweep=3), "max_sweep")
+        self.assertValueError(lambda: SurfMesh.optimize(mobj, tor, max_sweeps=0), "max_sweeps")
+        self.assertValueError(lambda: SurfMesh.measure(mobj, tor, tolerance=-1.0), "tolerance")
+        self.assertValueError(lambda: SurfMesh.measure(tor, tor), "not a mesh")
+        self.assertValueError(lambda: SurfMesh.measure(mobj, mobj), "no CAD shape")
+        import Part
+
+        self.assertValueError(lambda: SurfMesh.measure(mobj, Part.Shape()), "null")
+        self.assertValueError(lambda: SurfMesh.measure(mobj, Part.Vertex(0, 0, 0)), "no faces")
+
+    def test_mesh_of_another_shape(self):
+        import Part
+
+        tor, mobj = T.torus_mesh(self.doc, deflection=0.5)
+        other = tor.Shape.copy()
+        other.translate(FreeCAD.Vector(100, 0, 0))
+        self.assertValueError(lambda: SurfMesh.measure(mobj, other))
+        sphere = Part.makeSphere(5)
+        self.assertValueError(lambda: SurfMesh.measure(mobj, sphere))
+
+    def test_unsupported_fem_element(self):
+        import Fem
+
+        fem = Fem.FemMesh()
+        for i, p in enumerate([(0, 0, 0), (2, 0, 0), (2, 2, 0), (0, 2, 0), (1, 0, 0), (2, 1, 0),
+                               (1, 2, 0), (0, 1, 0)]):
+            fem.addNode(float(p[0]), float(p[1]), float(p[2]), i + 1)
+        fem.addFace([1, 2, 3, 4, 5, 6, 7, 8], 10)
+        plane = __import__("Part").makePlane(2, 2)
+        msg = self.assertValueError(lambda: SurfMesh.measure(fem, plane), "quad8")
+        self.assertIn("10", msg)
+
+    def test_empty_and_volume_meshes(self):
+        import Fem
+
+        self.assertValueError(lambda: SurfMesh.measure(Fem.FemMesh(), __import__("Part").makeBox(1, 1, 1)), "no face elements")
+
+
+if __name__ == "__main__":
+    unittest.main()
