@@ -4,7 +4,7 @@
     rep = SurfMesh.measure(mesh, shape, measure="shape")
     rep.quality   # numpy float64, one value per element, in [0, 1], 0 for tangled
     rep.tangled   # numpy bool, one per element
-    rep.stats     # dict: min, max, mean, std, tangled, elements
+    rep.stats     # dict: min, max, mean, std, tangled, elements (+ skipped)
     res = SurfMesh.optimize(mesh, shape, measure="shape", boundary="fixed")  # or "slide"
     res.mesh      # a NEW Mesh.Mesh / Fem.FemMesh; the input is untouched
     res.before, res.after, res.sweeps, res.seconds
@@ -67,10 +67,11 @@ class QualityReport:
     tangled: np.ndarray  # (E,) bool
     distortion: np.ndarray  # (E,) float64 η ≥ 1, inf for tangled elements
     min_sigma: np.ndarray  # (E,) float64 smallest scaled det S (≤ 0: tangled)
-    stats: dict  # min, max, mean, std, tangled, elements
+    stats: dict  # min, max, mean, std, tangled, elements (measured), skipped (left out)
     element_ids: np.ndarray  # (E,) int64 ids of the elements (FEM ids, or facet indices)
     element_types: list = dataclasses.field(default_factory=list)
     bridge: dict = dataclasses.field(default_factory=dict)  # how nodes were put on the shape
+    skipped: np.ndarray = None  # (E,) bool: collapsed elements left out (not in the stats)
 
     def __repr__(self):
         s = self.stats
@@ -147,19 +148,30 @@ def _core_shape(shape):
     return core().CadShape.from_brep_string(shapes.brep_string(shape))
 
 
-def prepare(mesh, shape, boundary="fixed", tolerance=None, hints="auto"):
+def prepare(mesh, shape, boundary="fixed", tolerance=None, hints="auto", collapsed="skip"):
     """Reads ``mesh`` and ``shape`` and builds the core's surface mesh.
 
     Returns ``(data, handle)``: the :class:`~SurfMesh.app.conversion.MeshData` read from the
     input and the core mesh handle (``handle.report`` says how every node was classified).
+    When elements were left out (``collapsed="skip"``), ``data.kept`` is the bool mask of the
+    elements given to the core.
 
     hints: "auto" (FEM inputs: edge and vertex hints from FreeCAD's ``getNodesByEdge/Vertex``;
     face nodes are classified by the core), "all" (also ``getNodesByFace``: slow on big parts),
-    "none", or a MeshData whose hint arrays are already filled.
+    "none", or "given" (the MeshData's hint arrays are used as they are).
+
+    collapsed: what to do with elements that repeat a node (zero area: Gmsh meshes made
+    through FreeCAD have them where nodes were merged, e.g. at the apex of a cone) and with
+    flat tangled slivers whose nodes all lie on one CAD edge (Gmsh's "elements remain invalid"):
+    "skip" leaves them out of measuring and optimizing (reported in ``skipped`` and in the
+    bridge warnings; their nodes stay where they are); "error" raises ValueError naming the
+    first collapsed element (flat boundary elements are then measured as tangled).
     """
     _check_boundary(boundary)
     if tolerance is not None and not (tolerance > 0 and np.isfinite(tolerance)):
         raise ValueError(f"tolerance must be a positive number, got {tolerance!r}")
+    if collapsed not in ("skip", "error"):
+        raise ValueError(f"collapsed must be 'skip' or 'error', got {collapsed!r}")
     data = conversion.read_mesh(mesh)
     part_shape = shapes.shape_of(shape) if not _is_core_shape(shape) else None
     if data.element_count == 0:
@@ -168,20 +180,82 @@ def prepare(mesh, shape, boundary="fixed", tolerance=None, hints="auto"):
         raise ValueError(f"unknown hints mode {hints!r}; use 'auto', 'all' or 'none'")
     if data.kind == "fem" and hints in ("auto", "all") and part_shape is not None:
         conversion.fem_hints(data, part_shape, faces=(hints == "all"))
+    bad = data.collapsed_elements()
+    work = data
+    data.kept = None
+    if bad.any():
+        ids = data.element_ids[bad]
+        if collapsed == "error" or bad.all():
+            first = int(np.nonzero(bad)[0][0])
+            nodes = [int(n) for n in data.node_ids[data.element(first)]]
+            raise ValueError(
+                f"{int(bad.sum())} element(s) repeat a node (collapsed, zero area), first: "
+                f"element id {int(ids[0])} with nodes {nodes}"
+                + ("" if bad.all() else "; pass collapsed='skip' to leave them out")
+            )
+        work = data.subset(~bad)
+        data.kept = ~bad
     cshape = shape if part_shape is None else _core_shape(part_shape)
-    handle = core().cad_mesh(
-        cshape,
-        data.nodes,
-        data.types,
-        data.offsets,
-        data.conn,
-        hint_face=data.hint_face,
-        hint_edge=data.hint_edge,
-        hint_vertex=data.hint_vertex,
-        tolerance=0.0 if tolerance is None else float(tolerance),
-        boundary=boundary,
-    )
+
+    def build(w):
+        return core().cad_mesh(
+            cshape, w.nodes, w.types, w.offsets, w.conn,
+            hint_face=w.hint_face, hint_edge=w.hint_edge, hint_vertex=w.hint_vertex,
+            tolerance=0.0 if tolerance is None else float(tolerance), boundary=boundary,
+        )
+
+    handle = build(work)
+    reasons = []
+    if bad.any():
+        reasons.append(f"{int(bad.sum())} collapsed element(s) (a repeated node)")
+    if collapsed == "skip":
+        # Slivers whose nodes all lie on one CAD edge and its vertices (Gmsh leaves such
+        # "invalid" elements along some edges): no node can leave the edge, so no optimizer can
+        # make them valid. They are left out like collapsed elements.
+        flat = _flat_boundary_elements(work, handle)
+        if flat.any():
+            keep = ~bad if bad.any() else np.ones(data.element_count, dtype=bool)
+            idx = np.nonzero(keep)[0]
+            keep[idx[flat]] = False
+            bad = ~keep
+            work = data.subset(keep)
+            data.kept = keep
+            handle = build(work)
+            reasons.append(f"{int(flat.sum())} flat element(s) with every node on one CAD edge")
+    if data.kept is not None:
+        ids = data.element_ids[bad]
+        report = handle.report  # the handle's own dict: additions stay with it
+        n = int(bad.sum())
+        shown = ", ".join(str(int(i)) for i in ids[:10]) + (" …" if n > 10 else "")
+        report["warnings"] = list(report.get("warnings", [])) + [
+            f"left out {' and '.join(reasons)}: ids {shown}"
+        ]
+        report["skipped_elements"] = [int(i) for i in ids]
     return data, handle
+
+
+def _flat_boundary_elements(work, handle):
+    """Bool mask (over ``work``'s elements) of tangled, (nearly) zero-area elements (scaled
+    det S within 1e-2 of 0) whose corners all lie on CAD edges or vertices, the edge nodes all
+    on one edge: slivers along a CAD edge."""
+    cls = np.asarray(handle.report["node_class"])
+    ent = np.asarray(handle.report["node_entity"])
+    q = handle.measure("shape")
+    sigma = np.asarray(q["min_sigma"])
+    cand = np.nonzero(np.asarray(q["tangled"]) & (np.abs(sigma) <= 1e-2))[0]
+    out = np.zeros(work.element_count, dtype=bool)
+    for e in cand:
+        nodes = work.element(e)[:3 if work.types[e] != conversion.ELEMENT_TYPES["quad4"] else 4]
+        c = cls[nodes]
+        if np.all((c == 0) | (c == 1)):
+            edges = set(ent[nodes][c == 1].tolist())
+            if len(edges) <= 1:
+                out[e] = True
+    return out
+
+
+def _bridge_report(handle):
+    return dict(handle.report)
 
 
 def _is_core_shape(obj):
@@ -194,23 +268,42 @@ def _is_core_shape(obj):
 def _report(data, handle, name, bridge=None) -> QualityReport:
     r = handle.measure(name)
     stats = dict(r["stats"])
+    quality = np.asarray(r["quality"], dtype=np.float64)
+    tangled = np.asarray(r["tangled"], dtype=bool)
+    distortion = np.asarray(r["distortion"], dtype=np.float64)
+    min_sigma = np.asarray(r["min_sigma"], dtype=np.float64)
+    skipped = np.zeros(data.element_count, dtype=bool)
+    kept = getattr(data, "kept", None)
+    if kept is not None:  # expand to every input element; skipped ones: quality 0, not tangled
+        skipped = ~kept
+
+        def expand(a, fill):
+            out = np.full(data.element_count, fill, dtype=a.dtype)
+            out[kept] = a
+            return out
+
+        quality, tangled = expand(quality, 0.0), expand(tangled, False)
+        distortion, min_sigma = expand(distortion, np.inf), expand(min_sigma, 0.0)
+    stats["skipped"] = int(skipped.sum())
     return QualityReport(
         measure=name,
-        quality=np.asarray(r["quality"], dtype=np.float64),
-        tangled=np.asarray(r["tangled"], dtype=bool),
-        distortion=np.asarray(r["distortion"], dtype=np.float64),
-        min_sigma=np.asarray(r["min_sigma"], dtype=np.float64),
+        quality=quality,
+        tangled=tangled,
+        distortion=distortion,
+        min_sigma=min_sigma,
         stats=stats,
         element_ids=data.element_ids,
         element_types=data.type_names(),
-        bridge=bridge if bridge is not None else dict(handle.report),
+        bridge=bridge if bridge is not None else _bridge_report(handle),
+        skipped=skipped,
     )
 
 
 # ---- public API ------------------------------------------------------------------------------
 
 
-def measure(mesh, shape, measure="shape", *, tolerance=None, hints="auto") -> QualityReport:
+def measure(mesh, shape, measure="shape", *, tolerance=None, hints="auto",
+            collapsed="skip") -> QualityReport:
     """Quality of every element of ``mesh`` on ``shape`` with the named measure.
 
     Args:
@@ -219,13 +312,13 @@ def measure(mesh, shape, measure="shape", *, tolerance=None, hints="auto") -> Qu
         measure: a name of :func:`measure_names` ("shape": Knupp's shape measure, "oddy").
         tolerance: distance under which a node counts as lying on the shape (default: chosen
             by the core from the shape's size and its tolerances).
-        hints: see :func:`prepare`.
+        hints, collapsed: see :func:`prepare`.
 
     Returns:
         QualityReport with ``quality`` (1/η, 0 tangled), ``tangled``, ``stats``.
     """
     _check_measure(measure)
-    data, handle = prepare(mesh, shape, "fixed", tolerance, hints)
+    data, handle = prepare(mesh, shape, "fixed", tolerance, hints, collapsed)
     return _report(data, handle, measure)
 
 
@@ -237,13 +330,14 @@ def optimize(
     *,
     tolerance=None,
     hints="auto",
+    collapsed="skip",
     progress: Optional[Callable[[dict], Optional[bool]]] = None,
     **options,
 ) -> OptimizeResult:
     """Smooths and untangles ``mesh`` on ``shape``; the input is not modified.
 
     Args:
-        mesh, shape, measure, tolerance, hints: as in :func:`measure`.
+        mesh, shape, measure, tolerance, hints, collapsed: as in :func:`measure`.
         boundary: "fixed" (nodes on CAD edges and vertices stay) or "slide" (nodes on CAD edges
             slide along their edge; vertices stay).
         progress: called after every sweep with a dict (sweep, max_sweeps, objective, tangled,
@@ -265,8 +359,8 @@ def optimize(
     _check_options(opts)
     if progress is not None and not callable(progress):
         raise ValueError("progress must be callable (or None)")
-    data, handle = prepare(mesh, shape, boundary, tolerance, hints)
-    bridge = dict(handle.report)
+    data, handle = prepare(mesh, shape, boundary, tolerance, hints, collapsed)
+    bridge = _bridge_report(handle)
     before = _report(data, handle, measure, bridge)
     t0 = time.perf_counter()
     r = handle.optimize(measure=measure, progress=progress, **opts)

@@ -59,6 +59,7 @@ class MeshData:
     hint_edge: Optional[np.ndarray] = None
     hint_vertex: Optional[np.ndarray] = None
     source: object = None  # the Mesh.Mesh / Fem.FemMesh the arrays were read from
+    kept: Optional[np.ndarray] = None  # set by api.prepare when elements were left out
 
     @property
     def node_count(self) -> int:
@@ -75,6 +76,32 @@ class MeshData:
     def element(self, e):
         """0-based node indices of element ``e``."""
         return self.conn[self.offsets[e] : self.offsets[e + 1]]
+
+    def collapsed_elements(self):
+        """Bool mask of the elements that repeat a node (collapsed: zero area). Gmsh meshes
+        made through FreeCAD have them where nodes were merged, e.g. at the apex of a cone."""
+        sizes = np.diff(self.offsets)
+        out = np.zeros(self.element_count, dtype=bool)
+        for k in np.unique(sizes):
+            sel = np.nonzero(sizes == k)[0]
+            idx = self.offsets[sel][:, None] + np.arange(k)[None, :]
+            block = np.sort(self.conn[idx], axis=1)
+            out[sel] = np.any(block[:, 1:] == block[:, :-1], axis=1)
+        return out
+
+    def subset(self, keep):
+        """A MeshData with only the elements where ``keep`` is True (same nodes)."""
+        keep = np.asarray(keep, dtype=bool)
+        sizes = np.diff(self.offsets)[keep]
+        idx = np.concatenate(
+            [np.arange(self.offsets[e], self.offsets[e + 1]) for e in np.nonzero(keep)[0]]
+        ) if keep.any() else np.zeros(0, dtype=np.int64)
+        offsets = np.zeros(len(sizes) + 1, dtype=np.int64)
+        np.cumsum(sizes, out=offsets[1:])
+        return dataclasses.replace(
+            self, types=self.types[keep], offsets=offsets, conn=self.conn[idx],
+            element_ids=self.element_ids[keep],
+        )
 
 
 def from_arrays(nodes, elements, element_type="tri3", node_ids=None, element_ids=None):

@@ -1,0 +1,582 @@
+"""Bad input through SurfMesh's Python API and CLI: every case gives a ValueError (the CLI: a
+non-zero exit and a message on stderr) naming the problem and the offending ids/counts, and
+leaves the input objects and the document unchanged (node coordinates, objects, undo stack).
+Also: cancellation through the progress callback and an exception raised by it change nothing.
+
+Run by scripts/test.sh (``freecadcmd -t test_bad_input -M tests/python``) against the installed
+workbench. Small bad files live in tests/data/bad; shapes are made with Part here.
+"""
+
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import unittest
+
+import FreeCAD as App
+import Fem
+import Mesh
+import numpy as np
+import Part
+
+import SurfMesh
+from SurfMesh.app import conversion
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+REPO = os.environ.get("SURFMESH_REPO", os.path.normpath(os.path.join(HERE, "..", "..")))
+DATA = os.environ.get("SURFMESH_TEST_DATA_DIR", os.path.join(REPO, "tests", "data"))
+BAD = os.path.join(DATA, "bad")
+SHARED = os.environ.get(
+    "SURFMESH_SHARED_DATA_DIR", os.path.normpath(os.path.join(REPO, "..", "shared", "data", "cad"))
+)
+FEM_NODE_ID0 = 101  # FEM node ids start here (so that ids and 0-based indices differ)
+FEM_ELEM_ID0 = 1001
+
+
+# ---- meshes made here ------------------------------------------------------------------------
+
+
+def box_grid(n=4, size=10.0):
+    """Structured triangulation of the surface of the box [0, size]³: n×n cells per face,
+    shared nodes on the box's edges, triangles wound along the outward normals.
+    Returns (nodes (N, 3) float64, tris (E, 3) int64)."""
+    ids = {}
+    nodes, tris = [], []
+
+    def node(g):
+        if g not in ids:
+            ids[g] = len(nodes)
+            nodes.append([c * size / n for c in g])
+        return ids[g]
+
+    for axis in range(3):
+        a, b = (axis + 1) % 3, (axis + 2) % 3
+        for side in (0, 1):
+            for i in range(n):
+                for j in range(n):
+
+                    def at(di, dj):
+                        g = [0, 0, 0]
+                        g[axis], g[a], g[b] = side * n, i + di, j + dj
+                        return node(tuple(g))
+
+                    p, q, r, t = at(0, 0), at(1, 0), at(1, 1), at(0, 1)
+                    if side == 1:
+                        tris += [(p, q, r), (p, r, t)]
+                    else:
+                        tris += [(p, r, q), (p, t, r)]
+    return np.array(nodes, dtype=np.float64), np.array(tris, dtype=np.int64)
+
+
+def interior_node(nodes, size=10.0):
+    """Index of a node strictly inside a face of the box (not on its edges)."""
+    for i, p in enumerate(nodes):
+        if sum(1 for c in p if 1e-9 < c < size - 1e-9) == 2:
+            return i
+    raise AssertionError("no interior node")
+
+
+def make_mesh(nodes, tris):
+    return Mesh.Mesh(([App.Vector(*map(float, p)) for p in nodes], [tuple(map(int, t)) for t in tris]))
+
+
+def make_fem(nodes, elems):
+    """Fem.FemMesh with node ids FEM_NODE_ID0 + index and face ids FEM_ELEM_ID0 + index."""
+    fem = Fem.FemMesh()
+    for i, p in enumerate(nodes):
+        fem.addNode(float(p[0]), float(p[1]), float(p[2]), FEM_NODE_ID0 + i)
+    for e, el in enumerate(elems):
+        fem.addFace([FEM_NODE_ID0 + int(k) for k in el], FEM_ELEM_ID0 + e)
+    return fem
+
+
+def arrays(nodes, elems, types=None):
+    """A MeshData (the API's array input) that may hold anything, even invalid codes."""
+    elems = [list(map(int, e)) for e in elems]
+    counts = [len(e) for e in elems]
+    if types is None:
+        types = [{3: 0, 4: 1, 6: 2}[c] for c in counts]
+    offsets = np.zeros(len(elems) + 1, dtype=np.int64)
+    offsets[1:] = np.cumsum(counts)
+    nodes = np.ascontiguousarray(nodes, dtype=np.float64).reshape(-1, 3)
+    return conversion.MeshData(
+        kind="arrays",
+        nodes=nodes,
+        types=np.array(types, dtype=np.int64),
+        offsets=offsets,
+        conn=np.array([k for e in elems for k in e], dtype=np.int64),
+        node_ids=np.arange(len(nodes), dtype=np.int64),
+        element_ids=np.arange(len(elems), dtype=np.int64),
+    )
+
+
+def mesh_points(mesh):
+    """Node coordinates of a Mesh.Mesh or Fem.FemMesh, for before/after comparisons."""
+    if isinstance(mesh, Mesh.Mesh):
+        return [(p.x, p.y, p.z) for p in mesh.Topology[0]], [tuple(f) for f in mesh.Topology[1]]
+    return (
+        sorted((i, v.x, v.y, v.z) for i, v in mesh.Nodes.items()),
+        sorted((e, tuple(mesh.getElementNodes(e))) for e in mesh.Faces),
+    )
+
+
+def box_shape():
+    return Part.makeBox(10, 10, 10)
+
+
+# ---- the API catalogue -----------------------------------------------------------------------
+
+
+class BadInputApi(unittest.TestCase):
+    """Each bad input through SurfMesh.measure and SurfMesh.optimize."""
+
+    def setUp(self):
+        self.shape = box_shape()
+        self.nodes, self.tris = box_grid()
+
+    def expect_error(self, mesh, *fragments, shape=None, call=("measure", "optimize"), **kw):
+        """Both API calls raise ValueError whose message holds every fragment; the mesh
+        (Mesh.Mesh / FemMesh input) is unchanged."""
+        shape = self.shape if shape is None else shape
+        before = mesh_points(mesh) if isinstance(mesh, (Mesh.Mesh, Fem.FemMesh)) else None
+        messages = []
+        for name in call:
+            fn = getattr(SurfMesh, name)
+            with self.subTest(call=name):
+                with self.assertRaises(ValueError) as cm:
+                    fn(mesh, shape, **kw)
+                msg = str(cm.exception)
+                messages.append(msg)
+                for f in fragments:
+                    self.assertIn(f.lower(), msg.lower(), f"{name}: message {msg!r} lacks {f!r}")
+                if before is not None:
+                    self.assertEqual(mesh_points(mesh), before, f"{name} changed its input")
+        return messages
+
+    # -- sanity: the good inputs work
+    def test_good_box_mesh_and_fem_work(self):
+        rep = SurfMesh.measure(make_mesh(self.nodes, self.tris), self.shape)
+        self.assertEqual(rep.stats["elements"], len(self.tris))
+        self.assertEqual(rep.stats["tangled"], 0)
+        rep = SurfMesh.measure(make_fem(self.nodes, self.tris), self.shape)
+        self.assertEqual(rep.stats["elements"], len(self.tris))
+
+    def test_empty_mesh(self):
+        self.expect_error(Mesh.Mesh(), "no elements")
+        self.expect_error(Fem.FemMesh(), "no face elements")
+        self.expect_error(arrays(np.zeros((0, 3)), []), "no")
+
+    def test_nan_and_inf_coordinates(self):
+        i = interior_node(self.nodes)
+        for bad in (math.nan, math.inf):
+            nodes = self.nodes.copy()
+            nodes[i, 2] = bad
+            with self.subTest(value=bad):
+                fem = make_fem(nodes, self.tris)
+                self.expect_error(fem, "non-finite", str(FEM_NODE_ID0 + i))
+                self.expect_error(arrays(nodes, self.tris), "non-finite", str(i))
+
+    def test_element_indices_out_of_range(self):
+        tris = self.tris.copy()
+        tris[5, 1] = len(self.nodes) + 7
+        self.expect_error(arrays(self.nodes, tris), "out of range", str(len(self.nodes) + 7))
+        tris[5, 1] = -2
+        self.expect_error(arrays(self.nodes, tris), "out of range", "-2")
+
+    def test_repeated_node_in_one_element(self):
+        tris = self.tris.copy()
+        tris[5, 2] = tris[5, 0]
+        self.expect_error(arrays(self.nodes, tris), "element 5", "repeats node", str(tris[5, 0]))
+
+    def test_duplicate_nodes(self):
+        # Element 0 gets its own copy of node k: a crack.
+        i = interior_node(self.nodes)
+        tris = self.tris.copy()
+        e = int(np.nonzero((tris == i).any(axis=1))[0][0])
+        nodes = np.vstack([self.nodes, self.nodes[i]])
+        tris[e][tris[e] == i] = len(self.nodes)
+        copy_id = len(self.nodes)
+        self.expect_error(arrays(nodes, tris), "1 duplicate node", f"{i} and {copy_id}")
+        # FEM: the message names FEM node ids.
+        self.expect_error(
+            make_fem(nodes, tris),
+            "duplicate node",
+            f"{FEM_NODE_ID0 + i} and {FEM_NODE_ID0 + copy_id}",
+        )
+
+    def test_degenerate_elements_are_tangled_and_get_untangled(self):
+        # A free node moved onto the segment between two of its element's other nodes.
+        i = interior_node(self.nodes)
+        e = int(np.nonzero((self.tris == i).any(axis=1))[0][0])
+        others = [k for k in self.tris[e] if k != i]
+        nodes = self.nodes.copy()
+        nodes[i] = 0.5 * (nodes[others[0]] + nodes[others[1]])
+        fem = make_fem(nodes, self.tris)
+        rep = SurfMesh.measure(fem, self.shape)
+        self.assertTrue(rep.tangled[e])
+        self.assertEqual(rep.quality[e], 0.0)
+        res = SurfMesh.optimize(fem, self.shape)
+        self.assertGreaterEqual(res.before.stats["tangled"], 1)
+        self.assertEqual(res.after.stats["tangled"], 0)
+
+    def test_non_manifold_edge(self):
+        # A third triangle on an interior edge (a, b) of one face.
+        i = interior_node(self.nodes)
+        e = int(np.nonzero((self.tris == i).any(axis=1))[0][0])
+        a, b, c = (int(k) for k in self.tris[e])
+        axis = next(d for d in range(3) if self.nodes[i][d] in (0.0, 10.0))
+        far = next(
+            k
+            for k in range(len(self.nodes))
+            if self.nodes[k][axis] == self.nodes[i][axis]
+            and np.linalg.norm(self.nodes[k] - self.nodes[i]) > 4.0
+            and k != c
+        )
+        tris = np.vstack([self.tris, [a, b, far]])
+        lo, hi = min(a, b), max(a, b)
+        self.expect_error(arrays(self.nodes, tris), "non-manifold", f"nodes {lo} and {hi}")
+        self.expect_error(make_mesh(self.nodes, tris), "non-manifold", f"nodes {lo} and {hi}")
+
+    def test_unsupported_element_types(self):
+        # FEM quad8 (8-node quadrilateral) faces.
+        fem = Fem.FemMesh()
+        pts = [(0, 0, 0), (10, 0, 0), (10, 10, 0), (0, 10, 0), (5, 0, 0), (10, 5, 0), (5, 10, 0),
+               (0, 5, 0)]
+        for k, p in enumerate(pts):
+            fem.addNode(*map(float, p), k + 1)
+        fem.addFace(list(range(1, 9)), 77)
+        self.expect_error(fem, "unsupported", "quad8", "77")
+        # An invalid type code in the array input.
+        data = arrays(self.nodes, self.tris, types=[9] + [0] * (len(self.tris) - 1))
+        self.expect_error(data, "types", "9")
+
+    def test_mixed_orders(self):
+        # Element 0 becomes a tri6 (its mid-edge nodes added), the rest stay tri3.
+        nodes = list(map(list, self.nodes))
+        a, b, c = (int(k) for k in self.tris[0])
+        mids = []
+        for p, q in ((a, b), (b, c), (c, a)):
+            nodes.append(list(0.5 * (self.nodes[p] + self.nodes[q])))
+            mids.append(len(nodes) - 1)
+        elems = [[a, b, c] + mids] + [list(t) for t in self.tris[1:]]
+        self.expect_error(arrays(nodes, elems), "mixes element orders", "tri6")
+        self.expect_error(make_fem(nodes, elems), "mixes element orders", "tri6")
+
+    def test_nodes_off_the_shape(self):
+        i = interior_node(self.nodes)
+        nodes = self.nodes.copy()
+        d = next(d for d in range(3) if nodes[i][d] in (0.0, 10.0))
+        nodes[i][d] += 1.0 if nodes[i][d] == 10.0 else -1.0
+        msgs = self.expect_error(make_fem(nodes, self.tris), "1 of", "farther than the tolerance")
+        # The offending node is named (FEM: its id).
+        for m in msgs:
+            self.assertIn(f"node {FEM_NODE_ID0 + i}", m)
+        self.expect_error(make_mesh(nodes, self.tris), "farther than the tolerance", f"node {i}")
+        # A larger tolerance accepts it.
+        SurfMesh.measure(make_mesh(nodes, self.tris), self.shape, tolerance=1.5)
+
+    def test_mesh_of_another_shape(self):
+        far = Part.makeCylinder(3, 8, App.Vector(100, 0, 0))
+        self.expect_error(make_mesh(self.nodes, self.tris), "does not lie on this shape", shape=far)
+        inside = Part.makeSphere(5, App.Vector(5, 5, 5))
+        self.expect_error(make_mesh(self.nodes, self.tris), "does not lie on this shape",
+                          shape=inside)
+
+    def test_invalid_or_empty_shape(self):
+        mesh = make_mesh(self.nodes, self.tris)
+        self.expect_error(mesh, "null", shape=Part.Shape())
+        wire = Part.Wire([Part.makeLine(App.Vector(0, 0, 0), App.Vector(1, 0, 0))])
+        self.expect_error(mesh, "no faces", shape=wire)
+        for bad in (42, "box.step"):
+            with self.subTest(shape=bad):
+                with self.assertRaises(ValueError):
+                    SurfMesh.measure(mesh, bad)
+
+    def test_not_a_mesh(self):
+        for bad in (None, 3.5, "mesh.msh", self.shape):
+            with self.subTest(mesh=repr(bad)[:30]):
+                with self.assertRaises(ValueError) as cm:
+                    SurfMesh.measure(bad, self.shape)
+                self.assertIn("not a mesh", str(cm.exception))
+
+    def test_shape_with_free_faces_only_works(self):
+        face = Part.makePlane(10, 10)  # a face, no solid
+        nodes = self.nodes[self.nodes[:, 2] == 0.0]
+        index = {tuple(p): k for k, p in enumerate(map(tuple, nodes))}
+        tris = [
+            [index[tuple(self.nodes[k])] for k in t]
+            for t in self.tris
+            if all(self.nodes[k][2] == 0.0 for k in t)
+        ]
+        tris = [t[::-1] for t in tris]  # the bottom face was wound for −z
+        mesh = make_mesh(nodes, tris)
+        rep = SurfMesh.measure(mesh, face)
+        self.assertEqual(rep.stats["elements"], len(tris))
+        res = SurfMesh.optimize(mesh, face)
+        self.assertEqual(res.after.stats["tangled"], 0)
+
+    def test_shape_with_poles_works(self):
+        sphere = Part.makeSphere(4)  # two degenerated edges (poles)
+        import MeshPart
+
+        mesh = MeshPart.meshFromShape(Shape=sphere, LinearDeflection=0.05, AngularDeflection=0.3)
+        rep = SurfMesh.measure(mesh, sphere)
+        self.assertGreater(rep.bridge["pole_nodes"], 0)
+        res = SurfMesh.optimize(mesh, sphere, max_sweeps=5)
+        self.assertLessEqual(res.after.stats["tangled"], res.before.stats["tangled"])
+
+    def test_unknown_measure_name(self):
+        mesh = make_mesh(self.nodes, self.tris)
+        for bad in ("aspect", "", None, 3):
+            with self.subTest(measure=bad):
+                self.expect_error(mesh, "unknown measure", "shape", "oddy", measure=bad)
+
+    def test_negative_zero_or_nan_tolerances(self):
+        mesh = make_mesh(self.nodes, self.tris)
+        for bad in (-1.0, 0.0, math.nan, math.inf):
+            with self.subTest(tolerance=bad):
+                self.expect_error(mesh, "tolerance", tolerance=bad)
+        for key, bad in (("rel_tol", -1e-5), ("move_tol", -1.0), ("rel_tol", math.nan),
+                         ("delta", 0.0), ("max_sweeps", 0), ("max_sweeps", -3),
+                         ("threads", -1), ("delta_policy", "sometimes")):
+            with self.subTest(option=key, value=bad):
+                self.expect_error(mesh, key, call=("optimize",), **{key: bad})
+        self.expect_error(mesh, "unknown option", "bogus", call=("optimize",), bogus=1)
+        self.expect_error(mesh, "boundary", call=("optimize",), boundary="glue")
+
+    @unittest.skipUnless(
+        os.path.exists(os.path.join(SHARED, "gmsh_u_joint.step")), "shared u-joint part absent"
+    )
+    def test_benchmark_u_joint_with_degenerated_edges(self):
+        """Benchmark-only (GPL part read from ../shared): a shape with 44 poles. Its BRepMesh
+        triangulation is non-manifold at the poles (see the data README): SurfMesh must either
+        work on it or say exactly that."""
+        import MeshPart
+
+        shape = Part.read(os.path.join(SHARED, "gmsh_u_joint.step"))
+        diag = shape.BoundBox.DiagonalLength
+        mesh = MeshPart.meshFromShape(Shape=shape, LinearDeflection=diag / 1000,
+                                      AngularDeflection=0.5, Relative=False)
+        before = mesh_points(mesh)
+        try:
+            rep = SurfMesh.measure(mesh, shape)
+        except ValueError as e:
+            self.assertRegex(str(e), "non-manifold|duplicate")
+        else:
+            self.assertGreater(rep.bridge["pole_nodes"], 0)
+        self.assertEqual(mesh_points(mesh), before)
+
+
+# ---- the document: errors, cancellation and exceptions change nothing --------------------------
+
+
+class DocumentUnchanged(unittest.TestCase):
+    def setUp(self):
+        self.doc = App.newDocument("SurfMeshBadInput")
+        self.doc.UndoMode = 1
+        self.part = self.doc.addObject("Part::Feature", "Box")
+        self.part.Shape = box_shape()
+        nodes, tris = box_grid()
+        i = interior_node(nodes)
+        # Tangle one element so that the optimizer has work for several sweeps.
+        e = int(np.nonzero((tris == i).any(axis=1))[0][0])
+        others = [k for k in tris[e] if k != i]
+        nodes[i] = nodes[others[0]] + 0.9 * (nodes[others[1]] - nodes[others[0]])
+        self.mesh_obj = self.doc.addObject("Mesh::Feature", "BoxMesh")
+        self.mesh_obj.Mesh = make_mesh(nodes, tris)
+        self.fem_obj = self.doc.addObject("Fem::FemMeshObject", "BoxFem")
+        self.fem_obj.FemMesh = make_fem(nodes, tris)
+        self.doc.recompute()
+        self.doc.clearUndos()
+
+    def tearDown(self):
+        App.closeDocument(self.doc.Name)
+
+    def snapshot(self):
+        return {
+            "objects": [o.Name for o in self.doc.Objects],
+            "undo": (self.doc.UndoCount, list(self.doc.UndoNames)),
+            "mesh": mesh_points(self.mesh_obj.Mesh),
+            "fem": mesh_points(self.fem_obj.FemMesh),
+            "mesh_props": list(self.mesh_obj.PropertiesList),
+            "fem_props": list(self.fem_obj.PropertiesList),
+        }
+
+    def test_cancel_through_the_progress_callback(self):
+        for obj in (self.mesh_obj, self.fem_obj):
+            with self.subTest(obj=obj.Name):
+                before = self.snapshot()
+                calls = []
+
+                def stop(info):
+                    calls.append(info)
+                    return False
+
+                with self.assertRaises(SurfMesh.Cancelled):
+                    SurfMesh.optimize(obj, self.part, progress=stop)
+                self.assertEqual(len(calls), 1)
+                self.assertEqual(self.snapshot(), before)
+                with self.assertRaises(SurfMesh.Cancelled):
+                    SurfMesh.optimize_object(obj, self.part, progress_callback=stop)
+                self.assertEqual(self.snapshot(), before)
+
+    def test_cancel_after_some_sweeps(self):
+        before = self.snapshot()
+        sweeps = []
+
+        def stop_at_two(info):
+            sweeps.append(info["sweep"])
+            return info["sweep"] < 2
+
+        with self.assertRaises(SurfMesh.Cancelled):
+            SurfMesh.optimize_object(self.fem_obj, self.part, progress_callback=stop_at_two,
+                                     rel_tol=1e-12, move_tol=1e-12)
+        self.assertEqual(sweeps[-1], 2)
+        self.assertEqual(self.snapshot(), before)
+
+    def test_exception_in_the_progress_callback(self):
+        before = self.snapshot()
+
+        class Boom(Exception):
+            pass
+
+        def boom(info):
+            raise Boom("from the callback")
+
+        for obj in (self.mesh_obj, self.fem_obj):
+            with self.subTest(obj=obj.Name):
+                with self.assertRaises(Boom):
+                    SurfMesh.optimize(obj, self.part, progress=boom)
+                with self.assertRaises(Boom):
+                    SurfMesh.optimize_object(obj, self.part, progress_callback=boom)
+                self.assertEqual(self.snapshot(), before)
+
+    def test_bad_input_on_document_objects(self):
+        before = self.snapshot()
+        for fn in (SurfMesh.measure_object, SurfMesh.optimize_object):
+            with self.subTest(fn=fn.__name__):
+                with self.assertRaises(ValueError):
+                    fn(self.mesh_obj, self.part, measure="aspect")
+                with self.assertRaises(ValueError):
+                    fn(self.mesh_obj, Part.makeCylinder(3, 8, App.Vector(100, 0, 0)))
+                with self.assertRaises(ValueError):
+                    fn(self.part)  # not a mesh
+                self.assertEqual(self.snapshot(), before)
+
+    def test_a_good_run_still_works_after_the_errors(self):
+        with self.assertRaises(ValueError):
+            SurfMesh.optimize_object(self.fem_obj, self.part, measure="aspect")
+        new = SurfMesh.optimize_object(self.fem_obj, self.part)
+        self.assertIn(new.Name, [o.Name for o in self.doc.Objects])
+        self.assertEqual(self.doc.UndoCount, 1)
+        self.doc.undo()
+        self.assertNotIn("BoxFem_optimized", [o.Name for o in self.doc.Objects])
+
+
+# ---- the CLI ------------------------------------------------------------------------------------
+
+
+def find_cli():
+    """surfmesh_cli.py of the installed workbench (or of the repository)."""
+    import SurfMesh as pkg
+
+    base = os.path.dirname(pkg.__file__)
+    for path in (
+        os.path.join(base, "cli", "surfmesh_cli.py"),
+        os.path.join(base, "surfmesh_cli.py"),
+        os.path.join(REPO, "src", "SurfMesh", "cli", "surfmesh_cli.py"),
+    ):
+        if os.path.exists(path):
+            return path
+    return None
+
+
+class BadInputCli(unittest.TestCase):
+    """Each bad file / option through ``freecadcmd surfmesh_cli.py -- ...``: non-zero exit, a
+    message naming the problem, no output written."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.cli = find_cli()
+        if cls.cli is None:
+            raise unittest.SkipTest("no surfmesh_cli.py in the installed workbench yet")
+        cls.tmp = tempfile.TemporaryDirectory(prefix="surfmesh-bad-cli-")
+        d = cls.tmp.name
+        cls.box = os.path.join(d, "box.brep")
+        box_shape().exportBrep(cls.box)
+        cls.far = os.path.join(d, "far_cylinder.brep")
+        Part.makeCylinder(3, 8, App.Vector(100, 0, 0)).exportBrep(cls.far)
+        nodes, tris = box_grid()
+        cls.mesh = os.path.join(d, "box.stl")
+        make_mesh(nodes, tris).write(cls.mesh)
+
+    @classmethod
+    def tearDownClass(cls):
+        if getattr(cls, "tmp", None) is not None:
+            cls.tmp.cleanup()
+
+    def run_cli(self, *args):
+        exe = os.environ.get("FREECADCMD", "freecadcmd")
+        out = os.path.join(self.tmp.name, "out.msh")
+        report = os.path.join(self.tmp.name, "report.json")
+        for p in (out, report):
+            if os.path.exists(p):
+                os.remove(p)
+        cmd = [exe, self.cli, "--"] + [a.format(out=out, report=report) for a in args]
+        p = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+        return p, out, report
+
+    def expect_failure(self, *args, fragments=()):
+        p, out, report = self.run_cli(*args)
+        text = p.stdout + p.stderr
+        self.assertNotEqual(p.returncode, 0, f"exit 0 for bad input {args}:\n{text[-2000:]}")
+        self.assertNotIn("Traceback", text, f"a traceback instead of a message:\n{text[-2000:]}")
+        for f in fragments:
+            self.assertIn(f.lower(), text.lower(), f"output lacks {f!r}:\n{text[-2000:]}")
+        self.assertFalse(os.path.exists(out), "an output mesh was written")
+        self.assertFalse(os.path.exists(report), "a report was written")
+        return text
+
+    def test_good_run_works(self):
+        p, out, report = self.run_cli("optimize", self.box, self.mesh, "-o", "{out}",
+                                      "--report", "{report}")
+        self.assertEqual(p.returncode, 0, p.stdout + p.stderr)
+        self.assertTrue(os.path.exists(out))
+
+    def test_missing_files(self):
+        self.expect_failure("optimize", os.path.join(BAD, "does_not_exist.step"), self.mesh,
+                            "-o", "{out}", "--report", "{report}", fragments=["does_not_exist"])
+        self.expect_failure("optimize", self.box, os.path.join(BAD, "does_not_exist.msh"),
+                            "-o", "{out}", "--report", "{report}", fragments=["does_not_exist"])
+
+    def test_files_that_are_not_shapes(self):
+        for name in ("not_a_shape.step", "not_a_shape.brep", "empty.step", "empty.brep",
+                     "square.msh"):
+            with self.subTest(file=name):
+                self.expect_failure("optimize", os.path.join(BAD, name), self.mesh, "-o",
+                                    "{out}", "--report", "{report}", fragments=[name])
+
+    def test_files_that_are_not_meshes(self):
+        for name in ("empty.msh", "not_a_mesh.msh"):
+            with self.subTest(file=name):
+                self.expect_failure("optimize", self.box, os.path.join(BAD, name), "-o",
+                                    "{out}", "--report", "{report}", fragments=[name])
+
+    def test_mesh_of_another_shape(self):
+        self.expect_failure("optimize", self.far, self.mesh, "-o", "{out}", "--report",
+                            "{report}", fragments=["does not lie on this shape"])
+        self.expect_failure("measure", self.box, os.path.join(BAD, "square.msh"),
+                            "--report", "{report}", fragments=["shape"])
+
+    def test_bad_options(self):
+        self.expect_failure("optimize", self.box, self.mesh, "-o", "{out}", "--measure",
+                            "aspect", fragments=["aspect"])
+        self.expect_failure("optimize", self.box, self.mesh, "-o", "{out}", "--tolerance", "-1",
+                            fragments=["tolerance"])
+        self.expect_failure("optimize", self.box, self.mesh, "-o", "{out}", "--boundary", "glue",
+                            fragments=["glue"])
+
+
+if __name__ == "__main__":
+    unittest.main()

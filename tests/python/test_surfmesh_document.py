@@ -1,0 +1,145 @@
+"""Document functions: measure_object / optimize_object / clear_colors, stored stats, colors,
+undo, cancel (run: freecadcmd -t)."""
+
+import unittest
+
+import FreeCAD
+import numpy as np
+
+import SurfMesh
+import surfmesh_testing as T
+from SurfMesh.app import coloring
+
+
+class DocumentCase(unittest.TestCase):
+    def setUp(self):
+        self.doc = FreeCAD.newDocument("SurfMeshDocTest")
+        self.doc.UndoMode = 1
+
+    def tearDown(self):
+        FreeCAD.closeDocument(self.doc.Name)
+
+
+class TestDocument(DocumentCase):
+    def test_measure_object_stores_stats_and_colors(self):
+        tor, mobj = T.torus_mesh(self.doc, deflection=0.3)
+        mobj.Label = "Torus (Meshed)"  # as MeshPart's task panel names it: finds "Torus"
+        rep = SurfMesh.measure_object(mobj, measure="oddy")
+        self.assertEqual(mobj.SurfMeshMeasure, "oddy")
+        stats = SurfMesh.stats_of(mobj)
+        for k in ("min", "max", "mean", "std"):
+            self.assertAlmostEqual(stats[k], rep.stats[k], places=12)
+        self.assertEqual(stats["elements"], mobj.Mesh.CountFacets)
+        np.testing.assert_allclose(mobj.SurfMeshQuality, rep.quality)
+        colors = np.array([c[:3] for c in mobj.SurfMeshColors])
+        self.assertEqual(len(colors), mobj.Mesh.CountFacets)
+        np.testing.assert_allclose(colors, coloring.quality_rgb(rep.quality, rep.tangled),
+                                   atol=1e-6)
+
+    def test_optimize_object_one_transaction_and_undo(self):
+        tor, mesh = T.torus_fem(self.doc, tangled=True)
+        self.doc.recompute()
+        names = {o.Name for o in self.doc.Objects}
+        undo0 = self.doc.UndoCount
+        snap = T.fem_snapshot(mesh.FemMesh)
+        new = SurfMesh.optimize_object(mesh, shape=tor, measure="shape")
+        self.assertEqual(new.Name, "TorusMesh_optimized")
+        self.assertEqual(self.doc.UndoCount, undo0 + 1)
+        self.assertEqual(self.doc.UndoNames[0], "SurfMesh optimize")
+        self.assertEqual(T.fem_snapshot(mesh.FemMesh), snap)  # original kept
+        before, after = SurfMesh.stats_of(new, before=True), SurfMesh.stats_of(new)
+        self.assertGreater(before["tangled"], 0)
+        self.assertEqual(after["tangled"], 0)
+        self.assertEqual(len(new.SurfMeshColors), len(new.FemMesh.Faces))
+        self.assertIs(new.SurfMeshOriginal, mesh)
+        self.assertIs(new.SurfMeshSource, tor)
+        # a second measure finds the shape through the stored link
+        rep = SurfMesh.measure_object(new)
+        self.assertEqual(rep.stats["tangled"], 0)
+        self.doc.undo()  # the measure
+        self.doc.undo()  # the optimization
+        self.assertEqual({o.Name for o in self.doc.Objects}, names)
+
+    def test_gmsh_mesh_finds_its_part(self):
+        from SurfMesh.app import examples
+
+        tor = examples.make_torus(self.doc)
+        mesh = examples.make_gmsh_mesh(self.doc, tor, 3.0)
+        rep = SurfMesh.measure_object(mesh)  # shape from FemMeshGmsh.Part
+        self.assertEqual(rep.stats["tangled"], 0)
+
+    def test_cancel_leaves_document_unchanged(self):
+        tor, mesh = T.torus_fem(self.doc, tangled=True)
+        self.doc.recompute()
+        names = {o.Name for o in self.doc.Objects}
+        undo0 = self.doc.UndoCount
+        with self.assertRaises(SurfMesh.Cancelled):
+            SurfMesh.optimize_object(mesh, shape=tor, progress_callback=lambda info: False)
+        self.assertEqual({o.Name for o in self.doc.Objects}, names)
+        self.assertEqual(self.doc.UndoCount, undo0)
+
+    def test_error_leaves_document_unchanged(self):
+        tor, mesh = T.torus_fem(self.doc, tangled=False)
+        names = {o.Name for o in self.doc.Objects}
+        with self.assertRaises(ValueError):
+            SurfMesh.optimize_object(mesh, shape=tor, measure="unknown")
+        with self.assertRaises(ValueError):
+            SurfMesh.optimize_object(mesh, shape=tor, max_sweeps=-1)
+        self.assertEqual({o.Name for o in self.doc.Objects}, names)
+
+    def test_clear_colors(self):
+        tor, mobj = T.torus_mesh(self.doc, deflection=0.3)
+        SurfMesh.measure_object(mobj, tor)
+        self.assertIn("SurfMeshColors", mobj.PropertiesList)
+        SurfMesh.clear_colors(mobj)
+        self.assertNotIn("SurfMeshColors", mobj.PropertiesList)
+        self.assertIsNotNone(SurfMesh.stats_of(mobj))  # stats kept
+
+    def test_report_object(self):
+        import os
+
+        tor, mesh = T.torus_fem(self.doc, tangled=True)
+        new = SurfMesh.optimize_object(mesh, shape=tor)
+        png = os.path.join(T.output_dir(), "report_test.png")
+        if os.path.exists(png):
+            os.remove(png)
+        rep = SurfMesh.app.document.report_object(new, histogram=png)
+        labels = [(m, lab) for m, lab, _ in rep["rows"]]
+        self.assertEqual(labels, [("shape", "Initial"), ("shape", "Optimized"),
+                                  ("oddy", "Initial"), ("oddy", "Optimized")])
+        self.assertGreater(rep["rows"][0][2]["tangled"], 0)
+        self.assertEqual(rep["rows"][1][2]["tangled"], 0)
+        self.assertIn("Tang. el.", rep["text"])
+        with open(png, "rb") as fh:
+            self.assertEqual(fh.read(8), b"\x89PNG\r\n\x1a\n")
+
+
+class TestImports(unittest.TestCase):
+    def test_headless_layer_never_imports_gui(self):
+        # FEM's import test idea: the headless modules import with the GUI down, and their
+        # source imports neither FreeCADGui nor PySide.
+        import ast
+        import importlib
+        import os
+        import pkgutil
+
+        import SurfMesh.app as app
+
+        for info in pkgutil.iter_modules(app.__path__):
+            mod = importlib.import_module(f"SurfMesh.app.{info.name}")
+            tree = ast.parse(open(mod.__file__, encoding="utf-8").read())
+            for node in ast.walk(tree):
+                names = []
+                if isinstance(node, ast.Import):
+                    names = [a.name for a in node.names]
+                elif isinstance(node, ast.ImportFrom):
+                    names = [node.module or ""]
+                for n in names:
+                    self.assertFalse(n.startswith(("FreeCADGui", "PySide")),
+                                     f"{info.name} imports {n}")
+        cli = os.path.join(os.path.dirname(SurfMesh.__file__), "cli", "surfmesh_cli.py")
+        self.assertNotIn("FreeCADGui", open(cli, encoding="utf-8").read())
+
+
+if __name__ == "__main__":
+    unittest.main()
