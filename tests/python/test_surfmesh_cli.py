@@ -1,0 +1,177 @@
+"""The command line (freecadcmd surfmesh_cli.py -- …): round trips through Gmsh .msh v2 and v4,
+STL and UNV, the JSON report, and errors (run: freecadcmd -t)."""
+
+import json
+import os
+import shutil
+import subprocess
+import unittest
+
+import FreeCAD
+import numpy as np
+
+import surfmesh_testing as T
+
+R, r = 10.0, 4.0
+
+
+def run_cli(*args):
+    cmd = ["freecadcmd", T.cli_path(), "--"] + [str(a) for a in args]
+    p = subprocess.run(cmd, capture_output=True, text=True, timeout=600, stdin=subprocess.DEVNULL)
+    return p.returncode, p.stdout, p.stderr
+
+
+def read_msh(path):
+    """(node tags, coords, element tags, element node tags) of the 2D elements, read by Gmsh
+    itself (in a separate process: the CLI keeps no state here)."""
+    from SurfMesh.app import fileio
+
+    gmsh = fileio._gmsh()
+    gmsh.clear()
+    gmsh.open(path)
+    tags, coords, _ = gmsh.model.mesh.getNodes()
+    order = np.argsort(tags)
+    _, etags, enodes = gmsh.model.mesh.getElements(2)
+    return (np.asarray(tags)[order], np.asarray(coords).reshape(-1, 3)[order],
+            np.concatenate(etags), np.concatenate(enodes))
+
+
+class TestCli(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        import Part
+
+        from SurfMesh.app import fileio
+
+        cls.dir = os.path.join(T.output_dir(), "cli")
+        shutil.rmtree(cls.dir, ignore_errors=True)
+        os.makedirs(cls.dir)
+        cls.brep = os.path.join(cls.dir, "torus.brep")
+        Part.makeTorus(R, r).exportBrep(cls.brep)
+        gmsh = fileio._gmsh()
+        gmsh.clear()
+        gmsh.model.occ.importShapes(cls.brep)
+        gmsh.model.occ.synchronize()
+        gmsh.option.setNumber("Mesh.CharacteristicLengthMax", 2.0)
+        gmsh.model.mesh.generate(2)
+        # tangle it: move the free nodes in (u, v) on the torus, with a fixed seed
+        tags, coords, _ = gmsh.model.mesh.getNodes(2, -1, includeBoundary=False)
+        xyz = np.asarray(coords).reshape(-1, 3)
+        u = np.arctan2(xyz[:, 1], xyz[:, 0])
+        v = np.arctan2(xyz[:, 2], np.hypot(xyz[:, 0], xyz[:, 1]) - R)
+        rng = np.random.default_rng(3)
+        u = u + 0.045 * rng.standard_normal(len(u))
+        v = v + 0.13 * rng.standard_normal(len(v))
+        new = np.stack([(R + r * np.cos(v)) * np.cos(u), (R + r * np.cos(v)) * np.sin(u),
+                        r * np.sin(v)], axis=1)
+        for t, p in zip(tags, new):
+            gmsh.model.mesh.setNode(int(t), p.tolist(), [])
+        gmsh.option.setNumber("Mesh.SaveAll", 1)
+        gmsh.option.setNumber("Mesh.Binary", 0)
+        for ver, name in ((4.1, "torus4.msh"), (2.2, "torus2.msh")):
+            gmsh.option.setNumber("Mesh.MshFileVersion", ver)
+            gmsh.write(os.path.join(cls.dir, name))
+        gmsh.write(os.path.join(cls.dir, "torus.stl"))
+        gmsh.clear()
+
+    def setUp(self):
+        self.doc = FreeCAD.newDocument("SurfMeshCliTest")
+
+    def tearDown(self):
+        FreeCAD.closeDocument(self.doc.Name)
+
+    def roundtrip_msh(self, name, version_line):
+        src = os.path.join(self.dir, name)
+        out = os.path.join(self.dir, "out_" + name)
+        rep = os.path.join(self.dir, name + ".json")
+        code, so, se = run_cli("optimize", self.brep, src, "-o", out, "--report", rep)
+        self.assertEqual(code, 0, se)
+        with open(out) as fh:
+            self.assertEqual(fh.read().split("\n")[1].split()[0], version_line)
+        t0, x0, e0, n0 = read_msh(src)
+        t1, x1, e1, n1 = read_msh(out)
+        np.testing.assert_array_equal(t1, t0)  # node tags
+        np.testing.assert_array_equal(e1, e0)  # element tags
+        np.testing.assert_array_equal(n1, n0)  # connectivity
+        self.assertLess(T.torus_distance(x1, R, r).max(), 1e-9)  # .msh keeps 16 digits
+        self.assertGreater(np.abs(x1 - x0).max(), 1e-3)
+        data = json.load(open(rep))
+        self.assertGreater(data["before"]["tangled"], 0)
+        self.assertEqual(data["after"]["tangled"], 0)
+        self.assertEqual(data["after"]["elements"], len(e0))
+        self.assertGreater(data["sweeps"], 0)
+        self.assertIn("seconds", data)
+        self.assertIn("Tang. el.", so)
+        # an independent look at the output: no triangle is flipped against the torus normal
+        tris = np.searchsorted(t1, n1).reshape(-1, 3)
+        import Part
+
+        _, tangled = T.reference_tri_quality(x1, tris, Part.makeTorus(R, r).Faces[0])
+        self.assertFalse(tangled.any())
+
+    def test_msh_v4(self):
+        self.roundtrip_msh("torus4.msh", "4.1")
+
+    def test_msh_v2(self):
+        self.roundtrip_msh("torus2.msh", "2.2")
+
+    def test_stl_and_measure(self):
+        import Mesh
+
+        src = os.path.join(self.dir, "torus.stl")
+        out = os.path.join(self.dir, "out_torus.stl")
+        code, so, se = run_cli("optimize", self.brep, src, "-o", out, "--measure", "oddy")
+        self.assertEqual(code, 0, se)
+        m0, m1 = Mesh.Mesh(src), Mesh.Mesh(out)
+        self.assertEqual(m1.CountFacets, m0.CountFacets)
+        pts = np.array([(p.x, p.y, p.z) for p in m1.Topology[0]])
+        self.assertLess(T.torus_distance(pts, R, r).max(), 1e-5)  # float32 storage
+        rep = os.path.join(self.dir, "measure.json")
+        code, so, se = run_cli("measure", self.brep, out, "--report", rep)
+        self.assertEqual(code, 0, se)
+        self.assertEqual(json.load(open(rep))["stats"]["tangled"], 0)
+
+    def test_unv(self):
+        import Fem
+
+        from SurfMesh.app import fileio
+
+        mf = fileio.read_mesh(os.path.join(self.dir, "torus4.msh"))
+        unv = os.path.join(self.dir, "torus.unv")
+        fileio.write_mesh(unv, mf, mf.data.nodes)
+        out = os.path.join(self.dir, "out_torus.unv")
+        code, so, se = run_cli("optimize", self.brep, unv, "-o", out)
+        self.assertEqual(code, 0, se)
+        f0, f1 = Fem.read(unv), Fem.read(out)
+        self.assertEqual(list(f1.Nodes), list(f0.Nodes))
+        self.assertEqual(list(f1.Faces), list(f0.Faces))
+        pts = np.array([(p.x, p.y, p.z) for p in f1.Nodes.values()])
+        self.assertLess(T.torus_distance(pts, R, r).max(), 1e-6)
+
+    def test_errors(self):
+        src = os.path.join(self.dir, "torus4.msh")
+        code, _, se = run_cli("measure", self.brep, os.path.join(self.dir, "missing.msh"))
+        self.assertEqual(code, 2)
+        self.assertIn("not found", se)
+        code, _, se = run_cli("measure", self.brep, src, "--measure", "bogus")
+        self.assertEqual(code, 2)
+        self.assertIn("bogus", se)
+        bad = os.path.join(self.dir, "bad.msh")
+        with open(bad, "w") as fh:
+            fh.write("not a mesh\n")
+        code, _, se = run_cli("measure", self.brep, bad)
+        self.assertEqual(code, 2)
+        self.assertIn("not a Gmsh", se)
+        import Part
+
+        box = os.path.join(self.dir, "box.brep")
+        Part.makeBox(3, 3, 3).exportBrep(box)
+        code, _, se = run_cli("measure", box, src)  # the mesh of another shape
+        self.assertEqual(code, 2)
+        self.assertIn("error", se)
+        code, _, se = run_cli("optimize", self.brep, src)  # -o missing
+        self.assertEqual(code, 2)
+
+
+if __name__ == "__main__":
+    unittest.main()
