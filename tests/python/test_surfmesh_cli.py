@@ -120,7 +120,7 @@ class TestCli(unittest.TestCase):
 
         src = os.path.join(self.dir, "torus.stl")
         out = os.path.join(self.dir, "out_torus.stl")
-        code, so, se = run_cli("optimize", self.brep, src, "-o", out, "--measure", "oddy")
+        code, so, se = run_cli("optimize", self.brep, src, "-o", out, "--measure", "shape")
         self.assertEqual(code, 0, se)
         m0, m1 = Mesh.Mesh(src), Mesh.Mesh(out)
         self.assertEqual(m1.CountFacets, m0.CountFacets)
