@@ -2,12 +2,11 @@
 
 #include "surfmesh/measures/element_measure.h"
 
-#include <Eigen/Eigenvalues>
-
 #include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <exception>
 #include <limits>
 #include <mutex>
@@ -37,7 +36,8 @@ constexpr int kMaxElementNodes = 21;
 
 bool isMovable(NodeKind k) { return k == NodeKind::Face || k == NodeKind::Edge; }
 
-/// Node → (element, local index) incidence in CSR form.
+/// Node → (element, local index) incidence in CSR form: the compact neighbour data of the
+/// sweep (a node's submesh is elem[offset[i] .. offset[i+1]), its place in each element local).
 struct Incidence {
   std::vector<std::int64_t> offset;
   std::vector<std::int32_t> elem;
@@ -64,6 +64,35 @@ Incidence buildIncidence(const SurfaceMesh& m) {
   return inc;
 }
 
+/// Greedy coloring on a given incidence (see colorMovableNodes).
+std::vector<std::vector<std::int32_t>> colorNodes(const SurfaceMesh& mesh, const Incidence& inc) {
+  const std::size_t N = mesh.nodeCount();
+  std::vector<int> color(N, -1);
+  std::vector<std::vector<std::int32_t>> colors;
+  std::vector<std::int64_t> mark;  // mark[c] == i when color c is used by a neighbour of i
+  for (std::size_t i = 0; i < N; ++i) {
+    if (!isMovable(mesh.nodeKind[i])) continue;
+    const auto ii = static_cast<std::int64_t>(i);
+    for (std::int64_t p = inc.offset[i]; p < inc.offset[i + 1]; ++p) {
+      const std::size_t e = static_cast<std::size_t>(inc.elem[static_cast<std::size_t>(p)]);
+      const std::int32_t* nd = mesh.elementNodes(e);
+      for (int k = 0; k < mesh.elementSize(e); ++k) {
+        const int c = color[static_cast<std::size_t>(nd[k])];
+        if (c >= 0) mark[static_cast<std::size_t>(c)] = ii;
+      }
+    }
+    std::size_t c = 0;
+    while (c < mark.size() && mark[c] == ii) ++c;
+    if (c == mark.size()) {
+      mark.push_back(-1);
+      colors.emplace_back();
+    }
+    color[i] = static_cast<int>(c);
+    colors[c].push_back(static_cast<std::int32_t>(i));
+  }
+  return colors;
+}
+
 /// Per-thread geometry: clones of the surfaces and curves (OCC adaptors are not shared).
 struct ThreadGeometry {
   std::vector<std::unique_ptr<Surface>> surfaces;
@@ -74,47 +103,298 @@ struct ThreadGeometry {
   }
 };
 
-/// The optimizer's working state: copies of the movable data, written back at the end.
+/// A persistent team of worker threads for the whole run: run(job) executes job(tid) on
+/// every member (the caller is member 0) and returns when all are done — the barrier between
+/// colors. Waiting members spin briefly, then sleep (so an oversubscribed machine is not
+/// burnt by spinning).
+class Team {
+ public:
+  explicit Team(int n) : n_(n) {
+    for (int t = 1; t < n_; ++t) workers_.emplace_back([this, t] { loop(t); });
+  }
+  ~Team() {
+    {
+      std::lock_guard<std::mutex> lock(m_);
+      stop_ = true;
+      gen_.fetch_add(1, std::memory_order_release);
+    }
+    cv_.notify_all();
+    for (auto& w : workers_) w.join();
+  }
+  Team(const Team&) = delete;
+  Team& operator=(const Team&) = delete;
+
+  int size() const { return n_; }
+
+  template <class F>
+  void run(F& job) {
+    if (n_ == 1) {
+      job(0);
+      return;
+    }
+    job_ = [](void* ctx, int tid) { (*static_cast<F*>(ctx))(tid); };
+    ctx_ = &job;
+    pending_.store(n_ - 1, std::memory_order_relaxed);
+    {
+      std::lock_guard<std::mutex> lock(m_);
+      gen_.fetch_add(1, std::memory_order_release);
+    }
+    cv_.notify_all();
+    job(0);
+    for (int spin = 0; pending_.load(std::memory_order_acquire) != 0; ++spin) {
+      if (spin < 4000) continue;
+      std::unique_lock<std::mutex> lock(m_);
+      doneCv_.wait(lock, [this] { return pending_.load(std::memory_order_acquire) == 0; });
+    }
+  }
+
+ private:
+  void loop(int tid) {
+    std::uint64_t seen = 0;
+    for (;;) {
+      std::uint64_t g = gen_.load(std::memory_order_acquire);
+      for (int spin = 0; g == seen && spin < 4000; ++spin) g = gen_.load(std::memory_order_acquire);
+      if (g == seen) {
+        std::unique_lock<std::mutex> lock(m_);
+        cv_.wait(lock, [&] { return gen_.load(std::memory_order_acquire) != seen; });
+        g = gen_.load(std::memory_order_acquire);
+      }
+      seen = g;
+      if (stop_) return;
+      job_(ctx_, tid);
+      if (pending_.fetch_sub(1, std::memory_order_acq_rel) == 1) {
+        std::lock_guard<std::mutex> lock(m_);
+        doneCv_.notify_one();
+      }
+    }
+  }
+
+  int n_;
+  std::vector<std::thread> workers_;
+  std::mutex m_;
+  std::condition_variable cv_, doneCv_;
+  std::atomic<std::uint64_t> gen_{0};
+  std::atomic<int> pending_{0};
+  bool stop_ = false;
+  void (*job_)(void*, int) = nullptr;
+  void* ctx_ = nullptr;
+};
+
+/// Cached surface derivatives at a node's accepted position (reused by its next Newton step).
+struct NodeD2 {
+  Vec3 du, dv, duu, duv, dvv;
+};
+
+/// One element's distortion with the free node at local index `local`, evaluated at δ and
+/// (when asked) at δ = 0 for the quality.
+struct ElemOut {
+  double eta = 1.0;   // η with the sweep's δ (+∞ when δ = 0 and tangled)
+  double eta0 = 1.0;  // η with δ = 0 (+∞ when tangled), filled when wantEta0
+  double minSigma = 0.0;
+  bool tangled = false;
+};
+
+/// A node whose submesh holds an element with η above this tries fallback directions when its
+/// Newton step fails (quality below 1/4).
+constexpr double kFallbackEta = 4.0;
+
+const double kInvSqrt3 = 0.57735026918962576451;
+const double kDetWinv = 2.0 * kInvSqrt3;  // det W⁻¹ of the equilateral ideal triangle
+
+/// Linear triangle (x0 free, x1, x2 the next corners counter-clockwise), equilateral ideal:
+/// the closed form of jacobianDistortion for b = (−1, −1), W⁻¹ = [[1, −1/√3], [0, 2/√3]].
+inline ElemOut triangleKernel(const PlanarMeasure& m, const Vec3& x0, const Vec3& x1,
+                              const Vec3& x2, const Vec3& n, double delta, bool wantEta0,
+                              Vec3* grad, Mat3* hess) {
+  ElemOut r;
+  const Vec3 J0 = x1 - x0, J1 = x2 - x0;
+  const Vec3 K1 = (2.0 * J1 - J0) * kInvSqrt3;  // K = J W⁻¹ = [J0, K1]
+  const double F = J0.squaredNorm() + K1.squaredNorm();
+  const Vec3 c = J0.cross(J1);
+  const double cn = c.norm();
+  if (!std::isfinite(F) || !std::isfinite(cn) || !(F > 0.0)) {
+    r.eta = r.eta0 = kInf;
+    r.minSigma = -1.0;
+    r.tangled = true;
+    return r;
+  }
+  const double orient = c.dot(n);
+  const bool regular = cn > 1e-14 * F && orient != 0.0;
+  const double gamma = (regular && orient > 0.0) ? 1.0 : -1.0;
+  const double sigma = regular ? gamma * cn * kDetWinv : 0.0;
+  r.minSigma = 2.0 * sigma / F;
+  r.tangled = !(sigma > 0.0);
+  if (r.tangled && delta == 0.0) {
+    r.eta = r.eta0 = kInf;
+    return r;
+  }
+  const InvariantDerivs d = m.invariants(F, sigma, regularizedSigma(sigma, delta));
+  r.eta = d.h;
+  if (wantEta0)
+    r.eta0 = delta == 0.0 ? d.h
+             : r.tangled  ? kInf
+                          : m.invariants(F, sigma, regularizedSigma(sigma, 0.0)).h;
+  if (grad) {
+    // β = W⁻ᵀ b = (−1, −1/√3); ∂F/∂x0 = 2 K β; w = x2 − x1; ∂σ/∂x0 = det W⁻¹ ν × w.
+    const Vec3 gF = -2.0 * (J0 + K1 * kInvSqrt3);
+    const Vec3 w = x2 - x1;
+    const Vec3 nu = regular ? Vec3(gamma * c / cn) : n.normalized();
+    const Vec3 mw = nu.cross(w);
+    const Vec3 gs = kDetWinv * mw;
+    *grad = d.hF * gF + d.hs * gs;
+    Mat3 H = d.hFF * gF * gF.transpose() + d.hFs * (gF * gs.transpose() + gs * gF.transpose()) +
+             d.hss * gs * gs.transpose();
+    H.diagonal().array() += d.hF * (8.0 / 3.0);  // 2 ‖β‖²
+    if (regular) {
+      // [w]×ᵀ (I − ν νᵀ) [w]× = ‖w‖² I − w wᵀ − (ν × w)(ν × w)ᵀ
+      Mat3 P = -w * w.transpose() - mw * mw.transpose();
+      P.diagonal().array() += w.squaredNorm();
+      H += (d.hs * kDetWinv * gamma / cn) * P;
+    }
+    *hess = H;
+  }
+  return r;
+}
+
+/// Closed-form symmetric 2×2 eigen-decomposition → safeguarded Newton direction −|H|⁻¹ g
+/// (eigenvalues replaced by their absolute values, floored at 1e-8 of the largest).
+inline Vec2 newtonDirection(const Vec2& g, const Mat2& Hin) {
+  const double a = Hin(0, 0), b = 0.5 * (Hin(0, 1) + Hin(1, 0)), c = Hin(1, 1);
+  const double tr = 0.5 * (a + c), df = 0.5 * (a - c);
+  const double rad = std::sqrt(df * df + b * b);
+  double l1 = tr + rad, l2 = tr - rad;
+  const double lmax = std::max(std::abs(l1), std::abs(l2));
+  if (!(lmax > 0.0) || !std::isfinite(lmax)) return -g;
+  // Unit eigenvector of l1.
+  Vec2 v1;
+  if (rad == 0.0) {
+    v1 = Vec2(1.0, 0.0);
+  } else if (df >= 0.0) {
+    v1 = Vec2(df + rad, b);
+  } else {
+    v1 = Vec2(b, rad - df);
+  }
+  const double nv = v1.norm();
+  v1 = nv > 0.0 ? Vec2(v1 / nv) : Vec2(1.0, 0.0);
+  const Vec2 v2(-v1.y(), v1.x());
+  const double floor = 1e-8 * lmax;
+  l1 = std::max(std::abs(l1), floor);
+  l2 = std::max(std::abs(l2), floor);
+  return -(v1 * (v1.dot(g) / l1) + v2 * (v2.dot(g) / l2));
+}
+
+int resolveThreads(int requested) {
+  if (requested > 0) return requested;
+  const unsigned hc = std::thread::hardware_concurrency();
+  return hc > 0 ? static_cast<int>(hc) : 1;
+}
+
+}  // namespace
+
+namespace {
+
+/// The optimizer's working state. Node positions and parameters are copies of the mesh's
+/// (written back at the end, so that a cancelled run leaves the mesh untouched); element
+/// corner (u,v) are not copied: they are refreshed from the final node parameters.
 struct State {
   const SurfaceMesh& mesh;
   const PlanarMeasure& measure;
   const OptimizeOptions& opt;
   Incidence inc;
+  bool allTri3 = true;
+  std::size_t maxDegree = 0;
+  // ---- nodes -----------------------------------------------------------------------------
   std::vector<Vec3> xyz;
   std::vector<Vec2> uv;
   std::vector<double> t;
-  std::vector<Vec2> cornerUV;
-  std::vector<Vec3> cornerNormal;  // reference normal at each element corner (zero at poles)
-  std::vector<double> elemScale;   // frozen per sweep: mean squared corner edge length
-  double deltaHat = 0.0;           // dimensionless δ of the current sweep
+  std::vector<Vec3> nodeNormal;        // reference normal of Face nodes at their (u,v)
+  std::vector<NodeD2> d2;              // surface derivatives at a Face node's position
+  std::vector<unsigned char> d2Valid;  // whether d2[i] is current
+  std::vector<std::int32_t> lastVisit;  // clock of the node's last update
+  std::vector<std::int32_t> movedAt;    // clock of its last significant move (0: never)
+  // ---- elements --------------------------------------------------------------------------
+  // Reference normal of element e: normalized (fixedNormal[e] + Σ nodeNormal over its Face
+  // corners), fixedNormal holding the corner normals of its Fixed and Edge corners.
+  std::vector<Vec3> fixedNormal;
+  std::vector<double> elemScale;  // mean squared corner edge length (frozen per sweep)
+  std::vector<double> eta0;       // η with δ = 0 (+∞ tangled), kept current in δ = 0 sweeps
+  std::vector<double> minSigma;   // scaled det S (≤ 0 tangled), idem
+  // ---- sliding nodes ---------------------------------------------------------------------
+  std::vector<std::int64_t> edgeSlot;  // N (or empty): first index in edgeNormal, −1
+  std::vector<Vec3> edgeNormal;        // corner normal of an Edge node in each incident element
+  // ---- sweep -----------------------------------------------------------------------------
+  double deltaHat = 0.0;  // dimensionless δ of the current sweep
+  bool trackCache = true;  // δ = 0 sweep: keep eta0/minSigma current at every accepted move
+  std::int32_t clock = 0;  // advanced once per color
+  std::int32_t validFrom = 1;  // a node last visited before this clock is revisited
 
   State(const SurfaceMesh& m, const PlanarMeasure& pm, const OptimizeOptions& o)
-      : mesh(m),
-        measure(pm),
-        opt(o),
-        inc(buildIncidence(m)),
-        xyz(m.xyz),
-        uv(m.uv),
-        t(m.nodeT),
-        cornerUV(m.cornerUV) {
-    cornerNormal.assign(m.elemNodes.size(), Vec3::Zero());
-    for (std::size_t e = 0; e < m.elementCount(); ++e) {
+      : mesh(m), measure(pm), opt(o), inc(buildIncidence(m)), xyz(m.xyz), uv(m.uv), t(m.nodeT) {
+    const std::size_t N = m.nodeCount(), E = m.elementCount();
+    for (std::size_t e = 0; e < E; ++e)
+      if (m.elemType[e] != ElementType::Tri3) allTri3 = false;
+    for (std::size_t i = 0; i < N; ++i)
+      maxDegree = std::max(maxDegree, static_cast<std::size_t>(inc.offset[i + 1] - inc.offset[i]));
+    nodeNormal.assign(N, Vec3::Zero());
+    d2.resize(N);
+    d2Valid.assign(N, 0);
+    lastVisit.assign(N, 0);
+    movedAt.assign(N, 0);
+    bool anyEdge = false;
+    for (std::size_t i = 0; i < N; ++i) {
+      if (m.nodeKind[i] == NodeKind::Face)
+        nodeNormal[i] = m.referenceNormal(m.nodeFace[i], uv[i]);
+      if (m.nodeKind[i] == NodeKind::Edge) anyEdge = true;
+    }
+    fixedNormal.assign(E, Vec3::Zero());
+    for (std::size_t e = 0; e < E; ++e) {
       const int nc = cornerCount(m.elemType[e]);
-      for (int k = 0; k < nc; ++k) {
-        const std::size_t p = static_cast<std::size_t>(m.elemOffset[e]) + k;
-        cornerNormal[p] = m.referenceNormal(m.elemFace[e], cornerUV[p]);
+      const std::int32_t* nd = m.elementNodes(e);
+      for (int k = 0; k < nc; ++k)
+        if (m.nodeKind[static_cast<std::size_t>(nd[k])] != NodeKind::Face)
+          fixedNormal[e] += m.referenceNormal(m.elemFace[e], m.elementUV(e)[k]);
+    }
+    if (anyEdge) {
+      edgeSlot.assign(N, -1);
+      for (std::size_t i = 0; i < N; ++i) {
+        if (m.nodeKind[i] != NodeKind::Edge) continue;
+        edgeSlot[i] = static_cast<std::int64_t>(edgeNormal.size());
+        for (std::int64_t p = inc.offset[i]; p < inc.offset[i + 1]; ++p) {
+          const std::size_t e = static_cast<std::size_t>(inc.elem[static_cast<std::size_t>(p)]);
+          const int k = inc.local[static_cast<std::size_t>(p)];
+          edgeNormal.push_back(k < cornerCount(m.elemType[e])
+                                   ? m.referenceNormal(m.elemFace[e], m.elementUV(e)[k])
+                                   : Vec3::Zero());
+        }
       }
     }
-    elemScale.assign(m.elementCount(), 1.0);
+    elemScale.assign(E, 1.0);
+    eta0.assign(E, 1.0);
+    minSigma.assign(E, 1.0);
   }
 
-  Vec3 elementNormal(std::size_t e) const {
+  std::int64_t begin(std::size_t i) const { return inc.offset[i]; }
+  std::int64_t end(std::size_t i) const { return inc.offset[i + 1]; }
+
+  /// Reference normal (any length) of element e with the corner normal of free node i (in this element)
+  /// replaced by `nfree` (i < 0: the current normals). `oldFree` is the corner normal i had
+  /// in e when i is an Edge node (it is part of fixedNormal), zero otherwise.
+  Vec3 elementNormal(std::size_t e, std::int64_t i, const Vec3& nfree, const Vec3& oldFree) const {
     const int nc = cornerCount(mesh.elemType[e]);
-    const std::size_t p0 = static_cast<std::size_t>(mesh.elemOffset[e]);
-    Vec3 n = Vec3::Zero();
-    for (int k = 0; k < nc; ++k) n += cornerNormal[p0 + k];
+    const std::int32_t* nd = mesh.elementNodes(e);
+    Vec3 n = fixedNormal[e];
+    for (int k = 0; k < nc; ++k) {
+      const std::size_t j = static_cast<std::size_t>(nd[k]);
+      if (static_cast<std::int64_t>(j) == i) {
+        n += nfree - oldFree;
+      } else if (mesh.nodeKind[j] == NodeKind::Face) {
+        n += nodeNormal[j];
+      }
+    }
+    // Not normalized: the element measures only use its direction (the sign of c·n, and
+    // n/‖n‖ for degenerate elements).
     if (n.squaredNorm() == 0.0) return elementReferenceNormal(mesh, e);
-    return n.normalized();
+    return n;
   }
 
   double cornerScale(std::size_t e) const {
@@ -125,47 +405,83 @@ struct State {
     return s / nc;
   }
 
-  ElementEval evalElement(std::size_t e, double delta) const {
-    Vec3 x[kMaxElementNodes];
+  /// Mean edge length of node i's submesh (from the frozen scales).
+  double localSize(std::size_t i) const {
+    double s = 0.0;
+    const std::int64_t b = begin(i), en = end(i);
+    for (std::int64_t p = b; p < en; ++p)
+      s += std::sqrt(elemScale[static_cast<std::size_t>(inc.elem[static_cast<std::size_t>(p)])]);
+    return en > b ? s / static_cast<double>(en - b) : 0.0;
+  }
+
+  /// Element e with node `local` at x (others at their positions) and reference normal n.
+  ElemOut evalElement(std::size_t e, int local, const Vec3& x, const Vec3& n, double delta,
+                      bool wantEta0, Vec3* grad, Mat3* hess) const {
     const std::int32_t* nd = mesh.elementNodes(e);
-    const int n = mesh.elementSize(e);
-    for (int k = 0; k < n; ++k) x[k] = xyz[nd[k]];
-    return elementDistortion(measure, mesh.elemType[e], x, elementNormal(e), delta);
+    if (mesh.elemType[e] == ElementType::Tri3) {
+      const int k1 = local == 2 ? 0 : local + 1, k2 = local == 0 ? 2 : local - 1;
+      return triangleKernel(measure, x, xyz[static_cast<std::size_t>(nd[k1])],
+                            xyz[static_cast<std::size_t>(nd[k2])], n, delta, wantEta0, grad,
+                            hess);
+    }
+    Vec3 xs[kMaxElementNodes];
+    const int cnt = mesh.elementSize(e);
+    for (int k = 0; k < cnt; ++k) xs[k] = (k == local) ? x : xyz[static_cast<std::size_t>(nd[k])];
+    const Vec3 nu = n.normalized();
+    const ElementEval ev =
+        elementDistortion(measure, mesh.elemType[e], xs, nu, delta, local, grad, hess);
+    ElemOut r;
+    r.eta = ev.eta;
+    r.minSigma = ev.minSigma;
+    r.tangled = ev.tangled;
+    if (wantEta0) {
+      if (delta == 0.0 || ev.tangled) {
+        r.eta0 = ev.tangled ? kInf : ev.eta;
+      } else {
+        const ElementEval e0 = elementDistortion(measure, mesh.elemType[e], xs, nu, 0.0);
+        r.eta0 = std::isfinite(e0.eta) ? e0.eta : kInf;
+      }
+    }
+    return r;
+  }
+
+  /// Whole-mesh element e at the current positions.
+  ElemOut evalWhole(std::size_t e, double delta) const {
+    const Vec3 n = elementNormal(e, -1, Vec3::Zero(), Vec3::Zero());
+    const std::int32_t* nd = mesh.elementNodes(e);
+    return evalElement(e, 0, xyz[static_cast<std::size_t>(nd[0])], n, delta, true, nullptr,
+                       nullptr);
   }
 };
 
-struct GlobalEval {
-  double objective = 0.0;
-  std::size_t tangled = 0;
-  double minSigma = kInf;
-  double minQuality = 1.0;
-};
-
-GlobalEval evaluateAll(const State& s, bool regularized) {
-  GlobalEval g;
-  for (std::size_t e = 0; e < s.mesh.elementCount(); ++e) {
-    const double delta = regularized ? s.deltaHat * s.elemScale[e] : 0.0;
-    const ElementEval ev = s.evalElement(e, delta);
-    if (ev.tangled) ++g.tangled;
-    g.minSigma = std::min(g.minSigma, ev.minSigma);
-    const double q = (ev.tangled || !std::isfinite(ev.eta)) ? 0.0 : 1.0 / ev.eta;
-    g.minQuality = std::min(g.minQuality, q);
-    g.objective += std::isfinite(ev.eta) ? 0.5 * (ev.eta - 1.0) * (ev.eta - 1.0) : kInf;
-  }
-  return g;
-}
-
-/// Evaluation of a node's submesh at a candidate position of the node.
+/// Evaluation of a node's submesh at a candidate position.
 struct LocalEval {
   double f = 0.0;           // Σ (η − 1)² with the sweep's δ
   int tangled = 0;          // elements with det S ≤ 0
-  double minQuality = 1.0;  // min 1/η with δ = 0 (0 when tangled)
+  double minQuality = 1.0;  // min 1/η with δ = 0 (0 when tangled); when asked
+  double maxEta = 1.0;      // largest η (sweep's δ) of the submesh
   bool finite = true;
+};
+
+/// Per-thread scratch (allocated once, sized by the largest node degree) and statistics,
+/// padded to its own cache lines.
+struct alignas(64) Worker {
+  explicit Worker(const State& s) : geo(s.mesh) {
+    eta0.resize(s.maxDegree);
+    sig.resize(s.maxDegree);
+    normals.resize(s.maxDegree);
+  }
+  ThreadGeometry geo;
+  std::vector<double> eta0, sig;  // trial's per-element η(δ=0) and scaled det S
+  std::vector<Vec3> normals;      // trial's corner normals of a sliding node
+  double maxRelMove = 0.0;
+  std::size_t updated = 0, moved = 0;
+  char pad[64];
 };
 
 class NodeUpdater {
  public:
-  NodeUpdater(State& s, ThreadGeometry& g) : s_(s), g_(g) {}
+  NodeUpdater(State& s, Worker& w) : s_(s), w_(w) {}
 
   /// One safeguarded Newton step (with line search) on node i; returns the 3D move.
   double update(std::size_t i) {
@@ -176,73 +492,69 @@ class NodeUpdater {
 
  private:
   State& s_;
-  ThreadGeometry& g_;
-  // Scratch: the free node's normal per incident element during trials.
-  Vec3 trialNormal_[64];
+  Worker& w_;
 
-  std::int64_t begin(std::size_t i) const { return s_.inc.offset[i]; }
-  std::int64_t end(std::size_t i) const { return s_.inc.offset[i + 1]; }
-
-  /// Sets the element normal of incident element j (index in the incidence list) with the
-  /// free node's corner normal replaced by `nfree`.
-  Vec3 normalWith(std::size_t e, int local, const Vec3& nfree) const {
-    const int nc = cornerCount(s_.mesh.elemType[e]);
-    const std::size_t p0 = static_cast<std::size_t>(s_.mesh.elemOffset[e]);
-    Vec3 n = Vec3::Zero();
-    for (int k = 0; k < nc; ++k) n += (k == local) ? nfree : s_.cornerNormal[p0 + k];
-    if (n.squaredNorm() == 0.0) return s_.elementNormal(e);
-    return n.normalized();
-  }
-
-  /// Evaluates the submesh of node i with the node at x and, for each incident element, the
-  /// free node's corner normal given by normals[j]. With derivatives when g/H are non-null.
-  LocalEval evalLocal(std::size_t i, const Vec3& x, const Vec3* normals, bool wantQuality, Vec3* g,
-                      Mat3* H) const {
+  /// Submesh of node i with the node at x. `nfree(j)` gives the node's corner normal in the
+  /// j-th incident element, `old(j)` its normal there before the move (Edge nodes).
+  /// With derivatives when g/H are non-null. A trial (`cur` non-null) stops as soon as it
+  /// cannot be accepted against `cur`; its per-element values land in the worker's scratch.
+  template <class NFree, class NOld>
+  LocalEval evalLocal(std::size_t i, const Vec3& x, NFree nfree, NOld old, bool wantQuality,
+                      const LocalEval* cur, Vec3* g, Mat3* H) {
     LocalEval r;
     if (g) g->setZero();
     if (H) H->setZero();
-    Vec3 xs[kMaxElementNodes];
-    for (std::int64_t p = begin(i); p < end(i); ++p) {
+    const std::int64_t b = s_.begin(i), en = s_.end(i);
+    const bool needEta0 = wantQuality || (cur && s_.trackCache);
+    for (std::int64_t p = b; p < en; ++p) {
       const std::size_t e = static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
       const int local = s_.inc.local[static_cast<std::size_t>(p)];
-      const std::int32_t* nd = s_.mesh.elementNodes(e);
-      const int n = s_.mesh.elementSize(e);
-      for (int k = 0; k < n; ++k) xs[k] = (k == local) ? x : s_.xyz[nd[k]];
-      const int nc = cornerCount(s_.mesh.elemType[e]);
-      const Vec3 nref =
-          local < nc ? normalWith(e, local, normals[p - begin(i)]) : s_.elementNormal(e);
+      const std::size_t j = static_cast<std::size_t>(p - b);
+      const Vec3 nref = local < cornerCount(s_.mesh.elemType[e])
+                            ? s_.elementNormal(e, static_cast<std::int64_t>(i), nfree(j), old(j))
+                            : s_.elementNormal(e, -1, Vec3::Zero(), Vec3::Zero());
       const double delta = s_.deltaHat * s_.elemScale[e];
       Vec3 ge;
       Mat3 He;
-      const ElementEval ev = elementDistortion(s_.measure, s_.mesh.elemType[e], xs, nref, delta,
-                                               local, g ? &ge : nullptr, H ? &He : nullptr);
-      if (ev.tangled) ++r.tangled;
+      const ElemOut ev =
+          s_.evalElement(e, local, x, nref, delta, needEta0, g ? &ge : nullptr, H ? &He : nullptr);
+      if (cur) {
+        w_.eta0[j] = ev.eta0;
+        w_.sig[j] = ev.minSigma;
+      }
+      if (ev.tangled) {
+        ++r.tangled;
+        if (cur && r.tangled > cur->tangled) return reject();
+      }
       if (!std::isfinite(ev.eta)) {
         r.finite = false;
         r.f = kInf;
+        if (cur) return reject();
         continue;
       }
       const double d = ev.eta - 1.0;
       r.f += d * d;
+      r.maxEta = std::max(r.maxEta, ev.eta);
+      if (cur && !(r.f < cur->f)) return reject();
       if (g) *g += 2.0 * d * ge;
       if (H) *H += 2.0 * (ge * ge.transpose() + d * He);
       if (wantQuality) {
-        double q;
-        if (ev.tangled) {
-          q = 0.0;
-        } else if (delta == 0.0) {
-          q = 1.0 / ev.eta;
-        } else {
-          const ElementEval e0 = elementDistortion(s_.measure, s_.mesh.elemType[e], xs, nref, 0.0);
-          q = std::isfinite(e0.eta) ? 1.0 / e0.eta : 0.0;
-        }
+        const double q = (ev.tangled || !std::isfinite(ev.eta0)) ? 0.0 : 1.0 / ev.eta0;
         r.minQuality = std::min(r.minQuality, q);
+        if (cur && q < cur->minQuality) return reject();
       }
     }
     return r;
   }
 
-  /// Acceptance test of a trial against the current state.
+  static LocalEval reject() {
+    LocalEval r;
+    r.finite = false;
+    r.f = kInf;
+    return r;
+  }
+
+  /// Acceptance test of a complete trial against the current state.
   bool acceptable(const LocalEval& cur, const LocalEval& trial) const {
     if (!trial.finite) return false;
     if (trial.tangled > cur.tangled) return false;
@@ -251,92 +563,107 @@ class NodeUpdater {
     return true;
   }
 
-  /// Mean edge length of the node's submesh at its node (a local size for step caps).
-  double localSize(std::size_t i) const {
-    double s = 0.0;
-    int n = 0;
-    for (std::int64_t p = begin(i); p < end(i); ++p) {
+  /// Records the accepted trial's element values (δ = 0 sweeps keep the cache current).
+  void commitElements(std::size_t i) {
+    if (!s_.trackCache) return;
+    const std::int64_t b = s_.begin(i), en = s_.end(i);
+    for (std::int64_t p = b; p < en; ++p) {
       const std::size_t e = static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
-      s += std::sqrt(s_.cornerScale(e));
-      ++n;
+      s_.eta0[e] = w_.eta0[static_cast<std::size_t>(p - b)];
+      s_.minSigma[e] = w_.sig[static_cast<std::size_t>(p - b)];
     }
-    return n ? s / n : 0.0;
-  }
-
-  /// Newton direction for a 2×2 (or 1×1 via size) system with an eigenvalue safeguard.
-  static Vec2 newtonDirection(const Vec2& g, const Mat2& H) {
-    Eigen::SelfAdjointEigenSolver<Mat2> es(0.5 * (H + H.transpose()));
-    Vec2 lam = es.eigenvalues();
-    const double lmax = std::max(std::abs(lam(0)), std::abs(lam(1)));
-    if (!(lmax > 0.0) || !std::isfinite(lmax)) return -g;
-    const double floor = 1e-8 * lmax;
-    for (int k = 0; k < 2; ++k) lam(k) = std::max(std::abs(lam(k)), floor);
-    const Mat2 V = es.eigenvectors();
-    return -(V * lam.cwiseInverse().asDiagonal() * V.transpose() * g);
   }
 
   double updateFaceNode(std::size_t i) {
     const int face = s_.mesh.nodeFace[i];
-    const Surface& surf = *g_.surfaces[static_cast<std::size_t>(face)];
-    const std::int64_t deg = end(i) - begin(i);
-    if (deg == 0 || deg > 64) return 0.0;
-    const double L = localSize(i);
+    const Surface& surf = *w_.geo.surfaces[static_cast<std::size_t>(face)];
+    if (s_.end(i) == s_.begin(i)) return 0.0;
+    const double L = s_.localSize(i);
     if (!(L > 0.0)) return 0.0;
+    const double orient =
+        static_cast<double>(s_.mesh.faceOrientation[static_cast<std::size_t>(face)] *
+                            surf.normalSign());
+    const bool monotone = s_.opt.monotone;
+    auto zero = [](std::size_t) { return Vec3::Zero().eval(); };
     double moved = 0.0;
     for (int it = 0; it < s_.opt.innerIterations; ++it) {
       const Vec2 uv0 = s_.uv[i];
-      const SurfaceD2 d = surf.d2(uv0.x(), uv0.y());
-      if (isDegenerate({d.p, d.du, d.dv})) return moved;  // a pole: stays fixed
-      for (std::int64_t p = begin(i); p < end(i); ++p)
-        trialNormal_[p - begin(i)] = s_.cornerNormal[static_cast<std::size_t>(p)];
+      if (!s_.d2Valid[i]) {
+        const SurfaceD2 d = surf.d2(uv0.x(), uv0.y());
+        s_.d2[i] = {d.du, d.dv, d.duu, d.duv, d.dvv};
+        s_.d2Valid[i] = 1;
+      }
+      const NodeD2& d = s_.d2[i];
+      if (isDegenerate({Vec3::Zero(), d.du, d.dv})) return moved;  // a pole: stays fixed
+      const Vec3 n0 = s_.nodeNormal[i];
       Vec3 gx;
       Mat3 Hx;
       const Vec3 x0 = s_.xyz[i];
-      const LocalEval cur = evalLocal(i, x0, trialNormal_, s_.opt.monotone, &gx, &Hx);
+      const LocalEval cur = evalLocal(
+          i, x0, [&](std::size_t) { return n0; }, zero, monotone, nullptr, &gx, &Hx);
       if (!cur.finite || cur.f == 0.0) return moved;
-      Vec2 gu;
+      // Chain rule to (u,v): g_u = Jᵀ g, H_u = Jᵀ H J + Σ g·∇²φ.
+      const Vec2 gu(d.du.dot(gx), d.dv.dot(gx));
+      const Vec3 Hdu = Hx * d.du, Hdv = Hx * d.dv;
       Mat2 Hu;
-      chainToSurface(d, gx, Hx, &gu, &Hu);
+      Hu(0, 0) = d.du.dot(Hdu) + gx.dot(d.duu);
+      Hu(0, 1) = Hu(1, 0) = d.du.dot(Hdv) + gx.dot(d.duv);
+      Hu(1, 1) = d.dv.dot(Hdv) + gx.dot(d.dvv);
       if (!gu.allFinite() || !Hu.allFinite()) return moved;
       Vec2 dir = newtonDirection(gu, Hu);
       if (gu.dot(dir) >= 0.0) dir = -gu;  // not a descent direction: use the gradient
       // Cap the step so that its first-order 3D length is at most the local size.
       const double len3 = (d.du * dir.x() + d.dv * dir.y()).norm();
       if (len3 > L) dir *= L / len3;
+      const bool wantQ = monotone && cur.tangled == 0;
+      Vec2 uvNew;
+      SurfaceD2 dn;
+      Vec3 nn;
+      LocalEval best = cur;  // acceptance threshold: a trial must beat it
+      auto tryStep = [&](const Vec2& step) {
+        const Vec2 uvT = surf.wrap(uv0 + step);
+        if (!surf.contains(uvT.x(), uvT.y())) return false;
+        const SurfaceD2 dT = surf.d2(uvT.x(), uvT.y());
+        if (isDegenerate({dT.p, dT.du, dT.dv})) return false;
+        const Vec3 c = dT.du.cross(dT.dv);
+        const Vec3 nT = (orient / c.norm()) * c;
+        const LocalEval tr = evalLocal(
+            i, dT.p, [&](std::size_t) { return nT; }, zero, wantQ, &best, nullptr, nullptr);
+        if (!acceptable(best, tr)) return false;
+        best = tr;
+        uvNew = uvT;
+        dn = dT;
+        nn = nT;
+        return true;
+      };
       bool accepted = false;
       double alpha = 1.0;
-      Vec2 uvNew;
-      Vec3 xNew;
-      for (int ls = 0; ls < s_.opt.maxLineSearch; ++ls, alpha *= 0.5) {
-        uvNew = surf.wrap(uv0 + alpha * dir);
-        if (!surf.contains(uvNew.x(), uvNew.y())) continue;
-        const SurfaceD1 dn = surf.d1(uvNew.x(), uvNew.y());
-        if (isDegenerate(dn)) continue;
-        const Vec3 nn = (s_.mesh.faceOrientation[static_cast<std::size_t>(face)] *
-                         surf.normalSign() * dn.du.cross(dn.dv).normalized())
-                            .eval();
-        for (std::int64_t p = begin(i); p < end(i); ++p) trialNormal_[p - begin(i)] = nn;
-        const LocalEval tr = evalLocal(i, dn.p, trialNormal_, s_.opt.monotone, nullptr, nullptr);
-        if (acceptable(cur, tr)) {
-          accepted = true;
-          xNew = dn.p;
-          break;
+      for (int ls = 0; ls < s_.opt.maxLineSearch && !accepted; ++ls, alpha *= 0.5)
+        accepted = tryStep(alpha * dir);
+      if (!accepted && s_.deltaHat == 0.0 && cur.maxEta > kFallbackEta) {
+        // A badly shaped submesh where the Newton direction fails (e.g. three nearly collinear
+        // nodes on a curved surface, whose element plane stands across the surface: its
+        // orientation flips under any step along the gradient). Try steps along ±φ_u, ±φ_v
+        // and the diagonals, a quarter of the local size long, and keep the best acceptable.
+        const double lu = d.du.norm(), lv = d.dv.norm();
+        if (lu > 0.0 && lv > 0.0) {
+          const Vec2 eu(0.25 * L / lu, 0.0), ev(0.0, 0.25 * L / lv);
+          const Vec2 dirs[8] = {eu, -eu, ev, -ev, (eu + ev) * 0.7071067811865476,
+                                (eu - ev) * 0.7071067811865476, (ev - eu) * 0.7071067811865476,
+                                -(eu + ev) * 0.7071067811865476};
+          for (double scale : {1.0, 0.5, 0.25})
+            for (const Vec2& dd : dirs)
+              if (tryStep(scale * dd)) accepted = true;
         }
       }
       if (!accepted) return moved;
-      // Commit: position, (u,v), and the node's corner data in every incident element.
-      const double step = (xNew - x0).norm();
+      const double step = (dn.p - x0).norm();
       moved += step;
       s_.uv[i] = uvNew;
-      s_.xyz[i] = xNew;
-      for (std::int64_t p = begin(i); p < end(i); ++p) {
-        const std::size_t pp = static_cast<std::size_t>(p);
-        const std::size_t e = static_cast<std::size_t>(s_.inc.elem[pp]);
-        const std::size_t slot = static_cast<std::size_t>(s_.mesh.elemOffset[e]) + s_.inc.local[pp];
-        s_.cornerUV[slot] = surf.unwrapNear(uvNew, s_.cornerUV[slot]);
-        if (s_.inc.local[pp] < cornerCount(s_.mesh.elemType[e]))
-          s_.cornerNormal[slot] = trialNormal_[p - begin(i)];
-      }
+      s_.xyz[i] = dn.p;
+      s_.nodeNormal[i] = nn;
+      s_.d2[i] = {dn.du, dn.dv, dn.duu, dn.duv, dn.dvv};
+      commitElements(i);
       if (step < 1e-14 * L) break;
     }
     return moved;
@@ -344,16 +671,15 @@ class NodeUpdater {
 
   double updateEdgeNode(std::size_t i) {
     const int edge = s_.mesh.nodeEdge[i];
-    const Curve& curve = *g_.curves[static_cast<std::size_t>(edge)];
-    const std::int64_t deg = end(i) - begin(i);
-    if (deg == 0 || deg > 64) return 0.0;
-    const double L = localSize(i);
+    const Curve& curve = *w_.geo.curves[static_cast<std::size_t>(edge)];
+    if (s_.end(i) == s_.begin(i)) return 0.0;
+    const double L = s_.localSize(i);
     if (!(L > 0.0)) return 0.0;
     // The node stays between its neighbours on the same edge (and inside the edge's range).
     const double t0 = s_.t[i];
     double lo = curve.tmin(), hi = curve.tmax();
     const bool periodic = curve.isPeriodic();
-    for (std::int64_t p = begin(i); p < end(i); ++p) {
+    for (std::int64_t p = s_.begin(i); p < s_.end(i); ++p) {
       const std::size_t e = static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
       const std::int32_t* nd = s_.mesh.elementNodes(e);
       for (int k = 0; k < s_.mesh.elementSize(e); ++k) {
@@ -361,7 +687,7 @@ class NodeUpdater {
         if (j == i || s_.mesh.nodeEdge.empty() || s_.mesh.nodeEdge[j] != edge) continue;
         double tj = s_.t[j];
         if (periodic) tj = tj - std::round((tj - t0) / curve.period()) * curve.period();
-        if (tj < t0) lo = periodic ? std::max(lo, tj) : std::max(lo, tj);
+        if (tj < t0) lo = std::max(lo, tj);
         if (tj > t0) hi = std::min(hi, tj);
       }
     }
@@ -371,12 +697,13 @@ class NodeUpdater {
     }
     const CurveD2 d = curve.d2(t0);
     if (!(d.dt.norm() > 0.0)) return 0.0;
-    for (std::int64_t p = begin(i); p < end(i); ++p)
-      trialNormal_[p - begin(i)] = s_.cornerNormal[static_cast<std::size_t>(p)];
+    const Vec3* oldN = s_.edgeNormal.data() + s_.edgeSlot[i];
+    auto old = [&](std::size_t j) { return oldN[j]; };
     Vec3 gx;
     Mat3 Hx;
     const Vec3 x0 = s_.xyz[i];
-    const LocalEval cur = evalLocal(i, x0, trialNormal_, s_.opt.monotone, &gx, &Hx);
+    const bool monotone = s_.opt.monotone;
+    const LocalEval cur = evalLocal(i, x0, old, old, monotone, nullptr, &gx, &Hx);
     if (!cur.finite || cur.f == 0.0) return 0.0;
     double gt, Ht;
     chainToCurve(d, gx, Hx, &gt, &Ht);
@@ -386,82 +713,86 @@ class NodeUpdater {
     const double len3 = std::abs(dt) * d.dt.norm();
     if (len3 > L) dt *= L / len3;
     const double margin = 1e-3 * (hi - lo);
+    const bool wantQ = monotone && cur.tangled == 0;
+    Vec3* trialN = w_.normals.data();
     double alpha = 1.0;
     for (int ls = 0; ls < s_.opt.maxLineSearch; ++ls, alpha *= 0.5) {
       const double tn = t0 + alpha * dt;
       if (!(tn > lo + margin && tn < hi - margin)) continue;
       const Vec3 xn = curve.value(tn);
       // Corner normals on each incident element's face at the new point.
-      for (std::int64_t p = begin(i); p < end(i); ++p) {
+      for (std::int64_t p = s_.begin(i); p < s_.end(i); ++p) {
         const std::size_t pp = static_cast<std::size_t>(p);
         const std::size_t e = static_cast<std::size_t>(s_.inc.elem[pp]);
         const std::size_t slot = static_cast<std::size_t>(s_.mesh.elemOffset[e]) + s_.inc.local[pp];
         const int f = s_.mesh.elemFace[e];
-        const Vec2 uvf = curve.uvOnFace(f, tn, s_.cornerUV[slot]);
-        const Surface& sf = *g_.surfaces[static_cast<std::size_t>(f)];
-        const Vec3 nn =
+        const Vec2 uvf = curve.uvOnFace(f, tn, s_.mesh.cornerUV[slot]);
+        const Surface& sf = *w_.geo.surfaces[static_cast<std::size_t>(f)];
+        trialN[p - s_.begin(i)] =
             (s_.mesh.faceOrientation[static_cast<std::size_t>(f)] * sf.normal(uvf.x(), uvf.y()))
                 .eval();
-        trialNormal_[p - begin(i)] = nn;
       }
-      const LocalEval tr = evalLocal(i, xn, trialNormal_, s_.opt.monotone, nullptr, nullptr);
+      const LocalEval tr = evalLocal(
+          i, xn, [&](std::size_t j) { return trialN[j]; }, old, wantQ, &cur, nullptr, nullptr);
       if (!acceptable(cur, tr)) continue;
       s_.t[i] = tn;
       s_.xyz[i] = xn;
-      for (std::int64_t p = begin(i); p < end(i); ++p) {
-        const std::size_t pp = static_cast<std::size_t>(p);
-        const std::size_t e = static_cast<std::size_t>(s_.inc.elem[pp]);
-        const std::size_t slot = static_cast<std::size_t>(s_.mesh.elemOffset[e]) + s_.inc.local[pp];
-        const int f = s_.mesh.elemFace[e];
-        const Surface& sf = *g_.surfaces[static_cast<std::size_t>(f)];
-        s_.cornerUV[slot] =
-            sf.unwrapNear(curve.uvOnFace(f, tn, s_.cornerUV[slot]), s_.cornerUV[slot]);
-        if (s_.inc.local[pp] < cornerCount(s_.mesh.elemType[e]))
-          s_.cornerNormal[slot] = trialNormal_[p - begin(i)];
+      // The node's corner normals are part of its elements' fixedNormal: swap them.
+      Vec3* slotN = s_.edgeNormal.data() + s_.edgeSlot[i];
+      for (std::int64_t p = s_.begin(i); p < s_.end(i); ++p) {
+        const std::size_t j = static_cast<std::size_t>(p - s_.begin(i));
+        const std::size_t e = static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
+        if (s_.inc.local[static_cast<std::size_t>(p)] < cornerCount(s_.mesh.elemType[e])) {
+          s_.fixedNormal[e] += trialN[j] - slotN[j];
+          slotN[j] = trialN[j];
+        }
       }
+      commitElements(i);
       return (xn - x0).norm();
     }
     return 0.0;
   }
 };
 
-int resolveThreads(int requested) {
-  if (requested > 0) return requested;
-  const unsigned hc = std::thread::hardware_concurrency();
-  return hc > 0 ? static_cast<int>(hc) : 1;
-}
-
 }  // namespace
 
 std::vector<std::vector<std::int32_t>> colorMovableNodes(const SurfaceMesh& mesh) {
-  const Incidence inc = buildIncidence(mesh);
-  const std::size_t N = mesh.nodeCount();
-  std::vector<int> color(N, -1);
-  std::vector<std::vector<std::int32_t>> colors;
-  std::vector<int> mark;  // mark[c] == i when color c is used by a neighbour of i
-  for (std::size_t i = 0; i < N; ++i) {
-    if (!isMovable(mesh.nodeKind[i])) continue;
-    for (std::int64_t p = inc.offset[i]; p < inc.offset[i + 1]; ++p) {
-      const std::size_t e = static_cast<std::size_t>(inc.elem[static_cast<std::size_t>(p)]);
-      const std::int32_t* nd = mesh.elementNodes(e);
-      for (int k = 0; k < mesh.elementSize(e); ++k) {
-        const int c = color[static_cast<std::size_t>(nd[k])];
-        if (c >= 0) mark[static_cast<std::size_t>(c)] = static_cast<int>(i);
-      }
-    }
-    int c = 0;
-    while (c < static_cast<int>(mark.size()) &&
-           mark[static_cast<std::size_t>(c)] == static_cast<int>(i))
-      ++c;
-    if (c == static_cast<int>(mark.size())) {
-      mark.push_back(-1);
-      colors.emplace_back();
-    }
-    color[i] = c;
-    colors[static_cast<std::size_t>(c)].push_back(static_cast<std::int32_t>(i));
-  }
-  return colors;
+  return colorNodes(mesh, buildIncidence(mesh));
 }
+
+namespace {
+
+struct GlobalEval {
+  double objective = 0.0;   // ½ Σ (η − 1)² with the sweep's δ
+  double objective0 = 0.0;  // the same with δ = 0 (+∞ while tangled)
+  std::size_t tangled = 0;
+  double minSigma = kInf;
+  double minQuality = 1.0;
+};
+
+/// Runs `body(begin, end)` over [0, n) in chunks of fixed size taken dynamically by the team
+/// (chunk boundaries do not depend on the thread count).
+template <class Body>
+void parallelChunks(Team& team, std::size_t n, std::size_t chunk, Body&& body,
+                    std::exception_ptr& error, std::mutex& errorMutex) {
+  std::atomic<std::size_t> next{0};
+  auto job = [&](int) {
+    try {
+      for (;;) {
+        const std::size_t a = next.fetch_add(chunk, std::memory_order_relaxed);
+        if (a >= n) break;
+        body(a, std::min(n, a + chunk));
+      }
+    } catch (...) {
+      std::lock_guard<std::mutex> lock(errorMutex);
+      if (!error) error = std::current_exception();
+    }
+  };
+  team.run(job);
+  if (error) std::rethrow_exception(error);
+}
+
+}  // namespace
 
 OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
                             const ProgressCallback& progress) {
@@ -481,15 +812,19 @@ OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
   mesh.validate();
 
   OptimizeResult res;
-  const MeshQuality q0 = measureQuality(mesh, measure);
-  res.before = q0.stats;
+  res.before = measureQuality(mesh, measure).stats;
 
-  State s(mesh, measure, opt);
-  const auto colors = colorMovableNodes(mesh);
+  auto state = std::make_unique<State>(mesh, measure, opt);
+  State& s = *state;
+  const std::size_t E = mesh.elementCount();
+  const auto colors = colorNodes(mesh, s.inc);
   const int nthreads = std::max(1, std::min(resolveThreads(opt.threads), 64));
   res.threadsUsed = nthreads;
-  std::vector<std::unique_ptr<ThreadGeometry>> geo;
-  for (int k = 0; k < nthreads; ++k) geo.push_back(std::make_unique<ThreadGeometry>(mesh));
+  std::vector<std::unique_ptr<Worker>> workers;
+  for (int k = 0; k < nthreads; ++k) workers.push_back(std::make_unique<Worker>(s));
+  Team team(nthreads);
+  std::exception_ptr error;
+  std::mutex errorMutex;
 
   std::size_t movable = 0;
   for (const auto& c : colors) movable += c.size();
@@ -502,74 +837,148 @@ OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
     return std::sqrt(eps * (eps - sm));
   };
   auto freezeScales = [&]() {
-    for (std::size_t e = 0; e < mesh.elementCount(); ++e) s.elemScale[e] = s.cornerScale(e);
+    parallelChunks(
+        team, E, 8192,
+        [&](std::size_t a, std::size_t b) {
+          for (std::size_t e = a; e < b; ++e) s.elemScale[e] = s.cornerScale(e);
+        },
+        error, errorMutex);
+  };
+  // Every element at the current positions: fills the cache (η at δ = 0, det S) and sums.
+  constexpr std::size_t kChunk = 4096;
+  std::vector<double> chunkF((E + kChunk - 1) / kChunk);
+  auto fullEval = [&](double deltaHat) {
+    parallelChunks(
+        team, E, kChunk,
+        [&](std::size_t a, std::size_t b) {
+          double f = 0.0;
+          for (std::size_t e = a; e < b; ++e) {
+            const ElemOut ev = s.evalWhole(e, deltaHat * s.elemScale[e]);
+            s.eta0[e] = ev.eta0;
+            s.minSigma[e] = ev.tangled ? std::min(ev.minSigma, 0.0) : ev.minSigma;
+            f += std::isfinite(ev.eta) ? 0.5 * (ev.eta - 1.0) * (ev.eta - 1.0) : kInf;
+          }
+          chunkF[a / kChunk] = f;
+        },
+        error, errorMutex);
+    GlobalEval g;
+    for (double f : chunkF) g.objective += f;
+    for (std::size_t e = 0; e < E; ++e) {
+      const double et = s.eta0[e];
+      if (s.minSigma[e] <= 0.0 || !std::isfinite(et)) {
+        ++g.tangled;
+        g.minQuality = 0.0;
+        g.objective0 = kInf;
+      } else {
+        g.minQuality = std::min(g.minQuality, 1.0 / et);
+        g.objective0 += 0.5 * (et - 1.0) * (et - 1.0);
+      }
+      g.minSigma = std::min(g.minSigma, s.minSigma[e]);
+    }
+    return g;
+  };
+  // The same statistics from the cache (exact in δ = 0 sweeps, where every accepted move
+  // refreshes its elements).
+  auto cachedEval = [&]() {
+    GlobalEval g;
+    for (std::size_t e = 0; e < E; ++e) {
+      const double et = s.eta0[e];
+      if (s.minSigma[e] <= 0.0 || !std::isfinite(et)) {
+        ++g.tangled;
+        g.minQuality = 0.0;
+        g.objective0 = kInf;
+      } else {
+        g.minQuality = std::min(g.minQuality, 1.0 / et);
+        g.objective0 += 0.5 * (et - 1.0) * (et - 1.0);
+      }
+      g.minSigma = std::min(g.minSigma, s.minSigma[e]);
+    }
+    g.objective = g.objective0;
+    return g;
   };
 
   freezeScales();
-  GlobalEval g = evaluateAll(s, false);
+  GlobalEval g = fullEval(0.0);
   s.deltaHat = chooseDelta(g);
-  res.initialObjective = s.deltaHat > 0.0 ? evaluateAll(s, true).objective : g.objective;
+  res.initialObjective = s.deltaHat > 0.0 ? fullEval(s.deltaHat).objective : g.objective0;
   res.reason = StopReason::MaxSweeps;
   if (movable == 0 || opt.maxSweeps == 0) res.reason = StopReason::NothingToDo;
 
+  double prevDelta = -1.0;
   for (int sweep = 1; movable > 0 && sweep <= opt.maxSweeps; ++sweep) {
     freezeScales();
     s.deltaHat = chooseDelta(g);
-    const double fStart = s.deltaHat > 0.0 ? evaluateAll(s, true).objective : g.objective;
-    std::vector<double> maxRel(static_cast<std::size_t>(nthreads), 0.0);
-    std::exception_ptr error;
-    std::mutex errorMutex;
+    s.trackCache = s.deltaHat == 0.0;
+    // While δ > 0 it (and the scaled δ of every element) changes from sweep to sweep: every
+    // node is revisited. In δ = 0 sweeps a node is revisited only when it or a neighbour
+    // moved by more than moveTol × its local size since its last update.
+    if (s.deltaHat > 0.0 || s.deltaHat != prevDelta) s.validFrom = s.clock + 1;
+    prevDelta = s.deltaHat;
+    const double fStart = g.objective0;
+    for (auto& w : workers) {
+      w->maxRelMove = 0.0;
+      w->updated = w->moved = 0;
+    }
     for (const auto& color : colors) {
+      ++s.clock;
+      const std::int32_t clock = s.clock;
       const std::size_t n = color.size();
-      auto work = [&](int tid) {
+      std::atomic<std::size_t> next{0};
+      const std::size_t chunk = std::max<std::size_t>(16, n / (16 * nthreads) + 1);
+      auto job = [&](int tid) {
         try {
-          NodeUpdater up(s, *geo[static_cast<std::size_t>(tid)]);
-          const std::size_t a = n * static_cast<std::size_t>(tid) / nthreads;
-          const std::size_t b = n * static_cast<std::size_t>(tid + 1) / nthreads;
-          double m = 0.0;
-          for (std::size_t k = a; k < b; ++k) {
-            const std::size_t node = static_cast<std::size_t>(color[k]);
-            const double mv = up.update(node);
-            if (mv > 0.0) {
-              double L = 0.0;
-              int cnt = 0;
-              for (std::int64_t p = s.inc.offset[node]; p < s.inc.offset[node + 1]; ++p) {
-                L += std::sqrt(
-                    s.elemScale[static_cast<std::size_t>(s.inc.elem[static_cast<std::size_t>(p)])]);
-                ++cnt;
+          Worker& w = *workers[static_cast<std::size_t>(tid)];
+          NodeUpdater up(s, w);
+          for (;;) {
+            const std::size_t a = next.fetch_add(chunk, std::memory_order_relaxed);
+            if (a >= n) break;
+            const std::size_t b = std::min(n, a + chunk);
+            for (std::size_t k = a; k < b; ++k) {
+              const std::size_t i = static_cast<std::size_t>(color[k]);
+              const std::int32_t last = s.lastVisit[i];
+              bool active = last < s.validFrom || s.movedAt[i] == last;
+              for (std::int64_t p = s.begin(i); !active && p < s.end(i); ++p) {
+                const std::size_t e = static_cast<std::size_t>(s.inc.elem[static_cast<std::size_t>(p)]);
+                const std::int32_t* nd = mesh.elementNodes(e);
+                for (int q = 0; q < mesh.elementSize(e); ++q)
+                  if (s.movedAt[static_cast<std::size_t>(nd[q])] > last) active = true;
               }
-              if (cnt > 0 && L > 0.0) m = std::max(m, mv / (L / cnt));
+              if (!active) continue;
+              ++w.updated;
+              s.lastVisit[i] = clock;
+              const double mv = up.update(i);
+              if (mv > 0.0) {
+                ++w.moved;
+                const double L = s.localSize(i);
+                const double rel = L > 0.0 ? mv / L : kInf;
+                w.maxRelMove = std::max(w.maxRelMove, rel);
+                if (rel > opt.moveTol) s.movedAt[i] = clock;
+              }
             }
           }
-          maxRel[static_cast<std::size_t>(tid)] =
-              std::max(maxRel[static_cast<std::size_t>(tid)], m);
         } catch (...) {
           std::lock_guard<std::mutex> lock(errorMutex);
           if (!error) error = std::current_exception();
         }
       };
-      if (nthreads == 1 || n < 64) {
-        // Small colors: run on the calling thread, split the same way for determinism.
-        for (int tid = 0; tid < nthreads; ++tid) work(tid);
-      } else {
-        std::vector<std::thread> pool;
-        for (int tid = 1; tid < nthreads; ++tid) pool.emplace_back(work, tid);
-        work(0);
-        for (auto& th : pool) th.join();
-      }
+      team.run(job);
       if (error) std::rethrow_exception(error);
     }
+    double maxMove = 0.0;
+    std::size_t moved = 0;
+    for (const auto& w : workers) {
+      maxMove = std::max(maxMove, w->maxRelMove);
+      moved += w->moved;
+    }
     res.sweeps = sweep;
-    const double fEnd = s.deltaHat > 0.0 ? evaluateAll(s, true).objective : 0.0;
-    g = evaluateAll(s, false);
-    const double fEndCmp = s.deltaHat > 0.0 ? fEnd : g.objective;
-    const double maxMove = *std::max_element(maxRel.begin(), maxRel.end());
-    res.finalObjective = fEndCmp;
+    g = s.deltaHat > 0.0 ? fullEval(s.deltaHat) : cachedEval();
+    const double fEnd = s.deltaHat > 0.0 ? g.objective : g.objective0;
+    res.finalObjective = fEnd;
     if (progress) {
       OptimizeProgress pr;
       pr.sweep = sweep;
       pr.maxSweeps = opt.maxSweeps;
-      pr.objective = fEndCmp;
+      pr.objective = fEnd;
       pr.tangled = g.tangled;
       pr.minQuality = g.minQuality;
       pr.delta = s.deltaHat;
@@ -580,27 +989,50 @@ OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
         return res;  // the mesh was never touched
       }
     }
-    const bool decreaseSmall =
-        !(fStart > 0.0) || (fStart - fEndCmp) <= opt.relTol * std::max(fStart, 1e-300);
-    if (g.tangled == 0 && s.deltaHat == 0.0 && decreaseSmall && maxMove <= opt.moveTol) {
+    if (moved == 0 && (g.tangled == 0 || chooseDelta(g) == s.deltaHat)) {
+      // Nothing moved and the next sweep would repeat this one: a fixed point.
       res.reason = StopReason::Converged;
       break;
     }
-    if (g.tangled == 0 && s.deltaHat == 0.0 && maxMove == 0.0) {
-      res.reason = StopReason::Converged;
-      break;
+    if (g.tangled == 0 && s.deltaHat == 0.0) {
+      const bool decreaseSmall =
+          !(fStart > 0.0) || (fStart - fEnd) <= opt.relTol * std::max(fStart, 1e-300);
+      if (decreaseSmall || maxMove <= opt.moveTol) {
+        res.reason = StopReason::Converged;
+        break;
+      }
     }
   }
 
-  // Write back.
+  // Write back: positions, parameters, and the element corners' (u,v) of the nodes that moved
+  // (unwrapped next to their previous value, across periodic seams).
+  const ThreadGeometry& geo = workers[0]->geo;
   std::size_t moved = 0;
-  for (std::size_t i = 0; i < mesh.nodeCount(); ++i)
-    if (s.xyz[i] != mesh.xyz[i]) ++moved;
+  for (std::size_t i = 0; i < mesh.nodeCount(); ++i) {
+    if (s.xyz[i] == mesh.xyz[i]) continue;
+    ++moved;
+    const NodeKind kind = mesh.nodeKind[i];
+    for (std::int64_t p = s.begin(i); p < s.end(i); ++p) {
+      const std::size_t pp = static_cast<std::size_t>(p);
+      const std::size_t e = static_cast<std::size_t>(s.inc.elem[pp]);
+      const std::size_t slot = static_cast<std::size_t>(mesh.elemOffset[e]) + s.inc.local[pp];
+      const int f = mesh.elemFace[e];
+      const Surface& sf = *geo.surfaces[static_cast<std::size_t>(f)];
+      if (kind == NodeKind::Face) {
+        mesh.cornerUV[slot] = sf.unwrapNear(s.uv[i], mesh.cornerUV[slot]);
+      } else if (kind == NodeKind::Edge) {
+        const Curve& c = *geo.curves[static_cast<std::size_t>(mesh.nodeEdge[i])];
+        mesh.cornerUV[slot] =
+            sf.unwrapNear(c.uvOnFace(f, s.t[i], mesh.cornerUV[slot]), mesh.cornerUV[slot]);
+      }
+    }
+  }
   res.movedNodes = moved;
   mesh.xyz = std::move(s.xyz);
   mesh.uv = std::move(s.uv);
   if (!mesh.nodeT.empty()) mesh.nodeT = std::move(s.t);
-  mesh.cornerUV = std::move(s.cornerUV);
+  workers.clear();
+  state.reset();
   res.after = measureQuality(mesh, measure).stats;
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return res;
