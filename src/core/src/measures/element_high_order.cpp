@@ -1,13 +1,119 @@
+// Distortion of high-order triangles on a surface (paper §5, Definition 4).
+//
+// For a triangle of order p with nodes x_1…x_n (Gmsh ordering, equispaced Lagrange shape
+// functions N_i), the Jacobian of the map from the reference triangle at ξ is the 3×2 matrix
+//     J(ξ) = Σ_i x_i ∇N_i(ξ)ᵀ,
+// and the pointwise distortion η(ξ) is that of S = T J W⁻¹ (jacobianDistortion: T projects onto
+// the plane of J oriented by the element's reference normal n, W⁻¹ the equilateral ideal).
+//
+// Integration measure. We take the mean over the REFERENCE triangle:
+//     η̂² = (1/|T̂|) ∫_T̂ η²(ξ) dξ ≈ Σ_q w_q η²(ξ_q),   Σ_q w_q = 1,
+// instead of the mean over the physical element (1/|t_Σ|) ∫_{t_Σ} η² dx of Definition 4. Both
+// coincide for straight-sided elements (constant J, so the element has exactly the quality of
+// its linear triangle); the reference measure keeps positive weights when the element is
+// tangled (a physical area weight ‖J₁ × J₂‖ vanishes exactly where η blows up and would hide
+// folds from the untangling), and its derivatives are plain sums over the quadrature points.
+//
+// Quadrature: Dunavant's symmetric rule of degree 2p (lagrange_triangle.h). For a planar
+// element with affine ideal, ‖S‖² is a polynomial of degree 2(p − 1) in ξ; the rule integrates
+// it, plus two more degrees of the rational η², exactly enough for the element to be ranked
+// reliably (6, 12, 16, 25 points for p = 2, 3, 4, 5).
+//
+// Validity: the element is tangled when det S ≤ 0 at any quadrature point or at any of its
+// nodes (corners, edge and interior nodes: the points where a fold first shows). minSigma is the
+// smallest signed shape quality 2σ/‖S‖² over those points (the scaled Jacobian used for linear
+// triangles, so the optimizer's δ policy treats every element type alike).
+//
+// Derivatives with respect to the free node k: J depends on x_k through x_k ∇N_k(ξ)ᵀ, so
+// jacobianDistortion gives ∂η_q/∂x_k and ∂²η_q/∂x_k² with b = ∇N_k(ξ_q), and
+//     ∇η̂ = Σ_q w_q η_q ∇η_q / η̂,
+//     ∇²η̂ = Σ_q w_q (∇η_q ∇η_qᵀ + η_q ∇²η_q) / η̂ − ∇η̂ ∇η̂ᵀ / η̂.
 #include "surfmesh/measures/element_measure.h"
+#include "surfmesh/measures/lagrange_triangle.h"
 
+#include <cmath>
+#include <limits>
 #include <stdexcept>
+#include <string>
 
 namespace surfmesh {
 
-ElementEval highOrderTriangleDistortion(const PlanarMeasure&, ElementType type, const Vec3*,
-                                        const Vec3&, double, int, Vec3*, Mat3*) {
-  throw std::invalid_argument(std::string("element type ") + elementTypeName(type) +
-                              " is not supported by this build");
+namespace {
+Jacobian32 jacobianAt(const Vec3* x, const Eigen::Vector2d* grad, int n) {
+  Jacobian32 J = Jacobian32::Zero();
+  for (int i = 0; i < n; ++i) {
+    J.col(0) += grad[i].x() * x[i];
+    J.col(1) += grad[i].y() * x[i];
+  }
+  return J;
+}
+}  // namespace
+
+ElementEval highOrderTriangleDistortion(const PlanarMeasure& m, ElementType type, const Vec3* x,
+                                        const Vec3& n, double delta, int freeLocal, Vec3* grad,
+                                        Mat3* hess) {
+  if (type == ElementType::Quad4)
+    throw std::invalid_argument("highOrderTriangleDistortion: quad4 is not a triangle");
+  const HighOrderTriangleRule& rule = highOrderTriangleRule(elementOrder(type));
+  const int nn = rule.nodes;
+  const bool derivs = freeLocal >= 0 && freeLocal < nn && (grad || hess);
+  const Mat2& Winv = equilateralWinv();
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+
+  ElementEval r;
+  r.minSigma = kInf;
+  bool infinite = false;
+
+  // Validity at the element's nodes.
+  for (int k = 0; k < nn; ++k) {
+    const Jacobian32 J =
+        jacobianAt(x, rule.gradAtNode.data() + static_cast<std::size_t>(k) * nn, nn);
+    const ElementEval e = jacobianDistortion(m, J, Winv, n, delta, nullptr, nullptr, nullptr);
+    r.minSigma = std::min(r.minSigma, e.minSigma);
+    r.tangled = r.tangled || e.tangled;
+  }
+
+  // Mean of η² over the reference triangle.
+  const TriangleQuadrature& quad = *rule.quadrature;
+  double sum = 0.0;
+  Vec3 gsum = Vec3::Zero();
+  Mat3 Hsum = Mat3::Zero();
+  for (std::size_t q = 0; q < quad.points.size(); ++q) {
+    const Eigen::Vector2d* gq = rule.gradAtPoint.data() + q * static_cast<std::size_t>(nn);
+    const Jacobian32 J = jacobianAt(x, gq, nn);
+    Vec3 g = Vec3::Zero();
+    Mat3 H = Mat3::Zero();
+    const ElementEval e =
+        derivs ? jacobianDistortion(m, J, Winv, n, delta, gq + freeLocal, &g, hess ? &H : nullptr)
+               : jacobianDistortion(m, J, Winv, n, delta, nullptr, nullptr, nullptr);
+    r.minSigma = std::min(r.minSigma, e.minSigma);
+    r.tangled = r.tangled || e.tangled;
+    if (!std::isfinite(e.eta)) {
+      infinite = true;
+      continue;
+    }
+    const double w = quad.weights[q];
+    sum += w * e.eta * e.eta;
+    if (derivs) {
+      gsum += w * e.eta * g;
+      if (hess) Hsum += w * (g * g.transpose() + e.eta * H);
+    }
+  }
+
+  if (infinite || (r.tangled && delta == 0.0) || !std::isfinite(sum)) {
+    r.eta = kInf;
+    r.tangled = true;
+    if (grad) grad->setZero();
+    if (hess) hess->setZero();
+    return r;
+  }
+  r.eta = std::sqrt(sum);
+  if (derivs) {
+    const Vec3 g = gsum / r.eta;
+    if (grad) *grad = g;
+    if (hess) *hess = Hsum / r.eta - g * g.transpose() / r.eta;
+  }
+  return r;
 }
 
 }  // namespace surfmesh

@@ -1,0 +1,553 @@
+// High-order triangles (p = 2…5) on surfaces: Lagrange basis in Gmsh ordering, quadrature,
+// the distortion of paper Definition 4 and its derivatives, and the paper's Table 4 cases
+// (an order-2 mesh of a revolution surface untangled, an order-5 mesh of a propeller blade
+// smoothed).
+#include "element_fd.h"
+#include "surfmesh/cad/occ_surface.h"
+#include "surfmesh/geometry/analytic_surfaces.h"
+#include "surfmesh/measures/element_measure.h"
+#include "surfmesh/measures/lagrange_triangle.h"
+#include "surfmesh/mesh/quality.h"
+#include "surfmesh/optimize/optimizer.h"
+#include "test_meshes.h"
+
+#include <BRepAdaptor_Surface.hxx>
+#include <BRepBuilderAPI_MakeEdge.hxx>
+#include <BRepGProp.hxx>
+#include <BRepMesh_IncrementalMesh.hxx>
+#include <BRepPrimAPI_MakeRevol.hxx>
+#include <BRepTools.hxx>
+#include <BRep_Builder.hxx>
+#include <BRep_Tool.hxx>
+#include <GProp_GProps.hxx>
+#include <GeomAPI_Interpolate.hxx>
+#include <Geom_BSplineCurve.hxx>
+#include <Poly_Triangulation.hxx>
+#include <TColgp_HArray1OfPnt.hxx>
+#include <TopExp.hxx>
+#include <TopExp_Explorer.hxx>
+#include <TopTools_IndexedMapOfShape.hxx>
+#include <TopoDS.hxx>
+#include <gp_Ax1.hxx>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <random>
+#include <utility>
+
+using namespace surfmesh;
+using namespace surfmesh::testmesh;
+
+namespace {
+
+const double kPi = 3.14159265358979323846;
+
+const ElementType kHighOrder[] = {ElementType::Tri6, ElementType::Tri10, ElementType::Tri15,
+                                  ElementType::Tri21};
+
+double factorial(int n) { return n <= 1 ? 1.0 : n * factorial(n - 1); }
+
+// ---- meshes ---------------------------------------------------------------------------------
+
+/// A linear (u,v) triangulation elevated to order p with every new node at its straight (u,v)
+/// position ("edges correspond to straight segments on the parametric space", paper §6.4).
+/// Edge nodes are shared by the two triangles of an edge; nodes on boundary edges (edges of a
+/// single triangle) are fixed, as are the given fixed corners.
+GridMesh elevate(const Surface& s, const GridMesh& lin, int p) {
+  GridMesh h;
+  h.uv = lin.uv;
+  h.fixed = lin.fixed;
+  const LagrangeTriangle& lt = lagrangeTriangle(p);
+  const int nn = lt.nodeCount();
+  const std::size_t E = lin.conn.size() / 3;
+  auto key = [](std::int32_t a, std::int32_t b) {
+    return std::make_pair(std::min(a, b), std::max(a, b));
+  };
+  std::map<std::pair<std::int32_t, std::int32_t>, int> uses;
+  for (std::size_t e = 0; e < E; ++e)
+    for (int a = 0; a < 3; ++a) ++uses[key(lin.conn[3 * e + a], lin.conn[3 * e + (a + 1) % 3])];
+  std::map<std::pair<std::int32_t, std::int32_t>, std::vector<std::int32_t>> edgeNodes;
+  for (std::size_t e = 0; e < E; ++e) {
+    const std::int32_t* c = lin.conn.data() + 3 * e;
+    Vec2 cu[3];
+    cu[0] = lin.uv[static_cast<std::size_t>(c[0])];
+    for (int k = 1; k < 3; ++k) cu[k] = s.unwrapNear(lin.uv[static_cast<std::size_t>(c[k])], cu[0]);
+    auto at = [&](const Eigen::Vector2d& xi) {
+      return Vec2((1 - xi.x() - xi.y()) * cu[0] + xi.x() * cu[1] + xi.y() * cu[2]);
+    };
+    auto newNode = [&](const Vec2& uv, bool fixed) {
+      const auto id = static_cast<std::int32_t>(h.uv.size());
+      h.uv.push_back(s.wrap(uv));
+      if (fixed) h.fixed.push_back(id);
+      return id;
+    };
+    std::vector<std::int32_t> el(static_cast<std::size_t>(nn));
+    for (int k = 0; k < 3; ++k) el[static_cast<std::size_t>(k)] = c[k];
+    for (int ed = 0; ed < 3; ++ed) {
+      const std::int32_t ga = c[ed], gb = c[(ed + 1) % 3];
+      const auto kk = key(ga, gb);
+      auto it = edgeNodes.find(kk);
+      if (it == edgeNodes.end()) {
+        std::vector<std::int32_t> ids;
+        for (int j = 0; j < p - 1; ++j)
+          ids.push_back(newNode(at(lt.nodes()[static_cast<std::size_t>(3 + ed * (p - 1) + j)]),
+                                uses[kk] == 1));
+        if (ga != kk.first) std::reverse(ids.begin(), ids.end());
+        it = edgeNodes.emplace(kk, ids).first;
+      }
+      std::vector<std::int32_t> ids = it->second;  // from kk.first to kk.second
+      if (ga != kk.first) std::reverse(ids.begin(), ids.end());
+      for (int j = 0; j < p - 1; ++j) el[static_cast<std::size_t>(3 + ed * (p - 1) + j)] = ids[j];
+    }
+    for (int k = 3 + 3 * (p - 1); k < nn; ++k)
+      el[static_cast<std::size_t>(k)] = newNode(at(lt.nodes()[static_cast<std::size_t>(k)]), false);
+    h.conn.insert(h.conn.end(), el.begin(), el.end());
+  }
+  return h;
+}
+
+/// Mean parametric edge length of the corner triangles (for perturbation amplitudes).
+Vec2 meanParamEdge(const SurfaceMesh& m) {
+  Vec2 l = Vec2::Zero();
+  for (std::size_t e = 0; e < m.elementCount(); ++e) {
+    const Vec2* uv = m.elementUV(e);
+    for (int k = 0; k < 3; ++k) l += (uv[(k + 1) % 3] - uv[k]).cwiseAbs();
+  }
+  return l / (3.0 * m.elementCount());
+}
+
+/// Moves every free node once by a uniform random offset in [−a, a]·l (l the mean parametric
+/// edge), growing a from 0.05 until more than `target` elements are tangled. Returns a.
+double perturbAll(SurfaceMesh& m, const Surface& s, std::size_t target, unsigned seed) {
+  const Vec2 l = meanParamEdge(m);
+  const std::vector<Vec2> uv0 = m.uv;
+  const PlanarMeasure& shape = measureByName("shape");
+  for (double a = 0.05;; a += 0.025) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    m.uv = uv0;
+    for (std::size_t i = 0; i < m.nodeCount(); ++i)
+      if (m.nodeKind[i] == NodeKind::Face)
+        m.uv[i] = s.clampToBounds(m.uv[i] + Vec2(a * l.x() * u(rng), a * l.y() * u(rng)));
+    syncFaceNodes(m);
+    if (measureQuality(m, shape).stats.tangled > target || a > 2) return a;
+  }
+}
+
+void printTable(const std::string& title, const QualityStats& before, const QualityStats& after) {
+  std::printf("%s\n", title.c_str());
+  std::printf("  %-28s  %6s %6s %6s %6s  %s\n", "", "Min.Q", "Max.Q", "MeanQ", "Std", "Tang.el");
+  std::printf("  %-28s  %6.2f %6.2f %6.2f %6.2f  %zu (of %zu)\n", "Initial", before.min, before.max,
+              before.mean, before.stddev, before.tangled, before.elements);
+  std::printf("  %-28s  %6.2f %6.2f %6.2f %6.2f  %zu (of %zu)\n", "Smoothed", after.min, after.max,
+              after.mean, after.stddev, after.tangled, after.elements);
+}
+
+/// The face of revolution (a vase) swept by a B-spline profile in the xz plane around z.
+TopoDS_Face revolutionFace() {
+  const double rz[][2] = {{3.0, 0.0}, {3.5, 1.2}, {3.4, 2.4}, {2.8, 3.6}, {2.7, 4.8}, {3.1, 6.0}};
+  const int n = 6;
+  Handle(TColgp_HArray1OfPnt) pts = new TColgp_HArray1OfPnt(1, n);
+  for (int i = 0; i < n; ++i) pts->SetValue(i + 1, gp_Pnt(rz[i][0], 0.0, rz[i][1]));
+  GeomAPI_Interpolate interp(pts, false, 1e-9);
+  interp.Perform();
+  const TopoDS_Edge edge = BRepBuilderAPI_MakeEdge(interp.Curve());
+  BRepPrimAPI_MakeRevol revol(edge, gp_Ax1(gp_Pnt(0, 0, 0), gp_Dir(0, 0, 1)), 2 * kPi);
+  TopExp_Explorer ex(revol.Shape(), TopAbs_FACE);
+  return TopoDS::Face(ex.Current());
+}
+
+// ---- Lagrange basis and quadrature ----------------------------------------------------------
+
+TEST(LagrangeTriangle, NodeOrderingIsGmshs) {
+  // gmsh.model.mesh.getElementProperties(9/21/23/25) local node coordinates (Gmsh 4.8.4).
+  const std::vector<std::vector<double>> gmsh = {
+      {0, 0, 1, 0, 0, 1, .5, 0, .5, .5, 0, .5},
+      {0,      0,      1,      0,      0, 1,      1. / 3, 0,      2. / 3, 0,
+       2. / 3, 1. / 3, 1. / 3, 2. / 3, 0, 2. / 3, 0,      1. / 3, 1. / 3, 1. / 3},
+      {0,  0,   1,   0, 0,   1, .25, 0, .5,  0,   .75, 0,  .75, .25, .5,
+       .5, .25, .75, 0, .75, 0, .5,  0, .25, .25, .25, .5, .25, .25, .5},
+      {0,  0, 1,  0, 0,  1, .2, 0, .4, 0,  .6, 0,  .8, 0,  .8, .2, .6, .4, .4, .6, .2,
+       .8, 0, .8, 0, .6, 0, .4, 0, .2, .2, .2, .6, .2, .2, .6, .4, .2, .4, .4, .2, .4}};
+  for (int p = 2; p <= 5; ++p) {
+    const LagrangeTriangle& lt = lagrangeTriangle(p);
+    ASSERT_EQ(lt.nodeCount(), (p + 1) * (p + 2) / 2);
+    ASSERT_EQ(lt.nodeCount(), nodeCount(triangleOfOrder(p)));
+    const auto& g = gmsh[static_cast<std::size_t>(p - 2)];
+    ASSERT_EQ(g.size(), 2u * lt.nodeCount());
+    for (int i = 0; i < lt.nodeCount(); ++i) {
+      EXPECT_NEAR(lt.nodes()[i].x(), g[2 * i], 1e-15) << "p=" << p << " node " << i;
+      EXPECT_NEAR(lt.nodes()[i].y(), g[2 * i + 1], 1e-15) << "p=" << p << " node " << i;
+    }
+  }
+}
+
+TEST(LagrangeTriangle, KroneckerPartitionOfUnityAndGradients) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int p = 1; p <= 5; ++p) {
+    const LagrangeTriangle& lt = lagrangeTriangle(p);
+    const int n = lt.nodeCount();
+    std::vector<double> N(n), Np(n), Nm(n);
+    std::vector<Eigen::Vector2d> G(n);
+    for (int j = 0; j < n; ++j) {
+      lt.shape(lt.nodes()[j], N.data());
+      for (int i = 0; i < n; ++i) EXPECT_NEAR(N[i], i == j ? 1.0 : 0.0, 1e-13) << p;
+    }
+    for (int t = 0; t < 20; ++t) {
+      double a = u(rng), b = u(rng);
+      if (a + b > 1) a = 1 - a, b = 1 - b;
+      const Eigen::Vector2d xi(a, b);
+      lt.shape(xi, N.data());
+      lt.gradients(xi, G.data());
+      double s = 0;
+      Eigen::Vector2d gs = Eigen::Vector2d::Zero();
+      for (int i = 0; i < n; ++i) s += N[i], gs += G[i];
+      EXPECT_NEAR(s, 1.0, 1e-13);
+      EXPECT_LT(gs.norm(), 1e-11);
+      // Reproduces every polynomial of degree ≤ p: ξ^a η^b and its gradient.
+      for (int da = 0; da <= p; ++da)
+        for (int db = 0; db + da <= p; ++db) {
+          double f = 0;
+          Eigen::Vector2d df = Eigen::Vector2d::Zero();
+          for (int i = 0; i < n; ++i) {
+            const double v = std::pow(lt.nodes()[i].x(), da) * std::pow(lt.nodes()[i].y(), db);
+            f += v * N[i];
+            df += v * G[i];
+          }
+          EXPECT_NEAR(f, std::pow(a, da) * std::pow(b, db), 1e-12);
+          EXPECT_NEAR(df.x(), da ? da * std::pow(a, da - 1) * std::pow(b, db) : 0.0, 1e-10);
+          EXPECT_NEAR(df.y(), db ? db * std::pow(a, da) * std::pow(b, db - 1) : 0.0, 1e-10);
+        }
+    }
+  }
+}
+
+TEST(TriangleQuadrature, DunavantRulesAreExactPositiveAndInside) {
+  const int expectedPoints[] = {1, 3, 6, 12, 16, 25};
+  const int degrees[] = {1, 2, 4, 6, 8, 10};
+  for (int r = 0; r < 6; ++r) {
+    const TriangleQuadrature& q = triangleQuadrature(degrees[r]);
+    EXPECT_EQ(q.degree, degrees[r]);
+    EXPECT_EQ(static_cast<int>(q.points.size()), expectedPoints[r]);
+    double ws = 0;
+    for (std::size_t k = 0; k < q.points.size(); ++k) {
+      EXPECT_GT(q.weights[k], 0.0);
+      EXPECT_GT(q.points[k].minCoeff(), 0.0);
+      EXPECT_LT(q.points[k].sum(), 1.0);
+      ws += q.weights[k];
+    }
+    EXPECT_NEAR(ws, 1.0, 1e-15);
+    // Mean of ξ^a η^b over the reference triangle: 2 a! b! / (a + b + 2)!.
+    for (int a = 0; a <= q.degree; ++a)
+      for (int b = 0; a + b <= q.degree; ++b) {
+        double s = 0;
+        for (std::size_t k = 0; k < q.points.size(); ++k)
+          s += q.weights[k] * std::pow(q.points[k].x(), a) * std::pow(q.points[k].y(), b);
+        EXPECT_NEAR(s, 2 * factorial(a) * factorial(b) / factorial(a + b + 2), 1e-15)
+            << "degree " << q.degree << " monomial " << a << "," << b;
+      }
+  }
+  EXPECT_EQ(triangleQuadrature(3).degree, 4);  // the cheapest rule of degree ≥ 3
+  EXPECT_THROW(triangleQuadrature(11), std::invalid_argument);
+  EXPECT_THROW(lagrangeTriangle(6), std::invalid_argument);
+  // The rule used by the measure of order p has degree 2p.
+  for (int p = 1; p <= 5; ++p) EXPECT_EQ(highOrderTriangleRule(p).quadrature->degree, 2 * p);
+}
+
+// ---- the measure ------------------------------------------------------------------------------
+
+/// Nodes of an order-p element at the straight positions between three points.
+std::vector<Vec3> straightNodes(int p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  std::vector<Vec3> x;
+  for (const auto& xi : lagrangeTriangle(p).nodes())
+    x.push_back((1 - xi.x() - xi.y()) * a + xi.x() * b + xi.y() * c);
+  return x;
+}
+
+TEST(HighOrderMeasure, StraightSidedElementHasTheQualityOfItsLinearTriangle) {
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> u(-3.0, 3.0);
+  int tangled = 0;
+  for (int t = 0; t < 200; ++t) {
+    const Vec3 a(u(rng), u(rng), u(rng)), b(u(rng), u(rng), u(rng)), c(u(rng), u(rng), u(rng));
+    const Vec3 n = Vec3(u(rng), u(rng), u(rng)).normalized();
+    for (const auto& name : measureNames()) {
+      const PlanarMeasure& m = measureByName(name);
+      for (double delta : {0.0, 0.1}) {
+        const ElementEval lin = triangleDistortion(m, a, b, c, n, delta, equilateralWinv());
+        for (ElementType type : kHighOrder) {
+          const auto x = straightNodes(elementOrder(type), a, b, c);
+          const ElementEval ho = elementDistortion(m, type, x.data(), n, delta);
+          EXPECT_EQ(ho.tangled, lin.tangled);
+          EXPECT_NEAR(ho.minSigma, lin.minSigma, 1e-12);
+          if (std::isinf(lin.eta)) {
+            EXPECT_TRUE(std::isinf(ho.eta));
+          } else {
+            EXPECT_NEAR(ho.eta, lin.eta, 1e-12 * lin.eta) << name << " " << elementTypeName(type);
+          }
+        }
+        tangled += lin.tangled ? 1 : 0;
+      }
+    }
+  }
+  EXPECT_GT(tangled, 50);  // both valid and tangled triangles were compared
+}
+
+TEST(HighOrderMeasure, StraightSidedMeshOfAPlaneHasTheStatisticsOfTheLinearMesh) {
+  const PlaneSurface plane;
+  const GridMesh lin = squareMesh(6);
+  const SurfaceMesh m1 =
+      makeSingleSurfaceMesh(plane, lin.uv, ElementType::Tri3, lin.conn, lin.fixed);
+  const QualityStats s1 = measureQuality(m1, measureByName("shape")).stats;
+  for (int p = 2; p <= 5; ++p) {
+    const GridMesh g = elevate(plane, lin, p);
+    const SurfaceMesh mp = makeSingleSurfaceMesh(plane, g.uv, triangleOfOrder(p), g.conn, g.fixed);
+    const QualityStats sp = measureQuality(mp, measureByName("shape")).stats;
+    EXPECT_NEAR(sp.min, s1.min, 1e-12);
+    EXPECT_NEAR(sp.max, s1.max, 1e-12);
+    EXPECT_NEAR(sp.mean, s1.mean, 1e-12);
+    EXPECT_NEAR(sp.stddev, s1.stddev, 1e-12);
+    EXPECT_EQ(sp.tangled, 0u);
+  }
+}
+
+TEST(HighOrderMeasure, IdealCurvedElementsAndFoldsAreRecognized) {
+  const PlanarMeasure& shape = measureByName("shape");
+  const Vec3 n = Vec3::UnitZ();
+  const Vec3 a(0, 0, 0), b(1, 0, 0), c(0.5, std::sqrt(3.0) / 2, 0);
+  // The equilateral tri6: η = 1.
+  auto x = straightNodes(2, a, b, c);
+  EXPECT_NEAR(elementDistortion(shape, ElementType::Tri6, x.data(), n, 0).eta, 1.0, 1e-14);
+  // Quarter-point rule: the edge node of edge 0–1 at 1/5 of the edge makes det J < 0 at
+  // corner 0 (at 1/4 it vanishes) although the linear triangle is ideal.
+  x[3] = a + 0.2 * (b - a);
+  ElementEval e = elementDistortion(shape, ElementType::Tri6, x.data(), n, 0);
+  EXPECT_TRUE(e.tangled);
+  EXPECT_LE(e.minSigma, 0.0);
+  EXPECT_TRUE(std::isinf(e.eta));
+  // At 0.3 the element is valid but worse than the ideal one.
+  x[3] = a + 0.3 * (b - a);
+  e = elementDistortion(shape, ElementType::Tri6, x.data(), n, 0);
+  EXPECT_FALSE(e.tangled);
+  EXPECT_GT(e.eta, 1.0);
+  EXPECT_GT(e.minSigma, 0.0);
+  // A mid-edge node pushed across the opposite corner folds the element.
+  x = straightNodes(2, a, b, c);
+  x[4] = Vec3(-0.2, 0.1, 0);
+  e = elementDistortion(shape, ElementType::Tri6, x.data(), n, 0);
+  EXPECT_TRUE(e.tangled);
+  // With δ > 0 the folded element has a finite value and finite derivatives for every node.
+  for (int k = 0; k < 6; ++k) {
+    Vec3 g;
+    Mat3 H;
+    e = elementDistortion(shape, ElementType::Tri6, x.data(), n, 0.05, k, &g, &H);
+    EXPECT_TRUE(std::isfinite(e.eta));
+    EXPECT_TRUE(g.allFinite() && H.allFinite());
+  }
+  // Measures are invariant under rotation, translation and scaling of a curved element.
+  x = straightNodes(3, a, b, c);
+  x[5] += Vec3(0.05, 0.04, 0);
+  x[9] += Vec3(-0.03, 0.02, 0);
+  const double ref = elementDistortion(shape, ElementType::Tri10, x.data(), n, 0).eta;
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(0.7, Vec3(1, 2, 3).normalized()).toRotationMatrix();
+  for (auto& p : x) p = 2.5 * (R * p) + Vec3(1, -2, 3);
+  EXPECT_NEAR(elementDistortion(shape, ElementType::Tri10, x.data(), R * n, 0).eta, ref, 1e-12);
+  EXPECT_THROW(
+      highOrderTriangleDistortion(shape, ElementType::Quad4, x.data(), n, 0, -1, nullptr, nullptr),
+      std::invalid_argument);
+}
+
+/// Curved element of order p on the torus: straight (u,v) nodes, perturbed in (u,v).
+std::vector<Vec2> curvedElementUV(int p, const Vec2 c[3], double amp, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-amp, amp);
+  std::vector<Vec2> uv;
+  for (const auto& xi : lagrangeTriangle(p).nodes()) {
+    Vec2 q = (1 - xi.x() - xi.y()) * c[0] + xi.x() * c[1] + xi.y() * c[2];
+    if (uv.size() >= 3) q += Vec2(u(rng), u(rng));
+    uv.push_back(q);
+  }
+  return uv;
+}
+
+TEST(HighOrderMeasure, DerivativesOnTorusConvergeAtRateTwoForCornerEdgeAndInteriorNodes) {
+  const TorusSurface torus(10, 4);
+  const Vec2 valid[3] = {{0.31, 1.2}, {0.45, 1.25}, {0.36, 1.42}};
+  const Vec2 flipped[3] = {{0.31, 1.2}, {0.36, 1.42}, {0.45, 1.25}};
+  int checked = 0, rateSeen = 0;
+  for (ElementType type : kHighOrder) {
+    const int p = elementOrder(type);
+    for (int variant = 0; variant < 2; ++variant) {
+      const bool tangled = variant == 1;
+      const auto uv = curvedElementUV(p, tangled ? flipped : valid, 0.04 / (p * p), 3 + p);
+      const Vec3 n = ((torus.normal(uv[0].x(), uv[0].y()) + torus.normal(uv[1].x(), uv[1].y()) +
+                       torus.normal(uv[2].x(), uv[2].y())))
+                         .normalized();
+      const double delta = tangled ? 0.2 : 0.0;
+      std::vector<int> nodes = {0, 1, 3, 3 + (p - 1) + (p - 2) / 2};  // corners, edge nodes
+      if (p >= 3) nodes.push_back(3 * p);                             // first interior node
+      if (p >= 4) nodes.push_back(nodeCount(type) - 1);               // last interior node
+      for (const auto& name : measureNames())
+        for (int k : nodes) {
+          std::vector<Vec3> x(uv.size());
+          for (std::size_t i = 0; i < uv.size(); ++i) x[i] = torus.value(uv[i].x(), uv[i].y());
+          const ElementEval e = elementDistortion(measureByName(name), type, x.data(), n, delta);
+          EXPECT_EQ(e.tangled, tangled) << elementTypeName(type);
+          const FdErrors fe =
+              checkElementDerivatives(measureByName(name), torus, type, uv, k, n, delta, 2e-4 / p,
+                                      std::string(elementTypeName(type)) + " " + name + " node " +
+                                          std::to_string(k) + (tangled ? " (tangled, δ>0)" : ""));
+          ++checked;
+          if (fe.grad[0] > 1e-7 * (1 + fe.gradNorm) && fe.hess[0] > 1e-7 * (1 + fe.hessNorm))
+            ++rateSeen;
+        }
+    }
+  }
+  EXPECT_GT(checked, 60);
+  EXPECT_GT(rateSeen, checked / 2);  // most errors are above rounding: the rate was checked
+  std::printf("%d finite-difference checks, %d with the rate-2 convergence visible\n", checked,
+              rateSeen);
+}
+
+// ---- optimization -----------------------------------------------------------------------------
+
+TEST(HighOrderOptimize, CubicMeshOnTorusIsUntangledWithNodesOnTheSurface) {
+  const TorusSurface torus(10, 4);
+  const GridMesh lin = periodicGridMesh(24, 10, 0, 2 * kPi, 0, 2 * kPi, true);
+  const GridMesh g = elevate(torus, lin, 3);
+  SurfaceMesh m = makeSingleSurfaceMesh(torus, g.uv, ElementType::Tri10, g.conn, g.fixed);
+  const QualityStats unperturbed = measureQuality(m, measureByName("shape")).stats;
+  EXPECT_EQ(unperturbed.tangled, 0u);
+  perturbAll(m, torus, 120, 7);
+  OptimizeOptions opt;
+  opt.maxSweeps = 60;
+  const OptimizeResult r = optimizeMesh(m, opt);
+  printTable("Order-3 mesh of a torus (" + std::to_string(m.nodeCount()) + " nodes), " +
+                 std::to_string(r.sweeps) + " sweeps, " + std::to_string(r.seconds) + " s",
+             r.before, r.after);
+  EXPECT_GT(r.before.tangled, 120u);
+  EXPECT_EQ(r.after.tangled, 0u);
+  EXPECT_GT(r.after.min, 0.5);
+  EXPECT_LE(maxDistanceToSurface(m), 1e-12);
+}
+
+TEST(HighOrderOptimize, PaperTable4RevolutionSurfaceOrder2IsUntangled) {
+  const TopoDS_Face face = revolutionFace();
+  const OccFaceSurface surf(face);
+  ASSERT_TRUE(surf.isUPeriodic());
+  const ParamBounds b = surf.bounds();
+  // 29 × 9 cells, boundary circles fixed: 522 triangles as in the paper (Fig. 8).
+  const GridMesh lin = periodicGridMesh(29, 9, b.umin, b.umin + 2 * kPi, b.vmin, b.vmax, false);
+  const GridMesh g = elevate(surf, lin, 2);
+  SurfaceMesh m = makeSingleSurfaceMesh(surf, g.uv, ElementType::Tri6, g.conn, g.fixed);
+  m.faceOrientation[0] = surf.normalSign();  // elements are counter-clockwise in (u,v)
+  const QualityStats unperturbed = measureQuality(m, measureByName("shape")).stats;
+  ASSERT_EQ(m.elementCount(), 522u);
+  EXPECT_EQ(unperturbed.tangled, 0u);
+  // Mid-edge nodes lie on the surface at the parametric midpoints.
+  EXPECT_LE(maxDistanceToSurface(m), 1e-12);
+
+  const double amp = perturbAll(m, surf, m.elementCount() / 2, 2013);
+  std::printf("Perturbation: ±%.3f of the mean parametric edge\n", amp);
+  const QualityStats perturbed = measureQuality(m, measureByName("shape")).stats;
+  ASSERT_GT(perturbed.tangled, m.elementCount() / 2);
+
+  OptimizeOptions opt;
+  opt.maxSweeps = 200;
+  const OptimizeResult r = optimizeMesh(m, opt);
+  std::printf("Unperturbed order-2 mesh: min %.2f mean %.2f\n", unperturbed.min, unperturbed.mean);
+  printTable("Table 4 — revolution surface, order 2, " + std::to_string(m.elementCount()) +
+                 " elements, " + std::to_string(m.nodeCount()) + " nodes (" +
+                 std::to_string(r.sweeps) + " sweeps, " + std::to_string(r.seconds) + " s)",
+             r.before, r.after);
+  EXPECT_EQ(r.after.tangled, 0u);
+  EXPECT_GE(r.after.min, 0.7);
+  EXPECT_GT(r.after.mean, r.before.mean);
+  EXPECT_LE(maxDistanceToSurface(m), 1e-9);
+}
+
+TEST(HighOrderOptimize, PaperTable4PropellerBladeOrder5IsSmoothed) {
+  const std::string path = std::string(SURFMESH_TEST_DATA_DIR) + "/occt_propeller.brep";
+  TopoDS_Shape shape;
+  BRep_Builder builder;
+  ASSERT_TRUE(BRepTools::Read(shape, path.c_str(), builder)) << path;
+  TopTools_IndexedMapOfShape faces;
+  TopExp::MapShapes(shape, TopAbs_FACE, faces);
+  // The largest four-sided B-spline face: a blade (the six-sided ones have a sharp corner whose
+  // sliver, all nodes on the boundary, no smoothing can improve).
+  TopoDS_Face blade;
+  double bestArea = 0;
+  for (int i = 1; i <= faces.Extent(); ++i) {
+    const TopoDS_Face f = TopoDS::Face(faces(i));
+    if (BRepAdaptor_Surface(f).GetType() != GeomAbs_BSplineSurface) continue;
+    TopTools_IndexedMapOfShape edges;
+    TopExp::MapShapes(f, TopAbs_EDGE, edges);
+    if (edges.Extent() != 4) continue;
+    GProp_GProps props;
+    BRepGProp::SurfaceProperties(f, props);
+    if (props.Mass() > bestArea) bestArea = props.Mass(), blade = f;
+  }
+  ASSERT_FALSE(blade.IsNull());
+  // A linear triangulation of the face's (u,v) domain by BRepMesh, ~500 triangles (the paper's
+  // order-5 mesh has 532).
+  Handle(Poly_Triangulation) tri;
+  for (double defl : {8.0, 4.0, 2.0, 1.0, 0.5, 0.25}) {
+    BRepTools::Clean(blade);
+    BRepMesh_IncrementalMesh mesher(blade, defl, false, 0.5);
+    TopLoc_Location loc;
+    tri = BRep_Tool::Triangulation(blade, loc);
+    if (!tri.IsNull() && tri->NbTriangles() >= 400) break;
+  }
+  ASSERT_FALSE(tri.IsNull());
+  GridMesh lin;
+  for (int i = 1; i <= tri->NbNodes(); ++i) {
+    const gp_Pnt2d p = tri->UVNode(i);
+    lin.uv.emplace_back(p.X(), p.Y());
+  }
+  for (int i = 1; i <= tri->NbTriangles(); ++i) {
+    int n1, n2, n3;
+    tri->Triangle(i).Get(n1, n2, n3);
+    std::int32_t c[3] = {n1 - 1, n2 - 1, n3 - 1};
+    const Vec2 e1 = lin.uv[c[1]] - lin.uv[c[0]], e2 = lin.uv[c[2]] - lin.uv[c[0]];
+    if (e1.x() * e2.y() - e1.y() * e2.x() < 0) std::swap(c[1], c[2]);  // counter-clockwise in (u,v)
+    lin.conn.insert(lin.conn.end(), c, c + 3);
+  }
+  // Nodes on the face boundary (on edges of a single triangle) stay fixed.
+  std::map<std::pair<std::int32_t, std::int32_t>, int> uses;
+  for (std::size_t k = 0; k < lin.conn.size(); k += 3)
+    for (int a = 0; a < 3; ++a) {
+      const std::int32_t i = lin.conn[k + a], j = lin.conn[k + (a + 1) % 3];
+      ++uses[{std::min(i, j), std::max(i, j)}];
+    }
+  std::vector<char> isFixed(lin.uv.size(), 0);
+  for (const auto& [e, count] : uses)
+    if (count == 1) isFixed[e.first] = isFixed[e.second] = 1;
+  for (std::size_t i = 0; i < isFixed.size(); ++i)
+    if (isFixed[i]) lin.fixed.push_back(static_cast<std::int32_t>(i));
+
+  const OccFaceSurface surf(blade);
+  const GridMesh g = elevate(surf, lin, 5);
+  SurfaceMesh m = makeSingleSurfaceMesh(surf, g.uv, ElementType::Tri21, g.conn, g.fixed);
+  m.faceOrientation[0] = surf.normalSign();
+
+  OptimizeOptions opt;
+  opt.maxSweeps = 40;
+  const OptimizeResult r = optimizeMesh(m, opt);
+  printTable("Table 4 — propeller blade (" + surf.describe() + "), order 5, " +
+                 std::to_string(m.elementCount()) + " elements, " + std::to_string(m.nodeCount()) +
+                 " nodes (" + std::to_string(r.sweeps) + " sweeps, " + std::to_string(r.seconds) +
+                 " s)",
+             r.before, r.after);
+  EXPECT_GT(m.elementCount(), 300u);
+  EXPECT_EQ(r.before.tangled, 0u);
+  EXPECT_EQ(r.after.tangled, 0u);
+  EXPECT_GT(r.after.min, r.before.min + 0.01);
+  EXPECT_GE(r.after.mean, r.before.mean);
+  EXPECT_LE(r.after.stddev, r.before.stddev);
+  EXPECT_LE(maxDistanceToSurface(m), 1e-9);
+}
+
+}  // namespace
