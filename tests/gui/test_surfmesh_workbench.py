@@ -1,0 +1,197 @@
+"""GUI test: the SurfMesh workbench loads, every command runs on a sample document (FEM tria3
+and Mesh), colors are applied (color property + screenshot pixels), the optimize task panel
+applies and cancels, the report dialog opens. Exit code 0 = pass (tests/gui/README.md)."""
+
+import os
+import sys
+import traceback
+
+code = 1
+checks = []
+
+
+def check(cond, what):
+    if not cond:
+        raise AssertionError(what)
+    checks.append(what)
+
+
+def pixels(path):
+    """(H, W, 3) float RGB of a PNG screenshot."""
+    import matplotlib.image as mpimg
+
+    return mpimg.imread(path)[..., :3]
+
+
+def shares(img):
+    """Shares of green (good quality), yellow/orange (fair/poor) and purple (tangled) among the
+    colored pixels of a screenshot (white background and dark edges excluded); hue classes
+    survive the view's shading."""
+    import numpy as np
+
+    a = img.reshape(-1, 3)
+    a = a[(a.sum(axis=1) < 2.85) & (a.max(axis=1) > 0.15)]
+    if len(a) == 0:
+        return 0.0, 0.0, 0.0
+    r, g, b = a.T
+    green = float(np.mean((g > 1.25 * r) & (g > 1.25 * b)))
+    yellow = float(np.mean((r > 0.8 * g) & (g > 1.5 * b)))
+    purple = float(np.mean((b > 1.2 * g) & (r > 1.2 * g)))
+    return green, yellow, purple
+
+
+try:
+    import FreeCAD
+    import FreeCADGui
+    import numpy as np
+
+    assert FreeCAD.GuiUp
+    out = os.environ.get("SURFMESH_TEST_OUTPUT_DIR") or os.path.abspath("build/test-output")
+    os.makedirs(out, exist_ok=True)
+
+    # ---- workbench ----------------------------------------------------------------------
+    FreeCADGui.activateWorkbench("SurfMeshWorkbench")
+    wb = FreeCADGui.activeWorkbench()
+    check(wb.MenuText == "SurfMesh", "workbench active")
+    cmds = FreeCADGui.listCommands()
+    for name in ("SurfMesh_Measure", "SurfMesh_Optimize", "SurfMesh_Report",
+                 "SurfMesh_ClearColors"):
+        check(name in cmds, f"{name} registered")
+        res = FreeCADGui.Command.get(name).getInfo() if hasattr(FreeCADGui, "Command") else None
+        if res:
+            check(os.path.exists(res["pixmap"]) or res["pixmap"], f"{name} icon")
+    import SurfMesh
+    from SurfMesh import paths
+    from SurfMesh.app import coloring, examples
+
+    for name in ("SurfMesh", "SurfMesh_Measure", "SurfMesh_Optimize", "SurfMesh_Report",
+                 "SurfMesh_ClearColors"):
+        check(os.path.exists(paths.icon(name)), f"icon {name}.svg installed")
+
+    # ---- sample document: tangled FEM tria3 torus -----------------------------------------
+    doc = FreeCAD.newDocument("SurfMeshGuiTest")
+    doc.UndoMode = 1
+    tor = examples.make_torus(doc)
+    mesh = examples.make_gmsh_mesh(doc, tor, 2.0, name="TorusMesh")
+    amp, tangled = examples.tangle_to(mesh, tor.Shape, target=25, seed=1)
+    tor.ViewObject.Visibility = False
+    doc.recompute()
+    view = FreeCADGui.ActiveDocument.ActiveView
+    view.viewIsometric()
+    view.fitAll()
+
+    FreeCADGui.Selection.clearSelection()
+    FreeCADGui.Selection.addSelection(mesh)
+    check(FreeCADGui.Command.get("SurfMesh_Measure").isActive()
+          if hasattr(FreeCADGui, "Command") else True, "Measure active on selection")
+    FreeCADGui.runCommand("SurfMesh_Measure")
+    FreeCADGui.updateGui()
+    check("SurfMeshColors" in mesh.PropertiesList, "FEM mesh got its colors")
+    stats = SurfMesh.stats_of(mesh)
+    check(stats["tangled"] == tangled and tangled > 0, "stats stored, tangled counted")
+    q = np.array(mesh.SurfMeshQuality)
+    expected = coloring.quality_rgb(q, q <= 0)
+    got = np.array([c[:3] for c in mesh.SurfMeshColors])
+    check(np.allclose(got, expected, atol=1e-6), "color property matches the quality")
+    shot1 = os.path.join(out, "gui_measure.png")
+    view.saveImage(shot1, 800, 600, "White")
+    img1 = pixels(shot1)
+    frac_green, frac_yellow, frac_tangled = shares(img1)
+    check(frac_green > 0.3, f"screenshot shows good (green) elements ({frac_green:.3f})")
+    check(frac_yellow > 0.03, f"screenshot shows poor (yellow/red) elements ({frac_yellow:.3f})")
+
+    # ---- optimize through the task panel: cancel, then apply --------------------------------
+    from SurfMesh.gui.taskpanels.optimize_panel import OptimizePanel
+
+    n_objects = len(doc.Objects)
+    undo0 = doc.UndoCount
+    panel = OptimizePanel(mesh, tor)
+    FreeCADGui.Control.showDialog(panel)
+    FreeCADGui.updateGui()
+    panel.stop_requested = False
+    orig_hook = panel._hook
+
+    def cancelling_hook(info):
+        orig_hook(info)
+        panel.request_stop()  # the Stop button, pressed during the first sweep
+        return False
+
+    panel._hook = cancelling_hook
+    check(panel.accept() is False, "cancelled run keeps the panel open")
+    check(len(doc.Objects) == n_objects and doc.UndoCount == undo0,
+          "cancel leaves the document unchanged")
+    check("cancelled" in panel.status.text(), "panel says cancelled")
+    panel._hook = orig_hook
+    panel.max_sweeps.setValue(200)
+    check(panel.accept() is True, "apply runs and closes the panel")
+    FreeCADGui.updateGui()
+    new = doc.getObject("TorusMesh_optimized")
+    check(new is not None, "TorusMesh_optimized created")
+    check(doc.UndoCount == undo0 + 1, "one undo transaction")
+    check(SurfMesh.stats_of(new)["tangled"] == 0, "optimized mesh untangled")
+    check(len(new.SurfMeshColors) == len(new.FemMesh.Faces), "optimized mesh colored")
+    mesh.ViewObject.Visibility = False
+    FreeCADGui.updateGui()
+    shot2 = os.path.join(out, "gui_optimized.png")
+    view.saveImage(shot2, 800, 600, "White")
+    img2 = pixels(shot2)
+    frac_green2, frac_yellow2, frac_tangled2 = shares(img2)
+    check(frac_green2 > frac_green, f"optimized view is greener ({frac_green2:.3f} > "
+                                    f"{frac_green:.3f})")
+    check(frac_yellow2 < frac_yellow, "fewer poor elements in the view")
+    check(frac_tangled2 <= frac_tangled, "no more tangled color than before")
+
+    # ---- report ---------------------------------------------------------------------------
+    FreeCADGui.Selection.clearSelection()
+    FreeCADGui.Selection.addSelection(new)
+    FreeCADGui.runCommand("SurfMesh_Report")
+    FreeCADGui.updateGui()
+    from SurfMesh.gui import report_dialog
+
+    check(len(report_dialog._open_dialogs) == 1, "report dialog open")
+    dlg = report_dialog._open_dialogs[0]
+    from PySide import QtGui
+
+    html = dlg.findChild(QtGui.QTextBrowser, "SurfMeshReportTable").toPlainText()
+    check("Optimized" in html and "Initial" in html and "Oddy" in html, "report table rows")
+    check(dlg.findChild(QtGui.QLabel, "SurfMeshReportHistogram") is not None,
+          "histogram shown")
+    dlg.close()
+
+    # ---- clear colors -----------------------------------------------------------------------
+    FreeCADGui.runCommand("SurfMesh_ClearColors")
+    check("SurfMeshColors" not in new.PropertiesList, "colors cleared")
+    shot3 = os.path.join(out, "gui_cleared.png")
+    view.saveImage(shot3, 800, 600, "White")
+    frac_green3 = shares(pixels(shot3))[0]
+    check(frac_green3 < 0.5 * frac_green2, f"view no longer green ({frac_green3:.3f})")
+
+    # ---- Mesh object: measure colors through Coloring -----------------------------------------
+    import MeshPart
+
+    m = doc.addObject("Mesh::Feature", "TorusTri")
+    m.Mesh = MeshPart.meshFromShape(Shape=tor.Shape, LinearDeflection=0.2)
+    new.ViewObject.Visibility = False
+    FreeCADGui.Selection.clearSelection()
+    FreeCADGui.Selection.addSelection(m)
+    FreeCADGui.Selection.addSelection(tor)
+    FreeCADGui.runCommand("SurfMesh_Measure")
+    FreeCADGui.updateGui()
+    check(m.ViewObject.Coloring is True, "Mesh Coloring on")
+    check(len(m.SurfMeshColors) == m.Mesh.CountFacets, "Mesh colors per facet")
+    shot4 = os.path.join(out, "gui_mesh.png")
+    view.fitAll()
+    view.saveImage(shot4, 800, 600, "White")
+    frac4, frac4y, _ = shares(pixels(shot4))
+    check(frac4 + frac4y > 0.5, f"Mesh screenshot shows quality colors ({frac4:.3f}, "
+                                f"{frac4y:.3f})")
+
+    FreeCAD.closeDocument(doc.Name)
+    code = 0
+except BaseException:
+    traceback.print_exc()
+print(f"test_surfmesh_workbench: {'PASS' if code == 0 else 'FAIL'} "
+      f"({len(checks)} checks: {'; '.join(checks[-5:])})", flush=True)
+sys.stdout.flush()
+sys.stderr.flush()
+os._exit(code)
