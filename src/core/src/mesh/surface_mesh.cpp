@@ -1,10 +1,15 @@
 #include "surfmesh/mesh/surface_mesh.h"
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
+#include <tuple>
 
 namespace surfmesh {
+
+bool isElementTypeCode(int code) { return code >= 0 && code <= 5; }
 
 int nodeCount(ElementType t) {
   switch (t) {
@@ -21,7 +26,9 @@ int nodeCount(ElementType t) {
     case ElementType::Tri21:
       return 21;
   }
-  return 0;
+  throw std::invalid_argument("unsupported element type code " +
+                              std::to_string(static_cast<int>(t)) +
+                              " (supported: tri3, quad4, tri6, tri10, tri15, tri21)");
 }
 
 int elementOrder(ElementType t) {
@@ -112,50 +119,203 @@ void SurfaceMesh::addElement(ElementType t, const std::int32_t* nodes, int face,
   elemOffset.push_back(static_cast<std::int64_t>(elemNodes.size()));
 }
 
+namespace {
+
+[[noreturn]] void fail(const std::string& m) { throw std::invalid_argument(m); }
+
+std::string vecText(const Vec3& p) {
+  std::ostringstream s;
+  s.precision(17);
+  s << "(" << p.x() << ", " << p.y() << ", " << p.z() << ")";
+  return s.str();
+}
+
+/// Two nodes used by elements at exactly the same position.
+void checkDuplicateNodes(const SurfaceMesh& m) {
+  std::vector<std::int32_t> used;
+  {
+    std::vector<unsigned char> isUsed(m.nodeCount(), 0);
+    for (std::int32_t n : m.elemNodes) isUsed[static_cast<std::size_t>(n)] = 1;
+    for (std::size_t i = 0; i < isUsed.size(); ++i)
+      if (isUsed[i]) used.push_back(static_cast<std::int32_t>(i));
+  }
+  auto less = [&](std::int32_t a, std::int32_t b) {
+    const Vec3& p = m.xyz[static_cast<std::size_t>(a)];
+    const Vec3& q = m.xyz[static_cast<std::size_t>(b)];
+    if (p.x() != q.x()) return p.x() < q.x();
+    if (p.y() != q.y()) return p.y() < q.y();
+    if (p.z() != q.z()) return p.z() < q.z();
+    return a < b;
+  };
+  std::sort(used.begin(), used.end(), less);
+  std::size_t count = 0;
+  std::int32_t a0 = -1, b0 = -1;
+  for (std::size_t k = 1; k < used.size(); ++k)
+    if (m.xyz[static_cast<std::size_t>(used[k])] == m.xyz[static_cast<std::size_t>(used[k - 1])]) {
+      if (count++ == 0) {
+        a0 = used[k - 1];
+        b0 = used[k];
+      }
+    }
+  if (count) {
+    std::ostringstream s;
+    s << "mesh has " << count << " duplicate node" << (count > 1 ? "s" : "")
+      << " (used by elements at the position of another node), e.g. nodes " << a0 << " and " << b0
+      << " at " << vecText(m.xyz[static_cast<std::size_t>(a0)])
+      << ": the mesh is not conforming there; merge coincident nodes first";
+    fail(s.str());
+  }
+}
+
+/// Elements with the same corner nodes; mesh edges shared by more than two elements of one
+/// face.
+void checkTopology(const SurfaceMesh& m) {
+  const std::size_t E = m.elementCount();
+  // Duplicate elements.
+  std::vector<std::array<std::int32_t, 5>> keys(E);  // sorted corners (−1 padded), element
+  for (std::size_t e = 0; e < E; ++e) {
+    const int nc = cornerCount(m.elemType[e]);
+    std::array<std::int32_t, 5> k = {-1, -1, -1, -1, static_cast<std::int32_t>(e)};
+    std::copy(m.elementNodes(e), m.elementNodes(e) + nc, k.begin());
+    std::sort(k.begin(), k.begin() + 4);
+    keys[e] = k;
+  }
+  std::sort(keys.begin(), keys.end());
+  std::size_t dup = 0;
+  std::int32_t e0 = -1, e1 = -1;
+  for (std::size_t k = 1; k < E; ++k)
+    if (std::equal(keys[k].begin(), keys[k].begin() + 4, keys[k - 1].begin()) && dup++ == 0) {
+      e0 = keys[k - 1][4];
+      e1 = keys[k][4];
+    }
+  if (dup) {
+    std::ostringstream s;
+    s << "mesh has " << dup << " duplicate element" << (dup > 1 ? "s" : "")
+      << " (same corner nodes as another element), e.g. elements " << e0 << " and " << e1;
+    fail(s.str());
+  }
+  // Edges per face.
+  struct EdgeUse {
+    std::int32_t a, b, face, elem;
+    bool operator<(const EdgeUse& o) const {
+      return std::tie(a, b, face, elem) < std::tie(o.a, o.b, o.face, o.elem);
+    }
+  };
+  std::vector<EdgeUse> uses;
+  uses.reserve(4 * E);
+  for (std::size_t e = 0; e < E; ++e) {
+    const int nc = cornerCount(m.elemType[e]);
+    const std::int32_t* nd = m.elementNodes(e);
+    for (int k = 0; k < nc; ++k) {
+      const std::int32_t a = nd[k], b = nd[(k + 1) % nc];
+      uses.push_back({std::min(a, b), std::max(a, b), m.elemFace[e], static_cast<std::int32_t>(e)});
+    }
+  }
+  std::sort(uses.begin(), uses.end());
+  std::size_t bad = 0, firstBegin = 0, firstEnd = 0;
+  for (std::size_t i = 0; i < uses.size();) {
+    std::size_t j = i + 1;
+    while (j < uses.size() && uses[j].a == uses[i].a && uses[j].b == uses[i].b &&
+           uses[j].face == uses[i].face)
+      ++j;
+    if (j - i > 2 && bad++ == 0) {
+      firstBegin = i;
+      firstEnd = j;
+    }
+    i = j;
+  }
+  if (bad) {
+    const EdgeUse& u = uses[firstBegin];
+    std::ostringstream s;
+    s << "mesh is non-manifold: " << bad << " edge" << (bad > 1 ? "s are" : " is")
+      << " shared by more than two elements of one face, e.g. the edge between nodes " << u.a
+      << " and " << u.b << " is shared by " << (firstEnd - firstBegin) << " elements (";
+    for (std::size_t k = firstBegin; k < firstEnd; ++k)
+      s << (k > firstBegin ? ", " : "") << uses[k].elem;
+    s << ") on face " << u.face;
+    fail(s.str());
+  }
+}
+
+}  // namespace
+
 void SurfaceMesh::validate() const {
   const std::size_t N = xyz.size();
-  auto fail = [](const std::string& m) { throw std::invalid_argument(m); };
   if (N == 0) fail("mesh has no nodes");
   if (elemType.empty()) fail("mesh has no elements");
   if (uv.size() != N || nodeFace.size() != N || nodeKind.size() != N)
-    fail("node arrays have inconsistent sizes");
+    fail("node arrays have inconsistent sizes: " + std::to_string(N) + " positions, " +
+         std::to_string(uv.size()) + " (u,v), " + std::to_string(nodeFace.size()) +
+         " node faces, " + std::to_string(nodeKind.size()) + " node kinds");
   if (!nodeEdge.empty() && nodeEdge.size() != N) fail("nodeEdge has the wrong size");
   if (!nodeT.empty() && nodeT.size() != N) fail("nodeT has the wrong size");
   if (faceOrientation.size() != surfaces.size()) fail("faceOrientation has the wrong size");
+  for (std::size_t f = 0; f < faceOrientation.size(); ++f)
+    if (faceOrientation[f] != 1 && faceOrientation[f] != -1)
+      fail("faceOrientation[" + std::to_string(f) + "] must be +1 or -1, got " +
+           std::to_string(faceOrientation[f]));
   const std::size_t E = elemType.size();
-  if (elemOffset.size() != E + 1 || elemFace.size() != E ||
-      static_cast<std::size_t>(elemOffset.back()) != elemNodes.size() ||
-      cornerUV.size() != elemNodes.size())
-    fail("element arrays have inconsistent sizes");
+  if (elemOffset.size() != E + 1 || elemFace.size() != E || cornerUV.size() != elemNodes.size())
+    fail("element arrays have inconsistent sizes: " + std::to_string(E) + " types, " +
+         std::to_string(elemOffset.size()) + " offsets (expected " + std::to_string(E + 1) + "), " +
+         std::to_string(elemFace.size()) + " element faces, " + std::to_string(elemNodes.size()) +
+         " element nodes, " + std::to_string(cornerUV.size()) + " corner (u,v)");
+  if (elemOffset[0] != 0) fail("elemOffset[0] must be 0, got " + std::to_string(elemOffset[0]));
+  for (std::size_t e = 0; e < E; ++e)
+    if (elemOffset[e + 1] < elemOffset[e])
+      fail("element offsets decrease at element " + std::to_string(e));
+  if (static_cast<std::size_t>(elemOffset.back()) != elemNodes.size())
+    fail("element offsets end at " + std::to_string(elemOffset.back()) + ", but there are " +
+         std::to_string(elemNodes.size()) + " element nodes");
   for (std::size_t i = 0; i < N; ++i) {
-    if (!xyz[i].allFinite()) {
-      std::ostringstream s;
-      s << "node " << i << " has a non-finite coordinate";
-      fail(s.str());
-    }
+    if (!xyz[i].allFinite())
+      fail("node " + std::to_string(i) +
+           " has a non-finite coordinate (NaN or inf): " + vecText(xyz[i]));
     const NodeKind k = nodeKind[i];
     if (k == NodeKind::Face) {
       const int f = nodeFace[i];
       if (f < 0 || static_cast<std::size_t>(f) >= surfaces.size() || !surfaces[f])
-        fail("face node " + std::to_string(i) + " has no valid face");
+        fail("face node " + std::to_string(i) + " has no valid face (face id " + std::to_string(f) +
+             ")");
       if (!uv[i].allFinite()) fail("face node " + std::to_string(i) + " has non-finite (u,v)");
-    }
-    if (k == NodeKind::Edge) {
+    } else if (k == NodeKind::Edge) {
       if (nodeEdge.empty() || nodeT.empty()) fail("edge nodes need nodeEdge and nodeT");
       const int c = nodeEdge[i];
       if (c < 0 || static_cast<std::size_t>(c) >= curves.size() || !curves[c])
-        fail("edge node " + std::to_string(i) + " has no valid edge");
+        fail("edge node " + std::to_string(i) + " has no valid edge (edge id " + std::to_string(c) +
+             ")");
+      if (!std::isfinite(nodeT[i]))
+        fail("edge node " + std::to_string(i) + " has a non-finite curve parameter");
+    } else if (k != NodeKind::Fixed) {
+      fail("node " + std::to_string(i) + " has an unknown kind " +
+           std::to_string(static_cast<int>(k)));
     }
   }
+  int order = 0;
+  std::size_t orderElem = 0;
   for (std::size_t e = 0; e < E; ++e) {
+    const int code = static_cast<int>(elemType[e]);
+    if (!isElementTypeCode(code))
+      fail("element " + std::to_string(e) + " has an unsupported element type (code " +
+           std::to_string(code) + "; supported: tri3, quad4, tri6, tri10, tri15, tri21)");
     const int n = elementSize(e);
     if (n != surfmesh::nodeCount(elemType[e]))
       fail("element " + std::to_string(e) + " has " + std::to_string(n) + " nodes, expected " +
            std::to_string(surfmesh::nodeCount(elemType[e])) + " for " +
            elementTypeName(elemType[e]));
+    const int p = elementOrder(elemType[e]);
+    if (e == 0) {
+      order = p;
+    } else if (p != order) {
+      fail("mesh mixes element orders: element " + std::to_string(orderElem) + " is " +
+           elementTypeName(elemType[orderElem]) + " (order " + std::to_string(order) +
+           "), element " + std::to_string(e) + " is " + elementTypeName(elemType[e]) + " (order " +
+           std::to_string(p) + "); use elements of one order");
+    }
     const int f = elemFace[e];
     if (f < 0 || static_cast<std::size_t>(f) >= surfaces.size() || !surfaces[f])
-      fail("element " + std::to_string(e) + " has no valid face");
+      fail("element " + std::to_string(e) + " has no valid face (face id " + std::to_string(f) +
+           ")");
     const std::int32_t* nd = elementNodes(e);
     for (int k = 0; k < n; ++k) {
       if (nd[k] < 0 || static_cast<std::size_t>(nd[k]) >= N)
@@ -163,11 +323,14 @@ void SurfaceMesh::validate() const {
              " out of range [0, " + std::to_string(N) + ")");
       for (int j = 0; j < k; ++j)
         if (nd[j] == nd[k])
-          fail("element " + std::to_string(e) + " repeats node " + std::to_string(nd[k]));
+          fail("element " + std::to_string(e) + " repeats node " + std::to_string(nd[k]) +
+               " (local positions " + std::to_string(j) + " and " + std::to_string(k) + ")");
       if (!elementUV(e)[k].allFinite())
         fail("element " + std::to_string(e) + " has a non-finite corner (u,v)");
     }
   }
+  checkDuplicateNodes(*this);
+  checkTopology(*this);
 }
 
 SurfaceMesh makeSingleSurfaceMesh(const Surface& surface, const std::vector<Vec2>& uvs,

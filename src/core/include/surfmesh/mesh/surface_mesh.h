@@ -30,7 +30,10 @@ enum class ElementType : std::uint8_t {
   Tri21 = 5,  ///< quintic triangle (p = 5)
 };
 
-/// Number of nodes of an element type.
+/// Whether `code` is the value of an ElementType (0…5).
+bool isElementTypeCode(int code);
+/// Number of nodes of an element type. Throws std::invalid_argument for a value outside the
+/// enumeration (e.g. a type code cast from unchecked input).
 int nodeCount(ElementType t);
 /// Polynomial order (1 for Tri3 and Quad4).
 int elementOrder(ElementType t);
@@ -87,8 +90,23 @@ struct SurfaceMesh {
   /// Appends an element; `uvs` may be null (then the nodes' uv are used, unwrapped).
   void addElement(ElementType t, const std::int32_t* nodes, int face, const Vec2* uvs = nullptr);
 
-  /// Checks sizes, index ranges and finiteness; throws std::invalid_argument with a message
-  /// naming the first offending node/element.
+  /// Checks the mesh; throws std::invalid_argument with a message naming the problem and the
+  /// offending node/element ids (and counts where there are several). Checked:
+  ///   * array sizes, element offsets (0, non-decreasing, ending at elemNodes.size()), element
+  ///     type codes, node counts per element, face ids, faceOrientation (±1);
+  ///   * finite positions, (u,v) of face nodes, t of edge nodes and corner (u,v);
+  ///   * element node ids in range and not repeated within an element;
+  ///   * one element order (tri3 and quad4 may be mixed; tri3 with tri6 may not: the mesh
+  ///     would not conform along the edges between them);
+  ///   * no duplicate nodes: two nodes used by elements at the same position make the mesh
+  ///     non-conforming (a crack that the optimizer would open) — the error gives how many
+  ///     and an example pair, merge them first;
+  ///   * no duplicate elements (same corner nodes);
+  ///   * manifold within each face: a mesh edge shared by more than two elements of one face
+  ///     (elements on different faces may share an edge: a non-manifold B-rep edge).
+  /// Degenerate (zero-area) elements are NOT an error: they are reported as tangled
+  /// (quality 0) and the optimizer untangles them like any tangled element (one whose nodes
+  /// are all fixed stays tangled and is counted in the result's `tangled`).
   void validate() const;
 };
 

@@ -1,0 +1,894 @@
+// SurfMesh — bad input at the core's entry points (SurfaceMesh::validate, CadShape, CadMesh,
+// optimizeMesh) and faults during optimization: every bad input gives std::invalid_argument
+// whose message names the problem and the offending ids/counts, and nothing is left modified.
+// Regressions found by the fuzz targets (fuzz/) are at the end.
+#include "surfmesh/cad/cad_bridge.h"
+#include "surfmesh/cad/cad_shape.h"
+#include "surfmesh/cad/occ_mesher.h"
+#include "surfmesh/geometry/analytic_surfaces.h"
+#include "surfmesh/measures/measure.h"
+#include "surfmesh/mesh/quality.h"
+#include "surfmesh/mesh/surface_mesh.h"
+#include "surfmesh/optimize/optimizer.h"
+#include "test_meshes.h"
+
+#include <BRepBuilderAPI_MakeEdge.hxx>
+#include <BRepBuilderAPI_MakeFace.hxx>
+#include <BRepBuilderAPI_MakeWire.hxx>
+#include <BRepPrimAPI_MakeBox.hxx>
+#include <BRepPrimAPI_MakeCylinder.hxx>
+#include <BRepPrimAPI_MakeSphere.hxx>
+#include <BRepTools.hxx>
+#include <TopoDS_Shape.hxx>
+#include <gp_Ax2.hxx>
+#include <gp_Pln.hxx>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <cmath>
+#include <fstream>
+#include <functional>
+#include <limits>
+#include <map>
+#include <memory>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+
+using namespace surfmesh;
+using namespace surfmesh::testmesh;
+
+namespace {
+
+const double kNaN = std::numeric_limits<double>::quiet_NaN();
+const double kInf = std::numeric_limits<double>::infinity();
+const double kPi = 3.14159265358979323846;
+
+/// Runs f, expects std::invalid_argument, and returns its message ("" if none was thrown).
+std::string invalidArgument(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  } catch (const std::exception& e) {
+    ADD_FAILURE() << "expected std::invalid_argument, got another exception: " << e.what();
+    return "";
+  }
+  ADD_FAILURE() << "expected std::invalid_argument, nothing was thrown";
+  return "";
+}
+
+#define EXPECT_MESSAGE_HAS(msg, text) \
+  EXPECT_NE((msg).find(text), std::string::npos) << "message: " << (msg) << "\nexpected: " << (text)
+
+/// A planar 6×6 mesh of the unit square (boundary fixed) on `plane`.
+SurfaceMesh planarMesh(const Surface& plane, int n = 6) {
+  const GridMesh g = squareMesh(n);
+  return makeSingleSurfaceMesh(plane, g.uv, ElementType::Tri3, g.conn, g.fixed);
+}
+
+/// First element that does not touch node i, and an interior node.
+std::size_t firstFreeNode(const SurfaceMesh& m) {
+  for (std::size_t i = 0; i < m.nodeCount(); ++i)
+    if (m.nodeKind[i] == NodeKind::Face) return i;
+  return 0;
+}
+
+void expectSameMesh(const SurfaceMesh& a, const SurfaceMesh& b) {
+  EXPECT_TRUE(a.xyz == b.xyz) << "node positions changed";
+  EXPECT_TRUE(a.uv == b.uv) << "node (u,v) changed";
+  EXPECT_TRUE(a.nodeT == b.nodeT) << "node t changed";
+  EXPECT_TRUE(a.cornerUV == b.cornerUV) << "corner (u,v) changed";
+  EXPECT_TRUE(a.elemNodes == b.elemNodes) << "connectivity changed";
+  EXPECT_TRUE(a.nodeKind == b.nodeKind) << "node kinds changed";
+}
+
+// ---- SurfaceMesh::validate ---------------------------------------------------------------------
+
+TEST(ValidateMesh, AcceptsAGoodMesh) {
+  const PlaneSurface plane;
+  EXPECT_NO_THROW(planarMesh(plane).validate());
+}
+
+TEST(ValidateMesh, EmptyMesh) {
+  SurfaceMesh m;
+  EXPECT_MESSAGE_HAS(invalidArgument([&] { m.validate(); }), "no nodes");
+  const PlaneSurface plane;
+  SurfaceMesh n =
+      makeSingleSurfaceMesh(plane, {Vec2(0, 0), Vec2(1, 0), Vec2(0, 1)}, ElementType::Tri3, {}, {});
+  EXPECT_MESSAGE_HAS(invalidArgument([&] { n.validate(); }), "no elements");
+}
+
+TEST(ValidateMesh, NonFiniteCoordinatesNameTheNode) {
+  const PlaneSurface plane;
+  for (double bad : {kNaN, kInf, -kInf}) {
+    SurfaceMesh m = planarMesh(plane);
+    m.xyz[5].y() = bad;
+    const std::string msg = invalidArgument([&] { m.validate(); });
+    EXPECT_MESSAGE_HAS(msg, "node 5");
+    EXPECT_MESSAGE_HAS(msg, "non-finite");
+  }
+  SurfaceMesh m = planarMesh(plane);
+  const std::size_t i = firstFreeNode(m);
+  m.uv[i].x() = kNaN;
+  EXPECT_MESSAGE_HAS(invalidArgument([&] { m.validate(); }),
+                     "face node " + std::to_string(i) + " has non-finite (u,v)");
+}
+
+TEST(ValidateMesh, ElementIndicesOutOfRange) {
+  const PlaneSurface plane;
+  for (std::int32_t bad : {-1, 99999}) {
+    SurfaceMesh m = planarMesh(plane);
+    m.elemNodes[3 * 4 + 1] = bad;  // element 4, local node 1
+    const std::string msg = invalidArgument([&] { m.validate(); });
+    EXPECT_MESSAGE_HAS(msg, "element 4 references node " + std::to_string(bad));
+    EXPECT_MESSAGE_HAS(msg, "out of range [0, " + std::to_string(m.nodeCount()) + ")");
+  }
+}
+
+TEST(ValidateMesh, RepeatedNodeInOneElement) {
+  const PlaneSurface plane;
+  SurfaceMesh m = planarMesh(plane);
+  m.elemNodes[3 * 2 + 2] = m.elemNodes[3 * 2];
+  const std::string msg = invalidArgument([&] { m.validate(); });
+  EXPECT_MESSAGE_HAS(msg, "element 2 repeats node " + std::to_string(m.elemNodes[6]));
+}
+
+TEST(ValidateMesh, DuplicateNodesAreReportedWithCountAndExamplePair) {
+  const PlaneSurface plane;
+  SurfaceMesh m = planarMesh(plane);
+  // Give element 7 its own copy of one of its nodes: a crack in the mesh.
+  const std::int32_t old = m.elemNodes[3 * 7];
+  const std::int32_t copy = static_cast<std::int32_t>(m.nodeCount());
+  m.xyz.push_back(m.xyz[static_cast<std::size_t>(old)]);
+  m.uv.push_back(m.uv[static_cast<std::size_t>(old)]);
+  m.nodeFace.push_back(0);
+  m.nodeKind.push_back(m.nodeKind[static_cast<std::size_t>(old)]);
+  m.elemNodes[3 * 7] = copy;
+  const std::string msg = invalidArgument([&] { m.validate(); });
+  EXPECT_MESSAGE_HAS(msg, "1 duplicate node");
+  EXPECT_MESSAGE_HAS(msg, "nodes " + std::to_string(old) + " and " + std::to_string(copy));
+  EXPECT_MESSAGE_HAS(msg, "not conforming");
+
+  // The same copy in no element is harmless (an unused node).
+  m.elemNodes[3 * 7] = old;
+  EXPECT_NO_THROW(m.validate());
+}
+
+TEST(ValidateMesh, NonManifoldEdgeNamesItsNodesAndElements) {
+  const PlaneSurface plane;
+  SurfaceMesh m = planarMesh(plane);
+  // Find an interior edge (a, b) shared by two elements and hang a third element on it.
+  const std::int32_t* nd = m.elementNodes(10);
+  const std::int32_t a = nd[0], b = nd[1];
+  std::int32_t c = -1;
+  for (std::int32_t i = 0; i < static_cast<std::int32_t>(m.nodeCount()) && c < 0; ++i)
+    if (i != a && i != b && i != nd[2] && (m.xyz[i] - m.xyz[a]).norm() > 0.5) c = i;
+  const std::int32_t tri[3] = {a, b, c};
+  m.addElement(ElementType::Tri3, tri, 0);
+  const std::string msg = invalidArgument([&] { m.validate(); });
+  EXPECT_MESSAGE_HAS(msg, "non-manifold");
+  EXPECT_MESSAGE_HAS(msg, "between nodes " + std::to_string(std::min(a, b)) + " and " +
+                              std::to_string(std::max(a, b)));
+  EXPECT_MESSAGE_HAS(msg, "3 elements");
+  EXPECT_MESSAGE_HAS(msg, std::to_string(m.elementCount() - 1) + ")");
+}
+
+TEST(ValidateMesh, ElementsOfThreeFacesMayShareAnEdge) {
+  // A non-manifold B-rep edge: three faces (fins) meeting along the segment (0,0,0)-(1,0,0).
+  const PlaneSurface f0(Vec3::Zero(), Vec3::UnitX(), Vec3::UnitY());
+  const PlaneSurface f1(Vec3::Zero(), Vec3::UnitX(), Vec3::UnitZ());
+  const PlaneSurface f2(Vec3::Zero(), Vec3::UnitX(), Vec3(0, -1, -1).normalized());
+  SurfaceMesh m;
+  m.surfaces = {&f0, &f1, &f2};
+  m.faceOrientation = {1, 1, 1};
+  m.xyz = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0.5, 1, 0), Vec3(0.5, 0, 1), f2.value(0.5, 1.0)};
+  m.uv = {Vec2(0, 0), Vec2(1, 0), Vec2(0.5, 1), Vec2(0.5, 1), Vec2(0.5, 1)};
+  m.nodeFace = {-1, -1, 0, 1, 2};
+  m.nodeKind = {NodeKind::Fixed, NodeKind::Fixed, NodeKind::Face, NodeKind::Face, NodeKind::Face};
+  const std::int32_t t0[3] = {0, 1, 2}, t1[3] = {0, 1, 3}, t2[3] = {0, 1, 4};
+  m.addElement(ElementType::Tri3, t0, 0, nullptr);
+  m.addElement(ElementType::Tri3, t1, 1, nullptr);
+  m.addElement(ElementType::Tri3, t2, 2, nullptr);
+  for (std::size_t p = 0; p < m.cornerUV.size(); ++p) m.cornerUV[p] = Vec2(0, 0);
+  EXPECT_NO_THROW(m.validate());
+}
+
+TEST(ValidateMesh, DuplicateElement) {
+  const PlaneSurface plane;
+  SurfaceMesh m = planarMesh(plane);
+  // Element 0 again, its nodes rotated: same corners.
+  const std::int32_t* nd = m.elementNodes(0);
+  const std::int32_t again[3] = {nd[1], nd[2], nd[0]};
+  m.addElement(ElementType::Tri3, again, 0);
+  const std::string msg = invalidArgument([&] { m.validate(); });
+  EXPECT_MESSAGE_HAS(msg, "1 duplicate element");
+  EXPECT_MESSAGE_HAS(msg, "elements 0 and " + std::to_string(m.elementCount() - 1));
+}
+
+TEST(ValidateMesh, UnsupportedElementTypeCode) {
+  const PlaneSurface plane;
+  SurfaceMesh m = planarMesh(plane);
+  m.elemType[3] = static_cast<ElementType>(9);
+  const std::string msg = invalidArgument([&] { m.validate(); });
+  EXPECT_MESSAGE_HAS(msg, "element 3 has an unsupported element type (code 9");
+  EXPECT_MESSAGE_HAS(invalidArgument([] { nodeCount(static_cast<ElementType>(7)); }),
+                     "unsupported element type code 7");
+  EXPECT_FALSE(isElementTypeCode(6));
+  EXPECT_TRUE(isElementTypeCode(5));
+  EXPECT_MESSAGE_HAS(invalidArgument([] { elementTypeFromName("tri7"); }),
+                     "unknown element type 'tri7'");
+}
+
+TEST(ValidateMesh, MixedOrders) {
+  const PlaneSurface plane;
+  // Two triangles sharing the diagonal: one tri3, one tri6 (mid-edge nodes added).
+  std::vector<Vec2> uv = {Vec2(0, 0),   Vec2(1, 0),   Vec2(1, 1),    Vec2(0, 1),
+                          Vec2(0.5, 1), Vec2(0, 0.5), Vec2(0.5, 0.5)};
+  SurfaceMesh m = makeSingleSurfaceMesh(plane, uv, ElementType::Tri3, {0, 1, 2}, {});
+  const std::int32_t t6[6] = {0, 2, 3, 6, 4, 5};
+  m.addElement(ElementType::Tri6, t6, 0);
+  const std::string msg = invalidArgument([&] { m.validate(); });
+  EXPECT_MESSAGE_HAS(msg, "mixes element orders");
+  EXPECT_MESSAGE_HAS(msg, "element 0 is tri3 (order 1), element 1 is tri6 (order 2)");
+
+  // tri3 and quad4 are both linear: accepted.
+  SurfaceMesh q = makeSingleSurfaceMesh(plane, uv, ElementType::Tri3, {0, 1, 6}, {});
+  const std::int32_t quad[4] = {1, 2, 4, 6};
+  q.addElement(ElementType::Quad4, quad, 0);
+  EXPECT_NO_THROW(q.validate());
+}
+
+TEST(ValidateMesh, BrokenArraysNeverReadOutOfBounds) {
+  const PlaneSurface plane;
+  {
+    SurfaceMesh m = planarMesh(plane);
+    std::swap(m.elemOffset[2], m.elemOffset[3]);
+    EXPECT_MESSAGE_HAS(invalidArgument([&] { m.validate(); }), "offsets decrease at element");
+  }
+  {
+    SurfaceMesh m = planarMesh(plane);
+    m.elemOffset.back() += 3;
+    EXPECT_MESSAGE_HAS(invalidArgument([&] { m.validate(); }), "element offsets end at");
+  }
+  {
+    SurfaceMesh m = planarMesh(plane);
+    m.elemOffset[0] = 1;
+    EXPECT_MESSAGE_HAS(invalidArgument([&] { m.validate(); }), "elemOffset[0] must be 0");
+  }
+  {
+    SurfaceMesh m = planarMesh(plane);
+    m.elemFace[1] = 3;
+    EXPECT_MESSAGE_HAS(invalidArgument([&] { m.validate(); }), "element 1 has no valid face");
+  }
+  {
+    SurfaceMesh m = planarMesh(plane);
+    m.faceOrientation[0] = 0;
+    EXPECT_MESSAGE_HAS(invalidArgument([&] { m.validate(); }), "faceOrientation[0]");
+  }
+  {
+    SurfaceMesh m = planarMesh(plane);
+    m.uv.pop_back();
+    EXPECT_MESSAGE_HAS(invalidArgument([&] { m.validate(); }), "inconsistent sizes");
+  }
+  {
+    SurfaceMesh m = planarMesh(plane);
+    m.nodeKind[firstFreeNode(m)] = NodeKind::Edge;  // no curve
+    EXPECT_MESSAGE_HAS(invalidArgument([&] { m.validate(); }), "edge nodes need nodeEdge");
+  }
+  EXPECT_MESSAGE_HAS(invalidArgument([&] {
+                       makeSingleSurfaceMesh(plane, {Vec2(0, 0), Vec2(1, 0), Vec2(0, 1)},
+                                             ElementType::Tri3, {0, 1, 5}, {});
+                     }),
+                     "element 0 references node 5 out of range");
+  EXPECT_MESSAGE_HAS(invalidArgument([&] {
+                       makeSingleSurfaceMesh(plane, {Vec2(0, 0), Vec2(1, 0), Vec2(0, 1)},
+                                             ElementType::Tri3, {0, 1}, {});
+                     }),
+                     "not a multiple");
+}
+
+// ---- degenerate elements: tangled for quality, fine to untangle ---------------------------------
+
+TEST(DegenerateElements, AreTangledForQualityAndUntangledByTheOptimizer) {
+  const PlaneSurface plane;
+  SurfaceMesh m = planarMesh(plane);
+  // Put a free node on the line through two of its element's other nodes: zero area.
+  const std::size_t e = 12;
+  const std::int32_t* nd = m.elementNodes(e);
+  std::size_t freeLocal = 3;
+  for (int k = 0; k < 3; ++k)
+    if (m.nodeKind[static_cast<std::size_t>(nd[k])] == NodeKind::Face) freeLocal = k;
+  ASSERT_LT(freeLocal, 3u);
+  const std::size_t i = static_cast<std::size_t>(nd[freeLocal]);
+  const Vec2 a = m.uv[static_cast<std::size_t>(nd[(freeLocal + 1) % 3])];
+  const Vec2 b = m.uv[static_cast<std::size_t>(nd[(freeLocal + 2) % 3])];
+  m.uv[i] = 0.5 * (a + b);
+  syncFaceNodes(m);
+  EXPECT_NO_THROW(m.validate());
+  const MeshQuality q = measureQuality(m, measureByName("shape"));
+  EXPECT_EQ(q.tangled[e], 1);
+  EXPECT_EQ(q.quality[e], 0.0);
+  const OptimizeResult r = optimizeMesh(m, {});
+  EXPECT_GE(r.before.tangled, 1u);
+  EXPECT_EQ(r.after.tangled, 0u);
+  EXPECT_GT(r.after.min, 0.0);
+
+  // All nodes fixed: nothing can move, no error, the element stays tangled.
+  SurfaceMesh f = planarMesh(plane);
+  f.uv[i] = 0.5 * (a + b);
+  syncFaceNodes(f);
+  for (auto& k : f.nodeKind) k = NodeKind::Fixed;
+  const SurfaceMesh before = f;
+  const OptimizeResult rf = optimizeMesh(f, {});
+  EXPECT_EQ(rf.reason, StopReason::NothingToDo);
+  EXPECT_GE(rf.after.tangled, 1u);
+  expectSameMesh(f, before);
+}
+
+// ---- optimizer options -----------------------------------------------------------------------
+
+TEST(OptimizerInput, UnknownMeasureListsTheKnownOnes) {
+  const PlaneSurface plane;
+  SurfaceMesh m = planarMesh(plane);
+  OptimizeOptions o;
+  o.measure = "aspect";
+  const std::string msg = invalidArgument([&] { optimizeMesh(m, o); });
+  EXPECT_MESSAGE_HAS(msg, "aspect");
+  EXPECT_MESSAGE_HAS(msg, "shape");
+  EXPECT_MESSAGE_HAS(msg, "oddy");
+  EXPECT_MESSAGE_HAS(invalidArgument([] { measureByName(""); }), "shape");
+}
+
+TEST(OptimizerInput, NegativeOrNonFiniteTolerancesAndBadOptions) {
+  const PlaneSurface plane;
+  SurfaceMesh m = planarMesh(plane);
+  const SurfaceMesh copy = m;
+  std::vector<std::function<void(OptimizeOptions&)>> bad = {
+      [](OptimizeOptions& o) { o.relTol = -1e-5; },
+      [](OptimizeOptions& o) { o.moveTol = -1.0; },
+      [](OptimizeOptions& o) { o.relTol = kNaN; },
+      [](OptimizeOptions& o) { o.delta = 0.0; },
+      [](OptimizeOptions& o) { o.deltaEpsilon = -1.0; },
+      [](OptimizeOptions& o) { o.delta = kNaN; },
+      [](OptimizeOptions& o) { o.maxSweeps = -1; },
+      [](OptimizeOptions& o) { o.innerIterations = 0; },
+      [](OptimizeOptions& o) { o.maxLineSearch = 0; },
+      [](OptimizeOptions& o) { o.threads = -2; },
+      [](OptimizeOptions& o) { o.deltaPolicy = "never"; },
+  };
+  for (std::size_t k = 0; k < bad.size(); ++k) {
+    OptimizeOptions o;
+    bad[k](o);
+    SCOPED_TRACE("bad option " + std::to_string(k));
+    EXPECT_FALSE(invalidArgument([&] { optimizeMesh(m, o); }).empty());
+    expectSameMesh(m, copy);
+  }
+  // Zero tolerances are allowed (run to maxSweeps).
+  OptimizeOptions o;
+  o.relTol = 0.0;
+  o.moveTol = 0.0;
+  o.maxSweeps = 2;
+  EXPECT_NO_THROW(optimizeMesh(m, o));
+}
+
+TEST(OptimizerInput, InvalidMeshIsRejectedAndLeftUnchanged) {
+  const PlaneSurface plane;
+  SurfaceMesh m = planarMesh(plane);
+  m.elemNodes[5] = 10000;
+  const SurfaceMesh copy = m;
+  EXPECT_MESSAGE_HAS(invalidArgument([&] { optimizeMesh(m, {}); }), "references node 10000");
+  expectSameMesh(m, copy);
+}
+
+// ---- faults: an exception inside the core leaves the mesh unchanged --------------------------
+
+/// Wraps a surface; d1/d2 throw std::runtime_error once a shared budget of calls (counted
+/// over all clones) is used up.
+class ThrowingSurface final : public Surface {
+ public:
+  ThrowingSurface(const Surface& inner, std::shared_ptr<std::atomic<long>> budget)
+      : inner_(inner.clone()), budget_(std::move(budget)) {}
+  Vec3 value(double u, double v) const override {
+    spend();
+    return inner_->value(u, v);
+  }
+  SurfaceD1 d1(double u, double v) const override {
+    spend();
+    return inner_->d1(u, v);
+  }
+  SurfaceD2 d2(double u, double v) const override {
+    spend();
+    return inner_->d2(u, v);
+  }
+  ParamBounds bounds() const override { return inner_->bounds(); }
+  bool isUPeriodic() const override { return inner_->isUPeriodic(); }
+  bool isVPeriodic() const override { return inner_->isVPeriodic(); }
+  double uPeriod() const override { return inner_->uPeriod(); }
+  double vPeriod() const override { return inner_->vPeriod(); }
+  std::unique_ptr<Surface> clone() const override {
+    return std::make_unique<ThrowingSurface>(*inner_, budget_);
+  }
+  std::string describe() const override { return "throwing " + inner_->describe(); }
+
+ private:
+  void spend() const {
+    if (budget_->fetch_sub(1) <= 0) throw std::runtime_error("injected surface failure");
+  }
+  std::unique_ptr<Surface> inner_;
+  std::shared_ptr<std::atomic<long>> budget_;
+};
+
+TEST(Faults, ExceptionDuringOptimizationLeavesTheMeshUnchanged) {
+  const TorusSurface torus(10, 4);
+  auto budget = std::make_shared<std::atomic<long>>(std::numeric_limits<long>::max());
+  const ThrowingSurface surf(torus, budget);
+  const GridMesh g = periodicGridMesh(16, 10, 0, 2 * kPi, 0, 2 * kPi, true);
+  SurfaceMesh base = makeSingleSurfaceMesh(surf, g.uv, ElementType::Tri3, g.conn, g.fixed);
+  perturbUntilTangled(base, surf, 6, 0.25, 0.4, 11);
+  OptimizeOptions opt;
+  opt.maxSweeps = 4;
+  for (int threads : {1, 2}) {
+    opt.threads = threads;
+    // Count the surface calls of a complete run.
+    SurfaceMesh probe = base;
+    budget->store(std::numeric_limits<long>::max());
+    optimizeMesh(probe, opt);
+    const long total = std::numeric_limits<long>::max() - budget->load();
+    ASSERT_GT(total, 100);
+    // Fail at 40 points spread over the run, including the very first and last calls.
+    int thrown = 0;
+    for (int k = 0; k <= 40; ++k) {
+      const long n = k == 40 ? total - 1 : total * k / 40;
+      SurfaceMesh m = base;
+      budget->store(n);
+      SCOPED_TRACE("threads " + std::to_string(threads) + ", failing after " + std::to_string(n) +
+                   " of " + std::to_string(total) + " surface calls");
+      try {
+        optimizeMesh(m, opt);
+      } catch (const std::runtime_error& e) {
+        ++thrown;
+        EXPECT_STREQ(e.what(), "injected surface failure");
+      }
+      expectSameMesh(m, base);
+    }
+    EXPECT_GE(thrown, 40);
+  }
+}
+
+TEST(Faults, CancellationAtEverySweepLeavesTheMeshUnchanged) {
+  const TorusSurface torus(10, 4);
+  const GridMesh g = periodicGridMesh(16, 10, 0, 2 * kPi, 0, 2 * kPi, true);
+  SurfaceMesh base = makeSingleSurfaceMesh(torus, g.uv, ElementType::Tri3, g.conn, g.fixed);
+  perturbUntilTangled(base, torus, 6, 0.25, 0.4, 11);
+  for (int stopAt = 1; stopAt <= 3; ++stopAt) {
+    SurfaceMesh m = base;
+    int calls = 0;
+    const OptimizeResult r =
+        optimizeMesh(m, {}, [&](const OptimizeProgress&) { return ++calls < stopAt; });
+    EXPECT_EQ(r.reason, StopReason::Cancelled);
+    expectSameMesh(m, base);
+  }
+}
+
+// ---- CAD shapes --------------------------------------------------------------------------------
+
+std::shared_ptr<CadShape> boxShape() {
+  static auto s = std::make_shared<CadShape>(BRepPrimAPI_MakeBox(10.0, 10.0, 10.0).Shape());
+  return s;
+}
+
+/// Structured triangulation of the surface of the box [0,10]³: an n×n grid on every face,
+/// nodes shared along the box's edges, triangles wound along the outward normals.
+MeshInput boxInput(int n = 5) {
+  MeshInput in;
+  std::map<std::array<int, 3>, std::int32_t> ids;
+  auto node = [&](std::array<int, 3> g) {
+    auto it = ids.find(g);
+    if (it != ids.end()) return it->second;
+    const std::int32_t id = static_cast<std::int32_t>(in.nodes.size());
+    in.nodes.push_back(Vec3(g[0], g[1], g[2]) * (10.0 / n));
+    ids[g] = id;
+    return id;
+  };
+  for (int axis = 0; axis < 3; ++axis)
+    for (int side = 0; side < 2; ++side) {
+      const int a = (axis + 1) % 3, b = (axis + 2) % 3;  // (a, b, axis) is right-handed
+      for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
+          auto at = [&](int di, int dj) {
+            std::array<int, 3> g{};
+            g[static_cast<std::size_t>(axis)] = side * n;
+            g[static_cast<std::size_t>(a)] = i + di;
+            g[static_cast<std::size_t>(b)] = j + dj;
+            return node(g);
+          };
+          const std::int32_t p = at(0, 0), q = at(1, 0), r = at(1, 1), t = at(0, 1);
+          // Outward normal +axis on side 1 (a×b = axis): counter-clockwise in (a, b).
+          if (side == 1)
+            in.conn.insert(in.conn.end(), {p, q, r, p, r, t});
+          else
+            in.conn.insert(in.conn.end(), {p, r, q, p, t, r});
+          in.types.insert(in.types.end(), {ElementType::Tri3, ElementType::Tri3});
+        }
+    }
+  return in;
+}
+
+/// An element of the box mesh whose nodes all lie strictly inside face `f`'s plane region
+/// (not on the box's edges), or −1.
+int interiorNodeOf(const MeshInput& in) {
+  for (std::size_t i = 0; i < in.nodes.size(); ++i) {
+    const Vec3& p = in.nodes[i];
+    int inside = 0;
+    for (int c = 0; c < 3; ++c) inside += (p[c] > 1e-6 && p[c] < 10 - 1e-6) ? 1 : 0;
+    if (inside == 2) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+TEST(CadInput, AGoodBoxMeshIsAccepted) {
+  const MeshInput in = boxInput();
+  ASSERT_GT(in.nodes.size(), 20u);
+  ASSERT_GE(interiorNodeOf(in), 0);
+  CadMesh cm(boxShape(), in);
+  EXPECT_EQ(cm.report().facesUsed, 6u);
+  EXPECT_NO_THROW(cm.mesh().validate());
+}
+
+TEST(CadInput, EmptyMesh) {
+  MeshInput in;
+  EXPECT_MESSAGE_HAS(invalidArgument([&] { CadMesh(boxShape(), in); }), "no nodes");
+  in = boxInput();
+  in.types.clear();
+  in.conn.clear();
+  EXPECT_MESSAGE_HAS(invalidArgument([&] { CadMesh(boxShape(), in); }), "no elements");
+}
+
+TEST(CadInput, NonFiniteCoordinates) {
+  for (double bad : {kNaN, kInf}) {
+    MeshInput in = boxInput();
+    in.nodes[7].z() = bad;
+    const std::string msg = invalidArgument([&] { CadMesh(boxShape(), in); });
+    EXPECT_MESSAGE_HAS(msg, "node 7");
+    EXPECT_MESSAGE_HAS(msg, "non-finite");
+  }
+}
+
+TEST(CadInput, IndexOutOfRangeAndRepeatedNode) {
+  MeshInput in = boxInput();
+  in.conn[3 * 5 + 2] = static_cast<std::int32_t>(in.nodes.size());
+  std::string msg = invalidArgument([&] { CadMesh(boxShape(), in); });
+  EXPECT_MESSAGE_HAS(msg, "element 5 references node " + std::to_string(in.nodes.size()));
+  in = boxInput();
+  in.conn[3 * 5 + 2] = -3;
+  EXPECT_MESSAGE_HAS(invalidArgument([&] { CadMesh(boxShape(), in); }),
+                     "element 5 references node -3");
+  in = boxInput();
+  in.conn[3 * 5 + 2] = in.conn[3 * 5];
+  EXPECT_MESSAGE_HAS(invalidArgument([&] { CadMesh(boxShape(), in); }), "element 5 repeats node");
+}
+
+TEST(CadInput, UnsupportedElementTypeCode) {
+  for (bool withOffsets : {false, true}) {
+    MeshInput in = boxInput();
+    if (withOffsets) {
+      in.offsets.resize(in.types.size() + 1);
+      for (std::size_t e = 0; e <= in.types.size(); ++e)
+        in.offsets[e] = static_cast<std::int64_t>(3 * e);
+    }
+    in.types[4] = static_cast<ElementType>(7);
+    const std::string msg = invalidArgument([&] { CadMesh(boxShape(), in); });
+    EXPECT_MESSAGE_HAS(msg, "unsupported element type");
+    EXPECT_MESSAGE_HAS(msg, "7");
+  }
+}
+
+TEST(CadInput, BadOffsets) {
+  MeshInput in = boxInput();
+  in.offsets = {0, 3};
+  EXPECT_MESSAGE_HAS(invalidArgument([&] { CadMesh(boxShape(), in); }), "offsets must have");
+  in = boxInput();
+  in.conn.pop_back();
+  EXPECT_MESSAGE_HAS(invalidArgument([&] { CadMesh(boxShape(), in); }), "connectivity has");
+}
+
+TEST(CadInput, DuplicateNodes) {
+  MeshInput in = boxInput();
+  const int i = interiorNodeOf(in);
+  ASSERT_GE(i, 0);
+  // Give one element that uses node i its own copy of it.
+  std::size_t k = 0;
+  while (in.conn[k] != i) ++k;
+  in.nodes.push_back(in.nodes[static_cast<std::size_t>(i)]);
+  in.conn[k] = static_cast<std::int32_t>(in.nodes.size() - 1);
+  const std::string msg = invalidArgument([&] { CadMesh(boxShape(), in); });
+  EXPECT_MESSAGE_HAS(msg, "1 duplicate node");
+  EXPECT_MESSAGE_HAS(msg,
+                     "nodes " + std::to_string(i) + " and " + std::to_string(in.nodes.size() - 1));
+}
+
+TEST(CadInput, NonManifoldEdge) {
+  MeshInput in = boxInput();
+  const int i = interiorNodeOf(in);
+  ASSERT_GE(i, 0);
+  // An element (a, b, c) with a = i; hang a third element on its edge (a, b) whose third node
+  // is another node of the same face, not adjacent.
+  std::size_t e = 0;
+  while (in.conn[3 * e] != i && in.conn[3 * e + 1] != i && in.conn[3 * e + 2] != i) ++e;
+  const std::int32_t a = in.conn[3 * e], b = in.conn[3 * e + 1], c = in.conn[3 * e + 2];
+  int axis = -1;  // the coordinate constant on i's face
+  for (int d = 0; d < 3; ++d) {
+    const double x = in.nodes[static_cast<std::size_t>(i)][d];
+    if (x < 1e-6 || x > 10 - 1e-6) axis = d;
+  }
+  ASSERT_GE(axis, 0);
+  const double plane = in.nodes[static_cast<std::size_t>(i)][axis];
+  std::int32_t far = -1;
+  for (std::size_t n = 0; n < in.nodes.size() && far < 0; ++n)
+    if (std::abs(in.nodes[n][axis] - plane) < 1e-9 &&
+        (in.nodes[n] - in.nodes[static_cast<std::size_t>(i)]).norm() > 4.0 &&
+        static_cast<std::int32_t>(n) != c)
+      far = static_cast<std::int32_t>(n);
+  ASSERT_GE(far, 0);
+  in.types.push_back(ElementType::Tri3);
+  in.conn.insert(in.conn.end(), {a, b, far});
+  const std::string msg = invalidArgument([&] { CadMesh(boxShape(), in); });
+  EXPECT_MESSAGE_HAS(msg, "non-manifold");
+  EXPECT_MESSAGE_HAS(msg, "between nodes " + std::to_string(std::min(a, b)) + " and " +
+                              std::to_string(std::max(a, b)));
+}
+
+TEST(CadInput, MixedOrders) {
+  MeshInput in = boxInput();
+  // Element e lies inside one face (all of the box's faces are planar): make it a tri6 with
+  // its mid-edge nodes, the rest stay tri3.
+  const std::size_t e = 0;
+  const std::int32_t nd[3] = {in.conn[0], in.conn[1], in.conn[2]};
+  std::vector<std::int32_t> six(nd, nd + 3);
+  for (int k = 0; k < 3; ++k) {
+    in.nodes.push_back(0.5 * (in.nodes[static_cast<std::size_t>(nd[k])] +
+                              in.nodes[static_cast<std::size_t>(nd[(k + 1) % 3])]));
+    six.push_back(static_cast<std::int32_t>(in.nodes.size() - 1));
+  }
+  in.types[e] = ElementType::Tri6;
+  in.conn.erase(in.conn.begin(), in.conn.begin() + 3);
+  in.conn.insert(in.conn.begin(), six.begin(), six.end());
+  const std::string msg = invalidArgument([&] { CadMesh(boxShape(), in); });
+  EXPECT_MESSAGE_HAS(msg, "mixes element orders");
+  EXPECT_MESSAGE_HAS(msg, "tri6");
+}
+
+TEST(CadInput, NodesOffTheShapeAreCountedAndNamed) {
+  MeshInput in = boxInput();
+  const int i = interiorNodeOf(in);
+  ASSERT_GE(i, 0);
+  // Push the node 1.0 out of its face (tolerance: 1e-3 · diagonal ≈ 0.017).
+  for (int d = 0; d < 3; ++d) {
+    double& x = in.nodes[static_cast<std::size_t>(i)][d];
+    if (x < 1e-6) x = -1.0;
+    if (x > 10 - 1e-6) x = 11.0;
+  }
+  const std::string msg = invalidArgument([&] { CadMesh(boxShape(), in); });
+  EXPECT_MESSAGE_HAS(msg, "1 of " + std::to_string(in.nodes.size()) + " nodes are farther");
+  EXPECT_MESSAGE_HAS(msg, "node " + std::to_string(i) + " at distance 1");
+  // A larger tolerance accepts it.
+  BridgeOptions o;
+  o.tolerance = 1.5;
+  EXPECT_NO_THROW(CadMesh(boxShape(), in, o));
+}
+
+TEST(CadInput, MeshOfAnotherShape) {
+  // Far away: bounding boxes disjoint.
+  auto cyl = std::make_shared<CadShape>(
+      BRepPrimAPI_MakeCylinder(gp_Ax2(gp_Pnt(100, 0, 0), gp_Dir(0, 0, 1)), 3.0, 8.0).Shape());
+  std::string msg = invalidArgument([&] { CadMesh(cyl, boxInput()); });
+  EXPECT_MESSAGE_HAS(msg, "does not lie on this shape");
+  EXPECT_MESSAGE_HAS(msg, "bounding box");
+  // Overlapping boxes, but another shape: a sphere inside the box.
+  auto sph = std::make_shared<CadShape>(BRepPrimAPI_MakeSphere(gp_Pnt(5, 5, 5), 5.0).Shape());
+  msg = invalidArgument([&] { CadMesh(sph, boxInput()); });
+  EXPECT_MESSAGE_HAS(msg, "does not lie on this shape");
+  EXPECT_MESSAGE_HAS(msg, "sampled nodes are farther");
+}
+
+TEST(CadInput, ToleranceAndBoundaryOptions) {
+  for (double bad : {-1.0, -1e-300, kNaN, kInf}) {
+    BridgeOptions o;
+    o.tolerance = bad;
+    EXPECT_MESSAGE_HAS(invalidArgument([&] { CadMesh(boxShape(), boxInput(), o); }),
+                       "tolerance must be >= 0");
+  }
+  BridgeOptions o;
+  o.tolerance = 0.0;  // automatic: 1e-3 x diagonal
+  CadMesh cm(boxShape(), boxInput(), o);
+  EXPECT_NEAR(cm.report().tolerance, 1e-3 * boxShape()->diagonal(), 1e-12);
+  o.boundary = "glue";
+  EXPECT_MESSAGE_HAS(invalidArgument([&] { CadMesh(boxShape(), boxInput(), o); }),
+                     "unknown boundary mode 'glue'");
+}
+
+TEST(CadInput, BadHints) {
+  MeshInput in = boxInput();
+  in.hintFace.assign(in.nodes.size() - 1, -1);
+  EXPECT_MESSAGE_HAS(invalidArgument([&] { CadMesh(boxShape(), in); }), "hintFace must be");
+  in = boxInput();
+  in.hintEdge.assign(in.nodes.size(), -1);
+  in.hintEdge[4] = 12;  // the box has 12 edges: 0..11
+  EXPECT_MESSAGE_HAS(invalidArgument([&] { CadMesh(boxShape(), in); }),
+                     "hintEdge[4] = 12 out of range");
+  // A wrong but in-range hint is ignored with a warning.
+  in = boxInput();
+  in.hintVertex.assign(in.nodes.size(), -1);
+  const int i = interiorNodeOf(in);
+  in.hintVertex[static_cast<std::size_t>(i)] = 0;
+  CadMesh cm(boxShape(), in);
+  EXPECT_EQ(cm.report().hintsRejected, 1u);
+}
+
+TEST(CadInput, InvalidOrEmptyShape) {
+  EXPECT_MESSAGE_HAS(invalidArgument([] { CadShape s{TopoDS_Shape()}; }), "");
+  EXPECT_FALSE(invalidArgument([] { CadShape::fromBrepString(""); }).empty());
+  EXPECT_FALSE(invalidArgument([] { CadShape::fromBrepString("this is not a BREP"); }).empty());
+  // Edges but no face.
+  const TopoDS_Shape wire =
+      BRepBuilderAPI_MakeWire(BRepBuilderAPI_MakeEdge(gp_Pnt(0, 0, 0), gp_Pnt(1, 0, 0)).Edge())
+          .Wire();
+  EXPECT_MESSAGE_HAS(invalidArgument([&] { CadShape s{wire}; }), "face");
+  std::ostringstream os;
+  BRepTools::Write(wire, os);
+  EXPECT_MESSAGE_HAS(invalidArgument([&] { CadShape::fromBrepString(os.str()); }), "face");
+  EXPECT_MESSAGE_HAS(invalidArgument([&] { CadMesh(nullptr, boxInput()); }), "no shape");
+}
+
+TEST(CadInput, FilesThatAreMissingOrNotShapes) {
+  const std::string dir = std::string(SURFMESH_TEST_DATA_DIR) + "/bad/";
+  for (const char* f : {"does_not_exist.step", "not_a_shape.step", "not_a_shape.brep", "empty.brep",
+                        "empty.step", "square.msh"}) {
+    SCOPED_TRACE(f);
+    const std::string msg = invalidArgument([&] { CadShape::fromFile(dir + f); });
+    EXPECT_MESSAGE_HAS(msg, f);
+  }
+}
+
+TEST(CadInput, AShapeWithFreeFacesOnlyWorks) {
+  // A surface mesh is often made on a face or an open shell, not a solid.
+  const TopoDS_Shape face =
+      BRepBuilderAPI_MakeFace(gp_Pln(gp_Pnt(0, 0, 0), gp_Dir(0, 0, 1)), 0.0, 10.0, 0.0, 6.0).Face();
+  auto shape = std::make_shared<CadShape>(face);
+  MeshInput grid;
+  {
+    const GridMesh g = squareMesh(8, 10.0, 6.0);
+    for (const Vec2& p : g.uv) grid.nodes.push_back(Vec3(p.x(), p.y(), 0.0));
+    grid.conn = g.conn;
+    grid.types.assign(g.conn.size() / 3, ElementType::Tri3);
+  }
+  CadMesh cm(shape, grid);
+  EXPECT_EQ(cm.report().facesUsed, 1u);
+  EXPECT_GT(cm.report().faceNodes, 0u);
+  // Perturb the interior nodes in the plane and optimize: the boundary stays.
+  SurfaceMesh& m = cm.mesh();
+  for (std::size_t n = 0; n < m.nodeCount(); ++n)
+    if (m.nodeKind[n] == NodeKind::Face)
+      m.uv[n] += Vec2(0.3 * std::sin(7.0 * n), 0.3 * std::cos(5.0 * n));
+  syncFaceNodes(m);
+  const std::vector<Vec3> before = m.xyz;
+  const OptimizeResult r = optimizeMesh(m, {});
+  EXPECT_EQ(r.after.tangled, 0u);
+  for (std::size_t n = 0; n < m.nodeCount(); ++n)
+    if (m.nodeKind[n] == NodeKind::Fixed) {
+      EXPECT_EQ(m.xyz[n], before[n]);
+    }
+  // An open cylinder (lateral face only, with its seam).
+  const TopoDS_Shape cylFace = BRepPrimAPI_MakeCylinder(3.0, 8.0).Cylinder().LateralFace();
+  auto cshape = std::make_shared<CadShape>(cylFace);
+  const OccMesh cmesh = meshWithBRepMesh(*cshape, 0.05, 0.5);
+  CadMesh cc(cshape, cmesh.input);
+  EXPECT_EQ(cc.report().facesUsed, 1u);
+  EXPECT_NO_THROW(optimizeMesh(cc.mesh(), {}));
+}
+
+/// Checks the invariants of an optimization on a real shape: nodes on their faces, tangled
+/// count not increased, minimum quality not lowered (monotone mode).
+void expectInvariants(const CadMesh& cm, const OptimizeResult& r, const std::vector<Vec3>& x0) {
+  const SurfaceMesh& m = cm.mesh();
+  EXPECT_LE(r.after.tangled, r.before.tangled);
+  if (r.before.tangled == 0) {
+    EXPECT_GE(r.after.min, r.before.min - 1e-12);
+  }
+  double worst = 0.0;
+  for (std::size_t n = 0; n < m.nodeCount(); ++n) {
+    if (m.nodeKind[n] == NodeKind::Fixed) {
+      EXPECT_EQ(m.xyz[n], x0[n]) << "fixed node " << n << " moved";
+    } else if (m.nodeKind[n] == NodeKind::Face) {
+      const Surface& s = *m.surfaces[static_cast<std::size_t>(m.nodeFace[n])];
+      worst = std::max(worst, (s.value(m.uv[n].x(), m.uv[n].y()) - m.xyz[n]).norm());
+      EXPECT_TRUE(s.contains(m.uv[n].x(), m.uv[n].y())) << "node " << n << " left its face";
+    }
+  }
+  EXPECT_LE(worst, 1e-9 * cm.shape().diagonal());
+}
+
+TEST(CadInput, SphereWithPolesWorks) {
+  // OCC's sphere has two degenerated edges (poles): their nodes are fixed vertex nodes.
+  auto shape = std::make_shared<CadShape>(BRepPrimAPI_MakeSphere(4.0).Shape());
+  const OccMesh om = meshWithBRepMesh(*shape, 0.05, 0.3);
+  CadMesh cm(shape, om.input);
+  EXPECT_GE(cm.report().poleNodes, 2u);
+  const std::vector<Vec3> x0 = cm.mesh().xyz;
+  OptimizeOptions o;
+  o.maxSweeps = 10;
+  const OptimizeResult r = optimizeMesh(cm.mesh(), o);
+  expectInvariants(cm, r, x0);
+}
+
+TEST(Benchmark, UJointWithDegeneratedEdges) {
+  // Third-party GPL part, used from ../shared only (never copied into the repository).
+  const std::string path = std::string(SURFMESH_SHARED_DATA_DIR) + "/gmsh_u_joint.step";
+  if (!std::ifstream(path).good()) GTEST_SKIP() << "absent: " << path;
+  auto shape = CadShape::fromFile(path);
+  const OccMesh om = meshWithBRepMesh(*shape, 2e-3 * shape->diagonal(), 0.5);
+  std::printf("u-joint: %zu nodes, %zu triangles, %zu dropped at poles\n", om.input.nodes.size(),
+              om.input.types.size(), om.droppedTriangles);
+  // Merging the nodes of a pole can leave two copies of a triangle and edges shared by three
+  // triangles (BRepMesh's fans on both sides of the degenerated edge): SurfMesh rejects such
+  // a mesh (see CadInput.DuplicateElement/NonManifoldEdge). Cut those triangles out (the
+  // holes' nodes stay fixed) to check that the shape itself — its poles — works.
+  MeshInput in = om.input;
+  in.offsets.clear();
+  {
+    const std::size_t E = in.types.size();
+    std::map<std::array<std::int32_t, 3>, int> copies;
+    std::map<std::pair<std::int32_t, std::int32_t>, int> edgeUses;
+    auto tri = [&](std::size_t e) {
+      std::array<std::int32_t, 3> k = {in.conn[3 * e], in.conn[3 * e + 1], in.conn[3 * e + 2]};
+      std::sort(k.begin(), k.end());
+      return k;
+    };
+    for (std::size_t e = 0; e < E; ++e) {
+      const auto k = tri(e);
+      ++copies[k];
+      ++edgeUses[{k[0], k[1]}];
+      ++edgeUses[{k[1], k[2]}];
+      ++edgeUses[{k[0], k[2]}];
+    }
+    std::vector<std::int32_t> conn;
+    for (std::size_t e = 0; e < E; ++e) {
+      const auto k = tri(e);
+      if (copies[k] > 1 || edgeUses[{k[0], k[1]}] > 2 || edgeUses[{k[1], k[2]}] > 2 ||
+          edgeUses[{k[0], k[2]}] > 2)
+        continue;
+      conn.insert(conn.end(), in.conn.begin() + 3 * e, in.conn.begin() + 3 * e + 3);
+    }
+    std::printf("u-joint: %zu duplicate or non-manifold triangles cut out\n", E - conn.size() / 3);
+    in.conn = conn;
+    in.types.assign(conn.size() / 3, ElementType::Tri3);
+  }
+  try {
+    CadMesh cm(shape, in);
+    std::printf("%s", cm.report().summary().c_str());
+    EXPECT_GT(cm.report().poleNodes, 0u);
+    const std::vector<Vec3> x0 = cm.mesh().xyz;
+    OptimizeOptions o;
+    o.maxSweeps = 5;
+    const OptimizeResult r = optimizeMesh(cm.mesh(), o);
+    printTableRow("u-joint before", r.before);
+    printTableRow("u-joint after", r.after);
+    expectInvariants(cm, r, x0);
+  } catch (const std::invalid_argument& e) {
+    // A BRepMesh triangulation of this part can be non-manifold at its poles: then the error
+    // must say so clearly.
+    const std::string msg = e.what();
+    std::printf("u-joint rejected: %s\n", msg.c_str());
+    EXPECT_TRUE(msg.find("non-manifold") != std::string::npos ||
+                msg.find("duplicate") != std::string::npos)
+        << msg;
+  }
+}
+
+// ---- regressions found by fuzzing (fuzz/) ------------------------------------------------------
+
+}  // namespace
