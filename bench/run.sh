@@ -1,0 +1,43 @@
+#!/bin/sh
+# SurfMesh benchmarks: builds what is needed, then prints the tables of bench/RESULTS.md.
+#
+#   bench/run.sh [quick]        (from the repository root; BUILD=dir to choose the build dir)
+#
+# 1. scaling: time per sweep, sweeps, floor ratio and peak memory vs element count (torus grid,
+#    10³…10⁶ triangles, 1 and 2 threads) and the floor ratio on OCC faces;
+# 2. SurfMesh vs Gmsh Laplace2D / Relocate2D on the same perturbed meshes (paper's torus, the
+#    engine block of ../shared/data/cad at 1×, 10×, 100× the elements);
+# 3. FreeCAD conversion cost vs optimization (bench/python/bench_conversion.py, freecadcmd).
+set -e
+ROOT=$(cd "$(dirname "$0")/.." && pwd)
+BUILD=${BUILD:-$ROOT/build-bench}
+if [ ! -x "$BUILD/bench/bench_sweep" ] || [ ! -x "$BUILD/bench/bench_cad" ]; then
+  cmake -S "$ROOT" -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release \
+    -DPython3_EXECUTABLE=/usr/bin/python3 -DSURFMESH_BUILD_TESTS=OFF >/dev/null
+fi
+cmake --build "$BUILD" -j2 --target bench_sweep bench_cad >/dev/null
+B=$BUILD/bench
+SIZES="1000 10000 100000 1000000"
+CASES="torus,part,part10,part100"
+if [ "$1" = "quick" ]; then SIZES="1000 10000 100000"; CASES="torus,part"; fi
+
+echo "## Scaling (torus R=10 r=4 grid, ~2% of the nodes moved by 1.3 cells, analytic surface)"
+"$B/bench_sweep" --header
+for n in $SIZES; do
+  for t in 1 2; do "$B/bench_sweep" --surface torus --elements "$n" --threads "$t"; done
+done
+echo
+echo "## Floor ratio on OCC faces (100k triangles, 1 thread)"
+"$B/bench_sweep" --header
+for s in torus occ-torus occ-bspline; do
+  "$B/bench_sweep" --surface "$s" --elements 100000 --threads 1
+done
+echo
+echo "## SurfMesh vs Gmsh"
+/usr/bin/python3 "$ROOT/bench/gmsh_compare.py" --bench-dir "$B" --cases "$CASES" --threads 2 \
+  2>&1 | grep -v '^Info'
+echo
+echo "## FreeCAD conversion vs optimization"
+if [ -f "$ROOT/bench/python/bench_conversion.py" ]; then
+  freecadcmd "$ROOT/bench/python/bench_conversion.py" 2>&1 | grep -E '^\||^#|rror' || true
+fi
