@@ -119,7 +119,7 @@ class HighOrderGmshFiles(unittest.TestCase):
             gmsh.model.occ.synchronize()
             gmsh.option.setNumber("Mesh.CharacteristicLengthMax", 4.0 if order > 1 else 2.0)
             gmsh.option.setNumber("Mesh.RecombineAll", 1 if quads else 0)
-            gmsh.option.setNumber("Mesh.Algorithm", 8 if quads else 6)
+            gmsh.option.setNumber("Mesh.Algorithm", 6)  # (8 crashes on the torus in 4.8.4)
             gmsh.model.mesh.generate(2)
             if order > 1:
                 gmsh.option.setNumber("Mesh.HighOrderOptimize", 0)
@@ -130,7 +130,7 @@ class HighOrderGmshFiles(unittest.TestCase):
             u = np.arctan2(xyz[:, 1], xyz[:, 0])
             v = np.arctan2(xyz[:, 2], np.hypot(xyz[:, 0], xyz[:, 1]) - R)
             rng = np.random.default_rng(11)
-            amp = 0.35 / max(order, 1)
+            amp = 0.35 / order**2  # high-order nodes are far more sensitive
             u = u + amp * 0.3 * rng.standard_normal(len(u))
             v = v + amp * rng.standard_normal(len(v))
             new = np.stack([(R + r * np.cos(v)) * np.cos(u), (R + r * np.cos(v)) * np.sin(u),
@@ -145,7 +145,6 @@ class HighOrderGmshFiles(unittest.TestCase):
             cls.files[name] = path
         gmsh.clear()
         gmsh.option.setNumber("Mesh.RecombineAll", 0)
-        gmsh.option.setNumber("Mesh.Algorithm", 6)
 
     def run_case(self, name):
         from SurfMesh.app import fileio

@@ -104,6 +104,24 @@ class TestOptimize(ApiCase):
         self.assertFalse(ref_t.any())
         np.testing.assert_allclose(res.after.quality, ref_q, atol=1e-9)
 
+    def test_fem_tria6(self):
+        from SurfMesh.app import examples
+
+        tor = examples.make_torus(self.doc)
+        mesh = examples.make_gmsh_mesh(self.doc, tor, 2.5, order="2nd")
+        self.assertEqual(len(mesh.FemMesh.getElementNodes(mesh.FemMesh.Faces[0])), 6)
+        before = T.fem_snapshot(mesh.FemMesh)
+        res = SurfMesh.optimize(mesh, tor, measure="shape")
+        self.assertEqual(res.before.element_types, ["tri6"])
+        self.assertEqual(T.fem_snapshot(mesh.FemMesh), before)
+        nodes1, elems1 = T.fem_snapshot(res.mesh)
+        self.assertEqual(elems1, before[1])
+        self.assertEqual(list(nodes1), list(before[0]))
+        pts = np.array(list(nodes1.values()))
+        self.assertLess(T.torus_distance(pts).max(), 1e-9)  # mid-edge nodes too
+        self.assertEqual(res.after.stats["tangled"], 0)
+        self.assertGreaterEqual(res.after.stats["min"], res.before.stats["min"])
+
     def test_mesh_float32_on_surface(self):
         tor, mobj = T.torus_mesh(self.doc)
         before = T.mesh_snapshot(mobj.Mesh)

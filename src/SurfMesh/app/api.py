@@ -163,7 +163,8 @@ def prepare(mesh, shape, boundary="fixed", tolerance=None, hints="auto", collaps
     collapsed: what to do with elements that repeat a node (zero area: Gmsh meshes made
     through FreeCAD have them where nodes were merged, e.g. at the apex of a cone) and with
     flat tangled slivers whose nodes all lie on one CAD edge (Gmsh's "elements remain invalid"):
-    "skip" leaves them out of measuring and optimizing (reported in ``skipped`` and in the
+    "skip" leaves them, and pairs of elements on the same nodes (folded onto each other), out
+    of measuring and optimizing (reported in ``skipped`` and in the
     bridge warnings; their nodes stay where they are); "error" raises ValueError naming the
     first collapsed element (flat boundary elements are then measured as tangled).
     """
@@ -181,8 +182,11 @@ def prepare(mesh, shape, boundary="fixed", tolerance=None, hints="auto", collaps
     if data.kind == "fem" and hints in ("auto", "all") and part_shape is not None:
         conversion.fem_hints(data, part_shape, faces=(hints == "all"))
     bad = data.collapsed_elements()
+    dup = data.duplicate_elements() & ~bad
     work = data
     data.kept = None
+    if collapsed == "skip":
+        bad = bad | dup
     if bad.any():
         ids = data.element_ids[bad]
         if collapsed == "error" or bad.all():
@@ -207,7 +211,11 @@ def prepare(mesh, shape, boundary="fixed", tolerance=None, hints="auto", collaps
     handle = build(work)
     reasons = []
     if bad.any():
-        reasons.append(f"{int(bad.sum())} collapsed element(s) (a repeated node)")
+        n_dup = int(dup.sum()) if collapsed == "skip" else 0
+        if int(bad.sum()) - n_dup:
+            reasons.append(f"{int(bad.sum()) - n_dup} collapsed element(s) (a repeated node)")
+        if n_dup:
+            reasons.append(f"{n_dup} element(s) with the same nodes as another one (folded pairs)")
     if collapsed == "skip":
         # Slivers whose nodes all lie on one CAD edge and its vertices (Gmsh leaves such
         # "invalid" elements along some edges): no node can leave the edge, so no optimizer can

@@ -89,6 +89,22 @@ class MeshData:
             out[sel] = np.any(block[:, 1:] == block[:, :-1], axis=1)
         return out
 
+    def duplicate_elements(self):
+        """Bool mask of the elements whose corner nodes are those of another element (a pair
+        folded onto itself: one of the two is always inverted)."""
+        seen = {}
+        out = np.zeros(self.element_count, dtype=bool)
+        quad4 = ELEMENT_TYPES["quad4"]
+        for e in range(self.element_count):
+            k = 4 if int(self.types[e]) == quad4 else 3
+            key = tuple(sorted(self.conn[self.offsets[e] : self.offsets[e] + k].tolist()))
+            if key in seen:
+                out[e] = True
+                out[seen[key]] = True
+            else:
+                seen[key] = e
+        return out
+
     def subset(self, keep):
         """A MeshData with only the elements where ``keep`` is True (same nodes)."""
         keep = np.asarray(keep, dtype=bool)
