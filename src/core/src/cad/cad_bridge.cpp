@@ -2,8 +2,12 @@
 #include "surfmesh/cad/cad_bridge.h"
 
 #include <BRepAdaptor_Curve.hxx>
+#include <BRepClass_FaceClassifier.hxx>
 #include <BRepTopAdaptor_FClass2d.hxx>
 #include <BRep_Tool.hxx>
+#include <Extrema_GenLocateExtPS.hxx>
+#include <Extrema_POnSurf.hxx>
+#include <GeomAdaptor_Surface.hxx>
 #include <Geom_Surface.hxx>
 #include <Precision.hxx>
 #include <Extrema_ExtPC.hxx>
@@ -13,8 +17,6 @@
 #include <gp_Pnt2d.hxx>
 
 #include <algorithm>
-#include <cstdio>
-#include <cstdlib>
 #include <array>
 #include <atomic>
 #include <chrono>
@@ -70,16 +72,75 @@ struct FaceHit {
 class Projector {
  public:
   Projector(const CadShape& s, const std::vector<Box>& faceBoxes,
-            const std::vector<Box>& edgeBoxes)
+            const std::vector<Box>& edgeBoxes, const std::vector<double>& faceSlack)
       : s_(s),
         faceBoxes_(faceBoxes),
         edgeBoxes_(edgeBoxes),
-        sas_(static_cast<std::size_t>(s.faceCount())),
+        faceSlack_(faceSlack),
+        tools_(static_cast<std::size_t>(s.faceCount())),
         cls_(static_cast<std::size_t>(s.faceCount())),
-        last_(static_cast<std::size_t>(s.faceCount())),
-        hasLast_(static_cast<std::size_t>(s.faceCount()), 0),
         curves_(static_cast<std::size_t>(s.edgeCount())) {
     preci_ = std::max(Precision::Confusion(), 1e-9 * s.diagonal());
+  }
+
+  /// Per-face projection tools of this thread.
+  struct FaceTools {
+    Handle(Geom_Surface) g;
+    std::unique_ptr<GeomAdaptor_Surface> ad;
+    std::unique_ptr<Extrema_GenLocateExtPS> loc;  // null for analytic surfaces
+    std::unique_ptr<ShapeAnalysis_Surface> sas;
+    std::vector<Vec3> samples;
+    std::vector<Vec2> sampleUV;
+    std::vector<unsigned char> sampleDegenerate;
+    Vec2 last = Vec2::Zero();
+    bool hasLast = false;
+    bool ready = false;
+  };
+
+  FaceTools& tools(int f) {
+    FaceTools& ft = tools_[static_cast<std::size_t>(f)];
+    if (ft.ready) return ft;
+    ft.ready = true;
+    ft.g = Handle(Geom_Surface)::DownCast(BRep_Tool::Surface(s_.face(f))->Copy());
+    GeomAdaptor_Surface probe(ft.g);
+    switch (probe.GetType()) {
+      case GeomAbs_Plane:
+      case GeomAbs_Cylinder:
+      case GeomAbs_Cone:
+      case GeomAbs_Sphere:
+      case GeomAbs_Torus:
+        ft.sas = std::make_unique<ShapeAnalysis_Surface>(ft.g);
+        return ft;
+      default:
+        break;
+    }
+    double u0 = 0, u1 = 0, v0 = 0, v1 = 0;
+    ft.g->Bounds(u0, u1, v0, v1);
+    const ParamBounds& fb = s_.surface(f).faceUVBounds();
+    const double mu = 0.5 * (fb.umax - fb.umin) + 1.0, mv = 0.5 * (fb.vmax - fb.vmin) + 1.0;
+    if (Precision::IsInfinite(u0)) u0 = fb.umin - mu;
+    if (Precision::IsInfinite(u1)) u1 = fb.umax + mu;
+    if (Precision::IsInfinite(v0)) v0 = fb.vmin - mv;
+    if (Precision::IsInfinite(v1)) v1 = fb.vmax + mv;
+    ft.ad = std::make_unique<GeomAdaptor_Surface>(ft.g, u0, u1, v0, v1);
+    ft.loc = std::make_unique<Extrema_GenLocateExtPS>(*ft.ad);
+    constexpr int K = 17;
+    ft.samples.reserve(K * K);
+    ft.sampleUV.reserve(K * K);
+    for (int i = 0; i < K; ++i)
+      for (int j = 0; j < K; ++j) {
+        const double u = fb.umin + (fb.umax - fb.umin) * i / (K - 1);
+        const double v = fb.vmin + (fb.vmax - fb.vmin) * j / (K - 1);
+        gp_Pnt q;
+        gp_Vec du, dv;
+        ft.ad->D1(u, v, q, du, dv);
+        ft.samples.emplace_back(q.X(), q.Y(), q.Z());
+        ft.sampleUV.emplace_back(u, v);
+        const SurfaceD1 d{ft.samples.back(), Vec3(du.X(), du.Y(), du.Z()),
+                          Vec3(dv.X(), dv.Y(), dv.Z())};
+        ft.sampleDegenerate.push_back(isDegenerate(d) ? 1 : 0);
+      }
+    return ft;
   }
 
   /// Distance from p to edge e and the curve parameter of the nearest point.
@@ -117,37 +178,93 @@ class Projector {
 
   /// Projection of p on the surface of face f; fills hit.uv (wrapped), hit.inside and the
   /// distance to the untrimmed surface (returned).
-  double surfaceProjection(int f, const Vec3& p, double maxGap, FaceHit* hit) {
+  double surfaceProjection(int f, const Vec3& p, FaceHit* hit) {
     const std::size_t fi = static_cast<std::size_t>(f);
-    auto& sas = sas_[fi];
-    if (!sas) {
-      Handle(Geom_Surface) g = BRep_Tool::Surface(s_.face(f));
-      g = Handle(Geom_Surface)::DownCast(g->Copy());
-      sas = std::make_unique<ShapeAnalysis_Surface>(g);
-    }
+    hit->face = f;
+    hit->inside = false;
+    FaceTools& ft = tools(f);
     const gp_Pnt P = toPnt(p);
     gp_Pnt2d uv;
     double gap = kInf;
     try {
-      uv = hasLast_[fi] ? sas->NextValueOfUV(last_[fi], P, preci_, maxGap)
-                        : sas->ValueOfUV(P, preci_);
-      gap = sas->Gap();
+      if (!ft.loc) {
+        // Analytic surfaces: closed form (ElSLib) through ShapeAnalysis_Surface.
+        uv = ft.sas->ValueOfUV(P, preci_);
+        gap = ft.sas->Gap();
+      } else {
+        localProjection(ft, P, faceSlack_[fi], &uv, &gap);
+      }
     } catch (const Standard_Failure&) {
-      hit->face = f;
-      hit->inside = false;
       return kInf;
     }
     if (!std::isfinite(uv.X()) || !std::isfinite(uv.Y())) return kInf;
-    last_[fi] = uv;
-    hasLast_[fi] = 1;
     const OccFaceSurface& surf = s_.surface(f);
-    hit->face = f;
     hit->uv = surf.wrap(Vec2(uv.X(), uv.Y()));
     hit->hasUV = true;
     hit->inside = classify(f, hit->uv);
     if (!hit->inside && (surf.uTurnPeriod() > 0.0 || surf.vTurnPeriod() > 0.0))
       hit->inside = findTurn(surf, f, &hit->uv);
     return gap;
+  }
+
+  /// Free-form surfaces: OCC's local extremum search (Extrema_GenLocateExtPS, the normal
+  /// equations, then the distance criterion) started from the previous point on this face and
+  /// from the nearest non-degenerate samples of a grid over the face, until a point within
+  /// `enough` (the point is on the surface) is found; ShapeAnalysis_Surface::ValueOfUV (global)
+  /// when every start fails.
+  void localProjection(FaceTools& ft, const gp_Pnt& P, double slack, gp_Pnt2d* uv, double* gap) {
+    const double enough = std::min(slack, 1e-9 * s_.diagonal() + preci_);
+    const Vec3 p(P.X(), P.Y(), P.Z());
+    double bestGap = kInf;
+    auto tryStart = [&](const Vec2& st) {
+      const double startD2 = (ft.ad->Value(st.x(), st.y()).XYZ() - P.XYZ()).SquareModulus();
+      auto take = [&]() {
+        const double g = std::sqrt(ft.loc->SquareDistance());
+        if (g < bestGap) {
+          bestGap = g;
+          double u = 0.0, v = 0.0;
+          ft.loc->Point().Parameter(u, v);
+          uv->SetCoord(u, v);
+        }
+      };
+      ft.loc->Perform(P, st.x(), st.y(), Standard_False);
+      if (ft.loc->IsDone() && ft.loc->SquareDistance() <= startD2 * (1.0 + 1e-12)) take();
+      if (bestGap > enough) {
+        ft.loc->Perform(P, st.x(), st.y(), Standard_True);
+        if (ft.loc->IsDone()) take();
+      }
+      return bestGap <= enough;
+    };
+    bool ok = ft.hasLast && tryStart(ft.last);
+    if (!ok) {
+      constexpr int kStarts = 4;
+      std::array<std::pair<double, std::size_t>, kStarts> nearest;
+      nearest.fill({kInf, 0});
+      for (std::size_t k = 0; k < ft.samples.size(); ++k) {
+        if (ft.sampleDegenerate[k]) continue;
+        const double d = (ft.samples[k] - p).squaredNorm();
+        if (d >= nearest[kStarts - 1].first) continue;
+        int i = kStarts - 1;
+        while (i > 0 && nearest[static_cast<std::size_t>(i) - 1].first > d) {
+          nearest[static_cast<std::size_t>(i)] = nearest[static_cast<std::size_t>(i) - 1];
+          --i;
+        }
+        nearest[static_cast<std::size_t>(i)] = {d, k};
+      }
+      for (const auto& [d, k] : nearest) {
+        if (!std::isfinite(d)) break;
+        if (tryStart(ft.sampleUV[k])) break;
+      }
+    }
+    if (std::isfinite(bestGap)) {
+      ft.last = Vec2(uv->X(), uv->Y());
+      ft.hasLast = true;
+      *gap = bestGap;
+      return;
+    }
+    if (!ft.sas) ft.sas = std::make_unique<ShapeAnalysis_Surface>(ft.g);
+    *uv = ft.sas->ValueOfUV(P, preci_);
+    *gap = ft.sas->Gap();
   }
 
   /// For a face spanning several periods: shifts uv by whole periods of the underlying
@@ -179,6 +296,18 @@ class Projector {
     return false;
   }
 
+  /// Same as classify() with BRepClass_FaceClassifier on the exact pcurves (slower).
+  bool classifyExact(int f, const Vec2& uv) {
+    const OccFaceSurface& surf = s_.surface(f);
+    const Vec2 w = surf.wrap(uv);
+    try {
+      BRepClass_FaceClassifier c(s_.face(f), gp_Pnt2d(w.x(), w.y()), surf.uvTolerance());
+      return c.State() == TopAbs_IN || c.State() == TopAbs_ON;
+    } catch (const Standard_Failure&) {
+      return false;
+    }
+  }
+
   /// Whether (u,v) is inside (or on) face f's trimming loops.
   bool classify(int f, const Vec2& uv) {
     auto& c = cls_[static_cast<std::size_t>(f)];
@@ -188,7 +317,10 @@ class Projector {
     TopAbs_State st = TopAbs_UNKNOWN;
     try {
       const bool turns = surf.uTurnPeriod() > 0.0 || surf.vTurnPeriod() > 0.0;
-      st = c->Perform(gp_Pnt2d(w.x(), w.y()), turns ? Standard_False : Standard_True);
+      // Fast polygon test; a point within the polygon's deflection band of the boundary is ON
+      // (counted inside): the caller measures distances, exactness at the boundary is moot.
+      st = c->TestOnRestriction(gp_Pnt2d(w.x(), w.y()), surf.uvTolerance(),
+                                turns ? Standard_False : Standard_True);
     } catch (const Standard_Failure&) {
       return false;
     }
@@ -201,26 +333,67 @@ class Projector {
   FaceHit faceDistance(int f, const Vec3& p, double bound) {
     FaceHit hit;
     hit.face = f;
-    const double gap =
-        surfaceProjection(f, p, std::isfinite(bound) ? std::max(bound, preci_) : -1.0, &hit);
-    if (hit.inside) {
+    const double gap = surfaceProjection(f, p, &hit);
+    const double slack = faceSlack_[static_cast<std::size_t>(f)];
+    if (hit.inside && gap <= slack) {
       hit.dist = gap;
       return hit;
     }
-    // Outside the trimming loops (or the projection failed): nearest boundary edge.
-    double best = kInf;
+    // Outside the trimming loops, or a projection that is not clearly on the face (a local
+    // search may miss a point on the face's boundary): the nearest boundary edge too.
+    double best = kInf, bestT = 0.0;
+    int bestE = -1;
+    const double cap = hit.inside ? std::min(bound, gap) : bound;
     for (int e : s_.faceEdges(f)) {
       if (s_.isDegeneratedEdge(e)) continue;
       const double lb = boxDistance(edgeBoxes_[static_cast<std::size_t>(e)], p);
-      if (lb > std::min(best, bound)) continue;
+      if (lb > std::min(best, cap)) continue;
       double t = 0.0;
       const double d = edgeDistance(e, p, &t);
-      if (d < best) best = d;
+      if (d < best) {
+        best = d;
+        bestE = e;
+        bestT = t;
+      }
+    }
+    if (hit.inside && !(best < gap)) {
+      hit.dist = gap;
+      return hit;
+    }
+    if (bestE >= 0) {
+      try {
+        const OccFaceSurface& surf = s_.surface(f);
+        hit.uv = surf.wrap(s_.curve(bestE).uvOnFace(f, bestT, hit.uv));
+        hit.hasUV = hit.uv.allFinite();
+      } catch (const std::exception&) {
+      }
     }
     if (!std::isfinite(best) && std::isfinite(gap))  // every edge beyond the bound
       best = std::isfinite(bound) ? std::max(gap, std::nextafter(bound, kInf)) : gap;
     hit.dist = best;
     return hit;
+  }
+
+  /// 2 × the tolerance of the boundary edge of face f nearest to p (at least `base`).
+  double boundarySlack(int f, const Vec3& p, double base) {
+    double best = kInf;
+    int be = -1;
+    for (int e : s_.faceEdges(f)) {
+      if (s_.isDegeneratedEdge(e)) continue;
+      if (boxDistance(edgeBoxes_[static_cast<std::size_t>(e)], p) > best) continue;
+      double t = 0.0;
+      const double d = edgeDistance(e, p, &t);
+      if (d < best) {
+        best = d;
+        be = e;
+      }
+    }
+    double tol = BRep_Tool::Tolerance(s_.face(f));
+    if (be >= 0) {
+      tol = std::max(tol, BRep_Tool::Tolerance(s_.edge(be)));
+      for (int v : s_.edgeVertices(be)) tol = std::max(tol, s_.vertexTolerance(v));
+    }
+    return std::max(base, 2.0 * tol);
   }
 
   /// Exact distance from p to the whole shape (branch and bound over face boxes).
@@ -258,10 +431,9 @@ class Projector {
   const CadShape& s_;
   const std::vector<Box>& faceBoxes_;
   const std::vector<Box>& edgeBoxes_;
-  std::vector<std::unique_ptr<ShapeAnalysis_Surface>> sas_;
+  const std::vector<double>& faceSlack_;
+  std::vector<FaceTools> tools_;
   std::vector<std::unique_ptr<BRepTopAdaptor_FClass2d>> cls_;
-  std::vector<gp_Pnt2d> last_;
-  std::vector<unsigned char> hasLast_;
   std::vector<std::unique_ptr<BRepAdaptor_Curve>> curves_;
   double preci_ = 1e-7;
 };
@@ -269,14 +441,14 @@ class Projector {
 /// Runs body(i, projector) for i in [0, n) on `threads` threads, each with its own Projector.
 template <class Body>
 void parallelFor(std::size_t n, int threads, const CadShape& s, const std::vector<Box>& fb,
-                 const std::vector<Box>& eb, Body body) {
+                 const std::vector<Box>& eb, const std::vector<double>& slack, Body body) {
   const std::size_t chunk = 256;
   std::atomic<std::size_t> next{0};
   std::exception_ptr error;
   std::mutex errorMutex;
   auto worker = [&]() {
     try {
-      Projector proj(s, fb, eb);
+      Projector proj(s, fb, eb, slack);
       for (;;) {
         const std::size_t begin = next.fetch_add(chunk);
         if (begin >= n) break;
@@ -447,6 +619,18 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   for (int f = 0; f < NF; ++f) faceBoxes[static_cast<std::size_t>(f)] = toBox(S.faceBox(f));
   for (int e = 0; e < NE; ++e) edgeBoxes[static_cast<std::size_t>(e)] = toBox(S.edgeBox(e));
 
+  // Per face: how much farther than the nearest face a node may be and still lie on it (the
+  // sloppiest tolerance among the face's edges and vertices, at least 1e-6·diag).
+  std::vector<double> faceSlack(static_cast<std::size_t>(NF));
+  for (int f = 0; f < NF; ++f) {
+    double t = BRep_Tool::Tolerance(S.face(f));
+    for (int e : S.faceEdges(f)) {
+      t = std::max(t, BRep_Tool::Tolerance(S.edge(e)));
+      for (int v : S.edgeVertices(e)) t = std::max(t, S.vertexTolerance(v));
+    }
+    faceSlack[static_cast<std::size_t>(f)] = std::min(tol, std::max(1e-6 * diag, 2.0 * t));
+  }
+
   // ---- fail fast on a mesh of another shape ---------------------------------------------------
   {
     Box mb = {kInf, kInf, kInf, -kInf, -kInf, -kInf};
@@ -471,7 +655,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
     const std::size_t samples = std::min<std::size_t>(N, 64);
     std::vector<double> sd(samples);
     std::vector<int> sf(samples, -1);
-    parallelFor(samples, threads, S, faceBoxes, edgeBoxes, [&](std::size_t k, Projector& pr) {
+    parallelFor(samples, threads, S, faceBoxes, edgeBoxes, faceSlack, [&](std::size_t k, Projector& pr) {
       const std::size_t n = k * N / samples;
       std::vector<FaceHit> hits;
       pr.facesNear(input.nodes[n], tol, &hits);
@@ -502,7 +686,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   std::vector<unsigned char> hintRejected(N, 0);
   const bool anyHints =
       !input.hintFace.empty() || !input.hintEdge.empty() || !input.hintVertex.empty();
-  parallelFor(N, threads, S, faceBoxes, edgeBoxes, [&](std::size_t n, Projector& pr) {
+  parallelFor(N, threads, S, faceBoxes, edgeBoxes, faceSlack, [&](std::size_t n, Projector& pr) {
     const Vec3& p = input.nodes[n];
     auto& h = hits[n];
     if (anyHints) {
@@ -543,6 +727,20 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
       h.clear();
     }
     pr.facesNear(p, tol, &h);
+    // Keep the faces as close as the nearest one up to the tolerance of their boundary near
+    // the node (a node near a tangent edge, or on a thin wall, is within `tol` of the
+    // neighbouring face too, but not on it).
+    double dmin = kInf;
+    for (const FaceHit& x : h) dmin = std::min(dmin, x.dist);
+    const double base = 1e-6 * diag;
+    h.erase(std::remove_if(h.begin(), h.end(),
+                           [&](const FaceHit& x) {
+                             if (x.dist <= dmin + base) return false;
+                             if (x.dist > dmin + faceSlack[static_cast<std::size_t>(x.face)])
+                               return true;
+                             return x.dist > dmin + pr.boundarySlack(x.face, p, base);
+                           }),
+            h.end());
   });
 
   report_.tolerance = tol;
@@ -556,7 +754,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   }
   if (!offNodes.empty()) {
     const std::size_t checked = std::min<std::size_t>(offNodes.size(), 1000);
-    parallelFor(checked, threads, S, faceBoxes, edgeBoxes, [&](std::size_t k, Projector& pr) {
+    parallelFor(checked, threads, S, faceBoxes, edgeBoxes, faceSlack, [&](std::size_t k, Projector& pr) {
       const std::size_t n = offNodes[k];
       report_.nodeDistance[n] = pr.shapeDistance(input.nodes[n], nullptr);
     });
@@ -589,7 +787,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   }
 
   // Single-threaded tools for the rest.
-  Projector proj(S, faceBoxes, edgeBoxes);
+  Projector proj(S, faceBoxes, edgeBoxes, faceSlack);
 
   // ---- 2. element faces ---------------------------------------------------------------------
   std::vector<std::vector<int>> nodeFaces(N);  // C(n), sorted
@@ -625,43 +823,19 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
         elemFace[e] = common[0];
         continue;
       }
-      static const char* dbgE = std::getenv("SMDBG_ELEM");
-      // Several faces qualify (small elements near an edge, tangent faces): the element's
-      // (u,v) centroid must fall inside the right face, and φ there is closest to the
-      // element's centroid.
+      // Several faces qualify (small elements at an edge, faces tangent to each other, thin
+      // walls): the face nearest to the element's nodes and to its centroid.
       Vec3 c = Vec3::Zero();
       for (int k = 0; k < nn; ++k) c += input.nodes[static_cast<std::size_t>(nd[k])];
       c /= nn;
       double best = kInf;
-      bool bestInside = false;
       for (int f : common) {
-        const OccFaceSurface& surf = S.surface(f);
-        Vec2 sum = Vec2::Zero(), ref = Vec2::Zero();
-        for (int k = 0; k < nn; ++k) {
-          const std::size_t n = static_cast<std::size_t>(nd[k]);
-          Vec2 uv;
-          bool have = false;
-          for (const FaceHit& h : hits[n])
-            if (h.face == f && h.hasUV) {
-              uv = h.uv;
-              have = true;
-            }
-          if (!have) uv = proj.faceDistance(f, input.nodes[n], kInf).uv;
-          if (k == 0)
-            ref = uv;
-          else
-            uv = surf.unwrapNear(uv, ref);
-          sum += uv;
-        }
-        const Vec2 mid = sum / nn;
-        const bool inside = proj.classify(f, mid);
-        const double d = inside ? (surf.value(mid.x(), mid.y()) - c).norm()
-                                : proj.faceDistance(f, c, kInf).dist;
-        if (dbgE && std::atoi(dbgE) == static_cast<int>(e))
-          std::fprintf(stderr, "elem %zu face %d inside %d d %g\n", e, f, inside, d);
-        if ((inside && !bestInside) || (inside == bestInside && d < best)) {
+        double d = proj.faceDistance(f, c, kInf).dist;
+        for (int k = 0; k < nn; ++k)
+          for (const FaceHit& h : hits[static_cast<std::size_t>(nd[k])])
+            if (h.face == f) d += h.dist;
+        if (d < best) {
           best = d;
-          bestInside = inside;
           elemFace[e] = f;
         }
       }
