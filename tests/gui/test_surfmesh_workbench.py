@@ -186,6 +186,20 @@ try:
     check(frac4 + frac4y > 0.5, f"Mesh screenshot shows quality colors ({frac4:.3f}, "
                                 f"{frac4y:.3f})")
 
+    # ---- FEM tria6: node colors (ElementColor draws wrong colors on tria6 in 0.20) ----------
+    m.ViewObject.Visibility = False
+    m6 = examples.make_gmsh_mesh(doc, tor, 2.5, name="Torus6", order="2nd")
+    FreeCADGui.Selection.clearSelection()
+    FreeCADGui.Selection.addSelection(m6)
+    FreeCADGui.runCommand("SurfMesh_Measure")
+    FreeCADGui.updateGui()
+    check(len(m6.SurfMeshColors) == len(m6.FemMesh.Faces), "tria6 colors per element")
+    shot5 = os.path.join(out, "gui_tria6.png")
+    view.fitAll()
+    view.saveImage(shot5, 800, 600, "White")
+    g5, y5, _ = shares(pixels(shot5))
+    check(g5 + y5 > 0.5, f"tria6 screenshot shows quality colors ({g5:.3f}, {y5:.3f})")
+
     FreeCAD.closeDocument(doc.Name)
     code = 0
 except BaseException:
