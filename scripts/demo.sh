@@ -18,9 +18,12 @@ bash "$REPO/scripts/install.sh"
 
 echo "[demo] torus example (freecadcmd)"
 freecadcmd "$MOD_DIR/SurfMesh/cli/demo.py" -- "$OUT" 2>&1 \
-  | grep -vE '^\s*\(?[0-9]+ %\)|^\s*$|^  [# ]|^  [A-Z/]|Recompute|FreeCAD|Juergen|free and open|wouldn.t be' \
+  | grep -vE '^\s*\(?[0-9]+ %\)|^\s*$|^  [# ]|^  [A-Z/]|Recompute|FreeCAD|Juergen|free and open|wouldn.t be|Tangled|^Measure|^---|Table 2' \
   || true
 [ -f "$OUT/torus.FCStd" ] || { echo "[demo] ERROR: the torus example failed"; exit 1; }
+echo
+cat "$OUT/table.txt"
+echo
 
 echo "[demo] screenshot of the colored meshes (freecad under xvfb-run)"
 SURFMESH_DEMO_OUTPUT="$OUT" QTWEBENGINE_DISABLE_SANDBOX=1 timeout 600 \
