@@ -5,12 +5,12 @@
 #include <BRepClass_FaceClassifier.hxx>
 #include <BRepTopAdaptor_FClass2d.hxx>
 #include <BRep_Tool.hxx>
+#include <Extrema_ExtPC.hxx>
 #include <Extrema_GenLocateExtPS.hxx>
 #include <Extrema_POnSurf.hxx>
 #include <GeomAdaptor_Surface.hxx>
 #include <Geom_Surface.hxx>
 #include <Precision.hxx>
-#include <Extrema_ExtPC.hxx>
 #include <ShapeAnalysis_Surface.hxx>
 #include <Standard_Failure.hxx>
 #include <gp_Pnt.hxx>
@@ -62,25 +62,27 @@ gp_Pnt toPnt(const Vec3& v) { return gp_Pnt(v.x(), v.y(), v.z()); }
 /// Distance of a point to one face.
 struct FaceHit {
   int face = -1;
-  double dist = kInf;     ///< distance to the trimmed face
+  double dist = kInf;      ///< distance to the trimmed face
   Vec2 uv = Vec2::Zero();  ///< projection on the face's surface (wrapped)
-  bool inside = false;    ///< the surface projection lies in the trimmed domain
-  bool hasUV = false;     ///< uv holds a projection (false for hits made from hints)
+  bool inside = false;     ///< the surface projection lies in the trimmed domain
+  bool hasUV = false;      ///< uv holds a projection (false for hits made from hints)
 };
 
 /// Per-thread projection tools on a CadShape (OCC algorithms are not shared between threads).
 class Projector {
  public:
-  Projector(const CadShape& s, const std::vector<Box>& faceBoxes,
-            const std::vector<Box>& edgeBoxes, const std::vector<double>& faceSlack)
+  Projector(const CadShape& s, const std::vector<Box>& faceBoxes, const std::vector<Box>& edgeBoxes,
+            const std::vector<double>& faceSlack)
       : s_(s),
         faceBoxes_(faceBoxes),
         edgeBoxes_(edgeBoxes),
         faceSlack_(faceSlack),
+
         tools_(static_cast<std::size_t>(s.faceCount())),
         cls_(static_cast<std::size_t>(s.faceCount())),
         curves_(static_cast<std::size_t>(s.edgeCount())) {
     preci_ = std::max(Precision::Confusion(), 1e-9 * s.diagonal());
+    for (double x : faceSlack) maxSlack_ = std::max(maxSlack_, x);
   }
 
   /// Per-face projection tools of this thread.
@@ -256,15 +258,20 @@ class Projector {
         if (tryStart(ft.sampleUV[k])) break;
       }
     }
-    if (std::isfinite(bestGap)) {
+    if (bestGap <= slack) {
       ft.last = Vec2(uv->X(), uv->Y());
       ft.hasLast = true;
       *gap = bestGap;
       return;
     }
+    // Not on the surface as far as the local searches tell: confirm with the global search.
     if (!ft.sas) ft.sas = std::make_unique<ShapeAnalysis_Surface>(ft.g);
-    *uv = ft.sas->ValueOfUV(P, preci_);
-    *gap = ft.sas->Gap();
+    const gp_Pnt2d g = ft.sas->ValueOfUV(P, preci_);
+    if (ft.sas->Gap() < bestGap || !std::isfinite(bestGap)) {
+      *uv = g;
+      bestGap = ft.sas->Gap();
+    }
+    *gap = bestGap;
   }
 
   /// For a face spanning several periods: shifts uv by whole periods of the underlying
@@ -417,14 +424,28 @@ class Projector {
     return best;
   }
 
-  /// Every face within tol of p.
+  /// Every face within tol of p. Faces are searched near p first (the radius the per-face
+  /// slack needs once a face at distance ~0 is found), then out to tol if none is that close.
   void facesNear(const Vec3& p, double tol, std::vector<FaceHit>* out) {
     out->clear();
-    for (std::size_t f = 0; f < faceBoxes_.size(); ++f) {
-      if (boxDistance(faceBoxes_[f], p) > tol) continue;
-      FaceHit h = faceDistance(static_cast<int>(f), p, tol);
-      if (h.dist <= tol) out->push_back(h);
-    }
+    const double r1 = std::min(tol, 2.0 * maxSlack_);
+    double dmin = kInf;
+    std::vector<unsigned char>& seen = seen_;
+    seen.assign(faceBoxes_.size(), 0);
+    auto scan = [&](double radius) {
+      for (std::size_t f = 0; f < faceBoxes_.size(); ++f) {
+        if (seen[f] || boxDistance(faceBoxes_[f], p) > radius) continue;
+        seen[f] = 1;
+        FaceHit h = faceDistance(static_cast<int>(f), p, tol);
+        if (h.dist <= tol) {
+          dmin = std::min(dmin, h.dist);
+          out->push_back(h);
+        }
+      }
+    };
+    scan(r1);
+    if (dmin <= maxSlack_ || r1 >= tol) return;
+    scan(std::isfinite(dmin) ? std::min(tol, dmin + maxSlack_) : tol);
   }
 
  private:
@@ -433,6 +454,8 @@ class Projector {
   const std::vector<Box>& edgeBoxes_;
   const std::vector<double>& faceSlack_;
   std::vector<FaceTools> tools_;
+  std::vector<unsigned char> seen_;
+  double maxSlack_ = 0.0;
   std::vector<std::unique_ptr<BRepTopAdaptor_FClass2d>> cls_;
   std::vector<std::unique_ptr<BRepAdaptor_Curve>> curves_;
   double preci_ = 1e-7;
@@ -481,8 +504,7 @@ std::string joinInts(const std::vector<int>& v) {
 }
 
 bool includesAll(const std::vector<int>& sortedSuper, const std::vector<int>& sortedSub) {
-  return std::includes(sortedSuper.begin(), sortedSuper.end(), sortedSub.begin(),
-                       sortedSub.end());
+  return std::includes(sortedSuper.begin(), sortedSuper.end(), sortedSub.begin(), sortedSub.end());
 }
 
 // Local node index pairs of the element's boundary edges, with the high-order nodes on each
@@ -505,10 +527,14 @@ void fail(const std::string& msg) { throw std::invalid_argument("CadMesh: " + ms
 
 const char* nodeClassName(NodeClass c) {
   switch (c) {
-    case NodeClass::Vertex: return "vertex";
-    case NodeClass::Edge: return "edge";
-    case NodeClass::Face: return "face";
-    case NodeClass::None: return "none";
+    case NodeClass::Vertex:
+      return "vertex";
+    case NodeClass::Edge:
+      return "edge";
+    case NodeClass::Face:
+      return "face";
+    case NodeClass::None:
+      return "none";
   }
   return "?";
 }
@@ -521,8 +547,8 @@ std::string BridgeReport::summary() const {
   os << "; " << fixedNodes << " fixed, " << slidingNodes << " sliding\n";
   std::size_t elems = 0;
   for (int c : faceElements) elems += static_cast<std::size_t>(c);
-  os << elems << " elements on " << facesUsed << " faces; max distance to the shape "
-     << maxDistance << " (node " << worstNode << ", tolerance " << tolerance << ")\n";
+  os << elems << " elements on " << facesUsed << " faces; max distance to the shape " << maxDistance
+     << " (node " << worstNode << ", tolerance " << tolerance << ")\n";
   if (!flippedFaces.empty()) {
     os << flippedFaces.size() << " face(s) meshed with the opposite winding (flipped): ";
     for (std::size_t i = 0; i < flippedFaces.size(); ++i) os << (i ? ", " : "") << flippedFaces[i];
@@ -532,8 +558,7 @@ std::string BridgeReport::summary() const {
   return os.str();
 }
 
-MeshInput triangleMeshInput(const std::vector<double>& xyz,
-                            const std::vector<std::int32_t>& tris) {
+MeshInput triangleMeshInput(const std::vector<double>& xyz, const std::vector<std::int32_t>& tris) {
   if (xyz.size() % 3 != 0) fail("xyz must hold 3 values per node");
   if (tris.size() % 3 != 0) fail("triangles must hold 3 node ids each");
   MeshInput in;
@@ -564,8 +589,8 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   if (options.boundary != "fixed" && options.boundary != "slide")
     fail("unknown boundary mode '" + options.boundary + "' (expected \"fixed\" or \"slide\")");
   const bool slide = options.boundary == "slide";
-  const int threads =
-      options.threads > 0 ? options.threads
+  const int threads = options.threads > 0
+                          ? options.threads
                           : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
   if (N == 0) fail("the mesh has no nodes");
   if (E == 0) fail("the mesh has no elements");
@@ -604,8 +629,8 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   auto checkHints = [&](const std::vector<std::int32_t>& h, int count, const char* name) {
     if (h.empty()) return;
     if (h.size() != N)
-      fail(std::string(name) + " must be empty or have one entry per node (" +
-           std::to_string(N) + "), got " + std::to_string(h.size()));
+      fail(std::string(name) + " must be empty or have one entry per node (" + std::to_string(N) +
+           "), got " + std::to_string(h.size()));
     for (std::size_t i = 0; i < N; ++i)
       if (h[i] < -1 || h[i] >= count)
         fail(std::string(name) + "[" + std::to_string(i) + "] = " + std::to_string(h[i]) +
@@ -642,8 +667,8 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
     const Box sb = toBox(S.boundingBox());
     auto boxText = [](const Box& b) {
       std::ostringstream os;
-      os << "[" << b[0] << ", " << b[1] << ", " << b[2] << "] - [" << b[3] << ", " << b[4]
-         << ", " << b[5] << "]";
+      os << "[" << b[0] << ", " << b[1] << ", " << b[2] << "] - [" << b[3] << ", " << b[4] << ", "
+         << b[5] << "]";
       return os.str();
     };
     bool disjoint = false;
@@ -655,12 +680,13 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
     const std::size_t samples = std::min<std::size_t>(N, 64);
     std::vector<double> sd(samples);
     std::vector<int> sf(samples, -1);
-    parallelFor(samples, threads, S, faceBoxes, edgeBoxes, faceSlack, [&](std::size_t k, Projector& pr) {
-      const std::size_t n = k * N / samples;
-      std::vector<FaceHit> hits;
-      pr.facesNear(input.nodes[n], tol, &hits);
-      sd[k] = hits.empty() ? pr.shapeDistance(input.nodes[n], nullptr) : 0.0;
-    });
+    parallelFor(samples, threads, S, faceBoxes, edgeBoxes, faceSlack,
+                [&](std::size_t k, Projector& pr) {
+                  const std::size_t n = k * N / samples;
+                  std::vector<FaceHit> hits;
+                  pr.facesNear(input.nodes[n], tol, &hits);
+                  sd[k] = hits.empty() ? pr.shapeDistance(input.nodes[n], nullptr) : 0.0;
+                });
     std::size_t off = 0, worst = 0;
     for (std::size_t k = 0; k < samples; ++k)
       if (sd[k] > tol) {
@@ -670,9 +696,9 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
     if (off * 2 > samples) {
       std::ostringstream os;
       os << "the mesh does not lie on this shape: " << off << " of " << samples
-         << " sampled nodes are farther than the tolerance " << tol << " from every face (e.g. node "
-         << worst * N / samples << " at distance " << sd[worst] << "); mesh bounding box "
-         << boxText(mb) << ", shape bounding box " << boxText(sb);
+         << " sampled nodes are farther than the tolerance " << tol
+         << " from every face (e.g. node " << worst * N / samples << " at distance " << sd[worst]
+         << "); mesh bounding box " << boxText(mb) << ", shape bounding box " << boxText(sb);
       fail(os.str());
     }
   }
@@ -754,18 +780,18 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   }
   if (!offNodes.empty()) {
     const std::size_t checked = std::min<std::size_t>(offNodes.size(), 1000);
-    parallelFor(checked, threads, S, faceBoxes, edgeBoxes, faceSlack, [&](std::size_t k, Projector& pr) {
-      const std::size_t n = offNodes[k];
-      report_.nodeDistance[n] = pr.shapeDistance(input.nodes[n], nullptr);
-    });
+    parallelFor(checked, threads, S, faceBoxes, edgeBoxes, faceSlack,
+                [&](std::size_t k, Projector& pr) {
+                  const std::size_t n = offNodes[k];
+                  report_.nodeDistance[n] = pr.shapeDistance(input.nodes[n], nullptr);
+                });
     std::size_t worst = offNodes[0];
     for (std::size_t k = 0; k < checked; ++k)
       if (report_.nodeDistance[offNodes[k]] > report_.nodeDistance[worst]) worst = offNodes[k];
     std::ostringstream os;
     os << offNodes.size() << " of " << N << " nodes are farther than the tolerance " << tol
-       << " from the shape; worst: node " << worst << " at distance "
-       << report_.nodeDistance[worst] << " (" << report_.nodeDistance[worst] / diag
-       << " x diagonal)";
+       << " from the shape; worst: node " << worst << " at distance " << report_.nodeDistance[worst]
+       << " (" << report_.nodeDistance[worst] / diag << " x diagonal)";
     if (checked < offNodes.size()) os << " among the first " << checked << " checked";
     os << "; e.g. nodes";
     for (std::size_t k = 0; k < std::min<std::size_t>(offNodes.size(), 5); ++k)
@@ -965,8 +991,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
       setEdge(n, forcedId[n], forcedT[n]);
       continue;
     }
-    if (forced[n] == Forced::Face && F.size() == 1 && F[0] == forcedId[n] &&
-        !onMeshBoundary[n]) {
+    if (forced[n] == Forced::Face && F.size() == 1 && F[0] == forcedId[n] && !onMeshBoundary[n]) {
       setFace(n, F[0]);
       continue;
     }
@@ -1054,12 +1079,14 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
     report_.warnings.push_back(
         std::to_string(boundaryNoEdge) +
         " nodes on the mesh's boundary lie on no CAD edge of their face; they are kept fixed "
-        "(e.g. node " + std::to_string(firstBoundaryNoEdge) + ")");
+        "(e.g. node " +
+        std::to_string(firstBoundaryNoEdge) + ")");
   if (unplaced)
     report_.warnings.push_back(
         std::to_string(unplaced) +
         " nodes touch elements of several faces but lie on none of their common CAD edges or "
-        "vertices; they are kept fixed (e.g. node " + std::to_string(firstUnplaced) + ")");
+        "vertices; they are kept fixed (e.g. node " +
+        std::to_string(firstUnplaced) + ")");
 
   // ---- 4. the SurfaceMesh -------------------------------------------------------------------
   surfaces_.reserve(static_cast<std::size_t>(NF));
@@ -1137,7 +1164,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
           const auto& ef = S.edgeFaces(ed);
           if (std::binary_search(ef.begin(), ef.end(), f)) {
             uv = curves_[static_cast<std::size_t>(ed)]->uvOnFace(f, report_.nodeParam[n],
-                                                                  haveRef ? ref : Vec2::Zero());
+                                                                 haveRef ? ref : Vec2::Zero());
             ok = uv.allFinite();
           }
         } else if (c == NodeClass::Vertex) {
@@ -1196,8 +1223,8 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
     const std::int32_t* nd = input.conn.data() + offsets[e];
     const int nc = cornerCount(input.types[e]);
     auto X = [&](int k) { return input.nodes[static_cast<std::size_t>(nd[k])]; };
-    const Vec3 g = nc == 4 ? Vec3((X(2) - X(0)).cross(X(3) - X(1)))
-                           : Vec3((X(1) - X(0)).cross(X(2) - X(0)));
+    const Vec3 g =
+        nc == 4 ? Vec3((X(2) - X(0)).cross(X(3) - X(1))) : Vec3((X(1) - X(0)).cross(X(2) - X(0)));
     Vec3 ref = Vec3::Zero();
     for (int k = 0; k < nc; ++k) {
       const Vec2& c = allCornerUV[static_cast<std::size_t>(offsets[e] + k)];
@@ -1237,8 +1264,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
       report_.maxDistance = report_.nodeDistance[n];
       report_.worstNode = static_cast<std::int32_t>(n);
     }
-  report_.seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  report_.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
 }  // namespace surfmesh

@@ -43,10 +43,14 @@ struct UnionFind {
 
 int rank(NodeClass c) {
   switch (c) {
-    case NodeClass::Vertex: return 3;
-    case NodeClass::Edge: return 2;
-    case NodeClass::Face: return 1;
-    default: return 0;
+    case NodeClass::Vertex:
+      return 3;
+    case NodeClass::Edge:
+      return 2;
+    case NodeClass::Face:
+      return 1;
+    default:
+      return 0;
   }
 }
 
@@ -57,7 +61,8 @@ OccMesh meshWithBRepMesh(const CadShape& shape, double linearDeflection, double 
   if (!(linearDeflection > 0.0)) throw std::invalid_argument("meshWithBRepMesh: deflection <= 0");
   BRepBuilderAPI_Copy copier(shape.shape(), Standard_False, Standard_False);
   const TopoDS_Shape work = copier.Shape();
-  BRepMesh_IncrementalMesh mesher(work, linearDeflection, relative, angularDeflection, Standard_True);
+  BRepMesh_IncrementalMesh mesher(work, linearDeflection, relative, angularDeflection,
+                                  Standard_True);
   TopTools_IndexedMapOfShape faces, edges, vertices;
   TopExp::MapShapes(work, TopAbs_FACE, faces);
   TopExp::MapShapes(work, TopAbs_EDGE, edges);
@@ -107,7 +112,8 @@ OccMesh meshWithBRepMesh(const CadShape& shape, double linearDeflection, double 
       if (poly.IsNull() || e < 0) continue;
       const int n = poly->NbNodes();
       std::vector<std::int32_t> g(static_cast<std::size_t>(n));
-      for (int k = 1; k <= n; ++k) g[static_cast<std::size_t>(k - 1)] = local[static_cast<std::size_t>(poly->Node(k))];
+      for (int k = 1; k <= n; ++k)
+        g[static_cast<std::size_t>(k - 1)] = local[static_cast<std::size_t>(poly->Node(k))];
       const bool degenerated = BRep_Tool::Degenerated(edge);
       const bool seam = BRep_Tool::IsClosed(edge, face);
       TopoDS_Vertex v1, v2;

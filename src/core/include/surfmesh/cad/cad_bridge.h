@@ -88,10 +88,10 @@ const char* nodeClassName(NodeClass c);
 
 struct BridgeReport {
   // ---- per node ---------------------------------------------------------------------------
-  std::vector<NodeClass> nodeClass;       ///< N
-  std::vector<std::int32_t> nodeEntity;   ///< N; vertex, edge or face id (by nodeClass)
-  std::vector<double> nodeParam;          ///< N; t for Edge nodes, NaN otherwise
-  std::vector<double> nodeDistance;       ///< N; distance to the shape (nearest face)
+  std::vector<NodeClass> nodeClass;      ///< N
+  std::vector<std::int32_t> nodeEntity;  ///< N; vertex, edge or face id (by nodeClass)
+  std::vector<double> nodeParam;         ///< N; t for Edge nodes, NaN otherwise
+  std::vector<double> nodeDistance;      ///< N; distance to the shape (nearest face)
   // ---- per face ---------------------------------------------------------------------------
   std::vector<unsigned char> faceFlipped;  ///< F; 1 when the mesh is wound against the face
   std::vector<int> flippedFaces;           ///< ids of the flipped faces

@@ -1,0 +1,432 @@
+// SurfMesh — CAD bridge tests on real third-party parts (tests/data, see its README):
+// mesh each part with OCC's BRepMesh, recover every node on the B-rep, and compare with what
+// the mesher knows and with independent OCC projections.
+#include "surfmesh/cad/cad_bridge.h"
+
+#include "surfmesh/cad/cad_shape.h"
+#include "surfmesh/cad/occ_mesher.h"
+#include "surfmesh/measures/measure.h"
+#include "surfmesh/mesh/quality.h"
+
+#include <BRepBuilderAPI_MakeVertex.hxx>
+#include <BRepClass_FaceClassifier.hxx>
+#include <BRepExtrema_DistShapeShape.hxx>
+#include <BRep_Tool.hxx>
+#include <GeomAPI_ProjectPointOnCurve.hxx>
+#include <GeomAPI_ProjectPointOnSurf.hxx>
+#include <Geom_Curve.hxx>
+#include <Geom_Surface.hxx>
+#include <gp_Pnt.hxx>
+#include <gp_Pnt2d.hxx>
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <functional>
+#include <iostream>
+#include <map>
+#include <set>
+#include <stdexcept>
+#include <string>
+
+using namespace surfmesh;
+
+namespace {
+
+std::string dataPath(const std::string& name) {
+  return std::string(SURFMESH_TEST_DATA_DIR) + "/" + name;
+}
+
+std::shared_ptr<CadShape> load(const std::string& name) {
+  static std::map<std::string, std::shared_ptr<CadShape>> cache;
+  auto it = cache.find(name);
+  if (it != cache.end()) return it->second;
+  auto s = CadShape::fromFile(dataPath(name));
+  cache[name] = s;
+  return s;
+}
+
+double seconds(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+/// Independent distance from p to the untrimmed surface of face f (GeomAPI).
+double surfaceDistance(const CadShape& s, int f, const Vec3& p, Vec2* uv = nullptr) {
+  GeomAPI_ProjectPointOnSurf pr(gp_Pnt(p.x(), p.y(), p.z()), BRep_Tool::Surface(s.face(f)));
+  if (pr.NbPoints() == 0) return INFINITY;
+  if (uv) {
+    double u = 0, v = 0;
+    pr.LowerDistanceParameters(u, v);
+    *uv = Vec2(u, v);
+  }
+  return pr.LowerDistance();
+}
+
+/// Independent distance from p to the trimmed face f (BRepExtrema).
+double faceDistance(const CadShape& s, int f, const Vec3& p) {
+  BRepExtrema_DistShapeShape d(BRepBuilderAPI_MakeVertex(gp_Pnt(p.x(), p.y(), p.z())).Vertex(),
+                               s.face(f));
+  return d.IsDone() ? d.Value() : INFINITY;
+}
+
+/// Largest tolerance of the edges/vertices of face f.
+double faceMaxTolerance(const CadShape& s, int f) {
+  double t = BRep_Tool::Tolerance(s.face(f));
+  for (int e : s.faceEdges(f)) {
+    t = std::max(t, BRep_Tool::Tolerance(s.edge(e)));
+    for (int v : s.edgeVertices(e)) t = std::max(t, s.vertexTolerance(v));
+  }
+  return t;
+}
+
+/// Independent distance from p to the 3D curve of edge e (GeomAPI).
+double curveDistance(const CadShape& s, int e, const Vec3& p) {
+  double a = 0, b = 0;
+  Handle(Geom_Curve) c = BRep_Tool::Curve(s.edge(e), a, b);
+  if (c.IsNull()) return INFINITY;
+  GeomAPI_ProjectPointOnCurve pr(gp_Pnt(p.x(), p.y(), p.z()), c, a, b);
+  if (pr.NbPoints() == 0) return INFINITY;
+  return pr.LowerDistance();
+}
+
+/// Inside the trimmed face (BRepClass_FaceClassifier, independent of our FClass2d).
+bool insideFace(const CadShape& s, int f, const Vec2& uv, double tol) {
+  BRepClass_FaceClassifier c(s.face(f), gp_Pnt2d(uv.x(), uv.y()), tol);
+  return c.State() == TopAbs_IN || c.State() == TopAbs_ON;
+}
+
+struct Part {
+  const char* file;
+  double deflectionRel;  // linear deflection / diagonal
+};
+
+void PrintTo(const Part& p, std::ostream* os) { *os << p.file; }
+
+const Part kParts[] = {
+    {"occt_propeller.brep", 1e-3}, {"occt_housing_bottom.brep", 1e-3}, {"occt_crankarm.brep", 1e-3},
+    {"occt_bottle.brep", 1e-3},    {"occt_screw.step", 1e-3},          {"nist_pmi_1.step", 1e-3},
+};
+
+class CadBridgePart : public ::testing::TestWithParam<Part> {};
+
+TEST_P(CadBridgePart, RecoversBRepMeshClassification) {
+  const Part part = GetParam();
+  auto shape = load(part.file);
+  const double diag = shape->diagonal();
+  auto t0 = std::chrono::steady_clock::now();
+  const OccMesh om = meshWithBRepMesh(*shape, part.deflectionRel * diag, 0.5);
+  const double tMesh = seconds(t0);
+  ASSERT_TRUE(om.unmeshedFaces.empty());
+  t0 = std::chrono::steady_clock::now();
+  CadMesh cm(shape, om.input);
+  const double tBridge = seconds(t0);
+  const BridgeReport& r = cm.report();
+  const SurfaceMesh& m = cm.mesh();
+  std::cout << part.file << ": " << om.input.nodes.size() << " nodes, " << om.input.types.size()
+            << " triangles (" << om.droppedTriangles << " dropped at poles), BRepMesh " << tMesh
+            << " s, bridge " << tBridge << " s\n"
+            << r.summary();
+
+  const std::size_t N = m.nodeCount();
+  // Class agreement with what BRepMesh knows.
+  std::size_t mismatches = 0;
+  std::vector<unsigned char> agrees(N, 1);
+  for (std::size_t n = 0; n < N; ++n) {
+    if (r.nodeClass[n] != om.nodeClass[n] || r.nodeEntity[n] != om.nodeEntity[n]) {
+      agrees[n] = 0;
+      if (mismatches < 10)
+        std::cout << "  node " << n << ": bridge " << nodeClassName(r.nodeClass[n]) << " "
+                  << r.nodeEntity[n] << ", BRepMesh " << nodeClassName(om.nodeClass[n]) << " "
+                  << om.nodeEntity[n] << "\n";
+      ++mismatches;
+    }
+  }
+  // Element faces.
+  std::size_t wrongFace = 0;
+  for (std::size_t e = 0; e < m.elementCount(); ++e) wrongFace += m.elemFace[e] != om.elemFace[e];
+  // Exact agreement, except on parts whose B-rep is sloppier than 1e-5·diag somewhere (the
+  // bottle's thread: edges 0.0155 off their faces, faces 0.005 apart), where a sliver element
+  // with no interior node may be ambiguous at the tolerance level.
+  double maxTol = 0.0;
+  for (int f = 0; f < shape->faceCount(); ++f)
+    maxTol = std::max(maxTol, faceMaxTolerance(*shape, f));
+  const std::size_t allowed = maxTol > 1e-5 * diag ? 3 : 0;
+  EXPECT_LE(mismatches, allowed);
+  EXPECT_LE(wrongFace, allowed);
+  EXPECT_TRUE(r.flippedFaces.empty());
+  if (allowed == 0) EXPECT_TRUE(r.warnings.empty());
+
+  // Every node within 1e-7·diag of its face / edge (independent OCC projections), and
+  // face nodes' (u,v) reproduce their position and lie inside the trimmed face.
+  double worstFace = 0.0, worstUV = 0.0, worstEdge = 0.0;
+  std::size_t outside = 0;
+  for (std::size_t n = 0; n < N; ++n) {
+    const Vec3& p = m.xyz[n];
+    if (!agrees[n]) continue;  // counted above
+    if (r.nodeClass[n] == NodeClass::Face) {
+      const int f = m.nodeFace[n];
+      double d = surfaceDistance(*shape, f, p);
+      if (d > 1e-7 * diag) d = std::min(d, faceDistance(*shape, f, p));  // GeomAPI local minimum
+      if (d > 1e-7 * diag && insideFace(*shape, f, m.uv[n], 1e-7)) {
+        // Both OCC projections miss some points of the bottle's thread surface: the point
+        // of the (untouched) Geom surface at the recovered (u,v), inside the trimmed face
+        // (BRepClass_FaceClassifier), bounds the distance too.
+        const gp_Pnt q = BRep_Tool::Surface(shape->face(f))->Value(m.uv[n].x(), m.uv[n].y());
+        d = std::min(d, (Vec3(q.X(), q.Y(), q.Z()) - p).norm());
+      }
+      if (d > 1e-7 * diag)
+        std::cout << "  face node " << n << " on face " << f << " (" << shape->faceType(f)
+                  << ") at distance " << d << ", uv " << m.uv[n].transpose() << "\n";
+      worstFace = std::max(worstFace, d);
+      worstUV = std::max(
+          worstUV,
+          (m.surfaces[static_cast<std::size_t>(f)]->value(m.uv[n].x(), m.uv[n].y()) - p).norm());
+      if (!insideFace(*shape, f, m.uv[n], 1e-7)) ++outside;
+    } else if (r.nodeClass[n] == NodeClass::Edge) {
+      worstEdge = std::max(worstEdge, curveDistance(*shape, r.nodeEntity[n], p));
+    } else if (r.nodeClass[n] == NodeClass::Vertex) {
+      worstEdge = std::max(worstEdge, (shape->vertexPoint(r.nodeEntity[n]) - p).norm());
+    }
+  }
+  std::cout << "  worst distance: face nodes " << worstFace / diag << " diag (uv " << worstUV / diag
+            << "), edge/vertex nodes " << worstEdge / diag << " diag\n";
+  EXPECT_LE(worstFace, 1e-7 * diag);
+  EXPECT_LE(worstUV, 1e-7 * diag);
+  EXPECT_LE(worstEdge, 1e-7 * diag);
+  EXPECT_EQ(outside, 0u);
+
+  // Every element corner is on the element's face: φ(cornerUV) ≈ node position, up to the
+  // tolerance of the edge / vertex the node lies on (pcurves are that close to 3D curves).
+  double worstCorner = 0.0;
+  std::size_t badCorners = 0;
+  for (std::size_t e = 0; e < m.elementCount(); ++e) {
+    const Surface& s = *m.surfaces[static_cast<std::size_t>(m.elemFace[e])];
+    if (m.elemFace[e] != om.elemFace[e]) continue;  // counted above
+    for (int k = 0; k < m.elementSize(e); ++k) {
+      const std::size_t n = static_cast<std::size_t>(m.elementNodes(e)[k]);
+      if (!agrees[n]) continue;
+      const Vec2& c = m.elementUV(e)[k];
+      const double err = (s.value(c.x(), c.y()) - m.xyz[n]).norm();
+      // 1e-6·diag: the NIST parts' pcurves are up to 1.7e-7·diag off their 3D edges, more
+      // than the edges' declared tolerance.
+      double tolN = 1e-6 * diag;
+      if (r.nodeClass[n] == NodeClass::Edge)
+        tolN += 2.0 * BRep_Tool::Tolerance(shape->edge(r.nodeEntity[n]));
+      else if (r.nodeClass[n] == NodeClass::Vertex)
+        tolN += 2.0 * shape->vertexTolerance(r.nodeEntity[n]);
+      worstCorner = std::max(worstCorner, err);
+      if (err > tolN && badCorners < 5)
+        std::cout << "  corner of element " << e << " node " << n << " ("
+                  << nodeClassName(r.nodeClass[n]) << " " << r.nodeEntity[n] << "): error " << err
+                  << " > " << tolN << " uv " << c.transpose() << "\n";
+      badCorners += err > tolN;
+    }
+  }
+  std::cout << "  worst corner (u,v) error " << worstCorner / diag << " diag\n";
+  EXPECT_EQ(badCorners, 0u);
+  // The mesh, wound like the B-rep, is not reported tangled (BRepMesh itself leaves a few
+  // folded triangles on the propeller's B-spline blades).
+  const MeshQuality q = measureQuality(m, measureByName("shape"));
+  std::cout << "  quality: min " << q.stats.min << " mean " << q.stats.mean << ", tangled "
+            << q.stats.tangled << "\n";
+  EXPECT_LE(q.stats.tangled, m.elementCount() / 1000);
+}
+
+INSTANTIATE_TEST_SUITE_P(Parts, CadBridgePart, ::testing::ValuesIn(kParts),
+                         [](const ::testing::TestParamInfo<Part>& i) {
+                           std::string s = i.param.file;
+                           for (char& c : s)
+                             if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+                           return s;
+                         });
+
+// ---- orientation --------------------------------------------------------------------------
+
+TEST(CadBridge, ReversedWindingOnOneFaceIsReportedFlipped) {
+  auto shape = load("occt_propeller.brep");
+  OccMesh om = meshWithBRepMesh(*shape, 1e-3 * shape->diagonal(), 0.5);
+  // The face with the most triangles.
+  std::map<int, int> count;
+  for (int f : om.elemFace) ++count[f];
+  int face = 0;
+  for (const auto& [f, c] : count)
+    if (c > count[face]) face = f;
+  const std::size_t tangledBefore =
+      measureQuality(CadMesh(shape, om.input).mesh(), measureByName("shape")).stats.tangled;
+  for (std::size_t e = 0; e < om.elemFace.size(); ++e)
+    if (om.elemFace[e] == face) std::swap(om.input.conn[3 * e + 1], om.input.conn[3 * e + 2]);
+  CadMesh cm(shape, om.input);
+  ASSERT_EQ(cm.report().flippedFaces, std::vector<int>{face});
+  EXPECT_EQ(cm.mesh().faceOrientation[static_cast<std::size_t>(face)], -1);
+  EXPECT_EQ(measureQuality(cm.mesh(), measureByName("shape")).stats.tangled, tangledBefore);
+}
+
+TEST(CadBridge, MeshWoundTheOtherWayIsNeverAllTangled) {
+  auto shape = load("occt_housing_bottom.brep");
+  OccMesh om = meshWithBRepMesh(*shape, 1e-3 * shape->diagonal(), 0.5);
+  const std::size_t tangledBefore =
+      measureQuality(CadMesh(shape, om.input).mesh(), measureByName("shape")).stats.tangled;
+  for (std::size_t e = 0; e < om.elemFace.size(); ++e)
+    std::swap(om.input.conn[3 * e + 1], om.input.conn[3 * e + 2]);
+  CadMesh cm(shape, om.input);
+  EXPECT_EQ(cm.report().flippedFaces.size(), cm.report().facesUsed);
+  EXPECT_EQ(measureQuality(cm.mesh(), measureByName("shape")).stats.tangled, tangledBefore);
+}
+
+// ---- hints and boundary modes --------------------------------------------------------------
+
+TEST(CadBridge, HintsAreUsedAndVerified) {
+  auto shape = load("occt_crankarm.brep");
+  OccMesh om = meshWithBRepMesh(*shape, 1e-3 * shape->diagonal(), 0.5);
+  const std::size_t N = om.input.nodes.size();
+  MeshInput in = om.input;
+  in.hintFace.assign(N, -1);
+  in.hintEdge.assign(N, -1);
+  in.hintVertex.assign(N, -1);
+  for (std::size_t n = 0; n < N; ++n) {
+    if (om.nodeClass[n] == NodeClass::Vertex) in.hintVertex[n] = om.nodeEntity[n];
+    if (om.nodeClass[n] == NodeClass::Edge) in.hintEdge[n] = om.nodeEntity[n];
+    if (om.nodeClass[n] == NodeClass::Face) in.hintFace[n] = om.nodeEntity[n];
+  }
+  // A wrong hint (a face far away) is detected and ignored.
+  std::size_t wrong = 0;
+  while (om.nodeClass[wrong] != NodeClass::Face) ++wrong;
+  const int farFace = om.nodeEntity[wrong] == 0 ? 1 : 0;
+  in.hintFace[wrong] = farFace;
+  CadMesh cm(shape, in);
+  EXPECT_EQ(cm.report().hintsRejected, 1u);
+  for (std::size_t n = 0; n < N; ++n) {
+    EXPECT_EQ(cm.report().nodeClass[n], om.nodeClass[n]) << "node " << n;
+    EXPECT_EQ(cm.report().nodeEntity[n], om.nodeEntity[n]) << "node " << n;
+  }
+}
+
+TEST(CadBridge, SlideModeMakesEdgeNodesSlide) {
+  auto shape = load("occt_screw.step");
+  OccMesh om = meshWithBRepMesh(*shape, 1e-3 * shape->diagonal(), 0.5);
+  BridgeOptions opt;
+  opt.boundary = "slide";
+  CadMesh cm(shape, om.input, opt);
+  const SurfaceMesh& m = cm.mesh();
+  std::size_t sliding = 0;
+  for (std::size_t n = 0; n < m.nodeCount(); ++n) {
+    if (m.nodeKind[n] != NodeKind::Edge) continue;
+    ++sliding;
+    const Curve& c = *m.curves[static_cast<std::size_t>(m.nodeEdge[n])];
+    EXPECT_GE(m.nodeT[n], c.tmin() - 1e-9);
+    EXPECT_LE(m.nodeT[n], c.tmax() + 1e-9);
+    EXPECT_LE((c.value(m.nodeT[n]) - m.xyz[n]).norm(), 1e-7 * shape->diagonal());
+  }
+  EXPECT_EQ(sliding, cm.report().edgeNodes);
+  EXPECT_EQ(cm.report().slidingNodes, sliding);
+  EXPECT_GT(sliding, 0u);
+}
+
+// ---- errors --------------------------------------------------------------------------------
+
+std::string errorOf(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(CadBridge, NodesOffTheShapeAreReportedWithCountWorstAndId) {
+  auto shape = load("occt_propeller.brep");
+  const double diag = shape->diagonal();
+  OccMesh om = meshWithBRepMesh(*shape, 1e-3 * diag, 0.5);
+  CadMesh ref(shape, om.input);
+  // Move three face nodes 1% of the diagonal along their normal.
+  std::vector<std::size_t> moved;
+  for (std::size_t n = 0; n < om.input.nodes.size() && moved.size() < 3; n += 97) {
+    if (ref.report().nodeClass[n] != NodeClass::Face) continue;
+    const Surface& s = *ref.mesh().surfaces[static_cast<std::size_t>(ref.mesh().nodeFace[n])];
+    const Vec2 uv = ref.mesh().uv[n];
+    om.input.nodes[n] += 0.01 * diag * (moved.size() + 1) * s.normal(uv.x(), uv.y());
+    moved.push_back(n);
+  }
+  ASSERT_EQ(moved.size(), 3u);
+  const std::string msg = errorOf([&] { CadMesh cm(shape, om.input); });
+  std::cout << msg << "\n";
+  EXPECT_NE(msg.find("3 of"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("worst: node " + std::to_string(moved[2])), std::string::npos) << msg;
+  EXPECT_NE(msg.find("farther than the tolerance"), std::string::npos) << msg;
+  // With a larger tolerance the mesh is accepted.
+  BridgeOptions opt;
+  opt.tolerance = 0.05 * diag;
+  EXPECT_NO_THROW(CadMesh(shape, om.input, opt));
+}
+
+TEST(CadBridge, MeshOfAnotherPartFailsFast) {
+  auto propeller = load("occt_propeller.brep");
+  auto housing = load("occt_housing_bottom.brep");
+  OccMesh om = meshWithBRepMesh(*housing, 1e-3 * housing->diagonal(), 0.5);
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::string msg = errorOf([&] { CadMesh cm(propeller, om.input); });
+  const double t = seconds(t0);
+  std::cout << msg << " (" << t << " s)\n";
+  EXPECT_NE(msg.find("does not lie on this shape"), std::string::npos) << msg;
+  EXPECT_LT(t, 1.0);
+}
+
+TEST(CadBridge, BadInputIsRejectedWithClearMessages) {
+  auto shape = load("occt_screw.step");
+  OccMesh om = meshWithBRepMesh(*shape, 1e-3 * shape->diagonal(), 0.5);
+  auto expectError = [&](MeshInput in, const std::string& what, BridgeOptions opt = {}) {
+    const std::string msg = errorOf([&] { CadMesh cm(shape, in, opt); });
+    EXPECT_NE(msg.find(what), std::string::npos)
+        << "expected '" << what << "', got '" << msg << "'";
+  };
+  MeshInput empty;
+  expectError(empty, "no nodes");
+  MeshInput nan = om.input;
+  nan.nodes[5].y() = std::nan("");
+  expectError(nan, "node 5 has a non-finite coordinate");
+  MeshInput range = om.input;
+  range.conn[7] = static_cast<std::int32_t>(range.nodes.size());
+  expectError(range, "element 2 references node");
+  MeshInput hints = om.input;
+  hints.hintFace.assign(hints.nodes.size(), -1);
+  hints.hintFace[3] = shape->faceCount();
+  expectError(hints, "hintFace[3]");
+  BridgeOptions neg;
+  neg.tolerance = -1.0;
+  expectError(om.input, "tolerance", neg);
+  BridgeOptions mode;
+  mode.boundary = "free";
+  expectError(om.input, "boundary mode", mode);
+  MeshInput noElems = om.input;
+  noElems.types.clear();
+  noElems.conn.clear();
+  expectError(noElems, "no elements");
+}
+
+// ---- performance ---------------------------------------------------------------------------
+
+TEST(CadBridge, HousingClassificationIsFast) {
+  auto shape = load("occt_housing_bottom.brep");
+  OccMesh om = meshWithBRepMesh(*shape, 1e-3 * shape->diagonal(), 0.5);
+  const auto t0 = std::chrono::steady_clock::now();
+  CadMesh cm(shape, om.input);
+  const double t = seconds(t0);
+  std::cout << "housing: " << om.input.nodes.size() << " nodes classified in " << t << " s\n";
+  EXPECT_LT(t, 2.0);  // ~0.5 s on 2 idle cores
+}
+
+TEST(CadBridge, HundredThousandNodes) {
+  auto shape = load("occt_housing_bottom.brep");
+  OccMesh om = meshWithBRepMesh(*shape, 4e-5 * shape->diagonal(), 0.2);
+  const auto t0 = std::chrono::steady_clock::now();
+  CadMesh cm(shape, om.input);
+  const double t = seconds(t0);
+  std::cout << "housing fine: " << om.input.nodes.size() << " nodes, " << om.input.types.size()
+            << " triangles classified in " << t << " s\n"
+            << cm.report().summary();
+  EXPECT_GT(om.input.nodes.size(), 50000u);
+  EXPECT_TRUE(cm.report().flippedFaces.empty());
+  EXPECT_LT(t, 60.0);
+}
+
+}  // namespace
