@@ -173,7 +173,7 @@ void checkAccepted(FuzzedDataProvider& fdp, SurfaceMesh& m) {
   }
   OptimizeOptions o;
   o.measure = fdp.ConsumeBool() ? "shape" : "oddy";
-  o.maxSweeps = fdp.ConsumeIntegralInRange<int>(0, 3);
+  o.maxSweeps = fdp.ConsumeIntegralInRange<int>(0, 2);
   o.monotone = fdp.ConsumeBool();
   o.deltaPolicy = fdp.ConsumeBool() ? "auto" : "fixed";
   o.threads = 1;
@@ -217,8 +217,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   try {
     if (fdp.ConsumeIntegralInRange<int>(0, 3) > 0) {
       // A valid structured mesh, then mutations.
-      const int nu = fdp.ConsumeIntegralInRange<int>(1, 8);
-      const int nv = fdp.ConsumeIntegralInRange<int>(1, 8);
+      const int nu = fdp.ConsumeIntegralInRange<int>(1, 5);
+      const int nv = fdp.ConsumeIntegralInRange<int>(1, 5);
       Grid g;
       switch (which) {
         case 0:
@@ -279,6 +279,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   } catch (const std::invalid_argument&) {
     return 0;
   }
-  checkAccepted(fdp, m);
+  // The optimizer is the slow part: run it on one accepted mesh in four.
+  if (fdp.ConsumeIntegralInRange<int>(0, 3) == 0) {
+    checkAccepted(fdp, m);
+  } else {
+    for (double v : measureQuality(m, measureByName("shape")).quality)
+      if (!(v >= 0.0 && v <= 1.0)) violated("quality outside [0, 1]");
+  }
   return 0;
 }

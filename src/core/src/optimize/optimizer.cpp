@@ -1005,8 +1005,11 @@ OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
   }
 
   // Write back: positions, parameters, and the element corners' (u,v) of the nodes that moved
-  // (unwrapped next to their previous value, across periodic seams).
+  // (unwrapped next to their previous value, across periodic seams). Built in copies and
+  // swapped in, so that an exception here or while measuring the result leaves the mesh
+  // exactly as it was (as on cancellation).
   const ThreadGeometry& geo = workers[0]->geo;
+  std::vector<Vec2> cornerUV = mesh.cornerUV;
   std::size_t moved = 0;
   for (std::size_t i = 0; i < mesh.nodeCount(); ++i) {
     if (s.xyz[i] == mesh.xyz[i]) continue;
@@ -1019,21 +1022,32 @@ OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
       const int f = mesh.elemFace[e];
       const Surface& sf = *geo.surfaces[static_cast<std::size_t>(f)];
       if (kind == NodeKind::Face) {
-        mesh.cornerUV[slot] = sf.unwrapNear(s.uv[i], mesh.cornerUV[slot]);
+        cornerUV[slot] = sf.unwrapNear(s.uv[i], cornerUV[slot]);
       } else if (kind == NodeKind::Edge) {
         const Curve& c = *geo.curves[static_cast<std::size_t>(mesh.nodeEdge[i])];
-        mesh.cornerUV[slot] =
-            sf.unwrapNear(c.uvOnFace(f, s.t[i], mesh.cornerUV[slot]), mesh.cornerUV[slot]);
+        cornerUV[slot] = sf.unwrapNear(c.uvOnFace(f, s.t[i], cornerUV[slot]), cornerUV[slot]);
       }
     }
   }
   res.movedNodes = moved;
-  mesh.xyz = std::move(s.xyz);
-  mesh.uv = std::move(s.uv);
-  if (!mesh.nodeT.empty()) mesh.nodeT = std::move(s.t);
+  std::vector<Vec3> xyz = std::move(s.xyz);
+  std::vector<Vec2> uv = std::move(s.uv);
+  std::vector<double> t = std::move(s.t);
   workers.clear();
   state.reset();
-  res.after = measureQuality(mesh, measure).stats;
+  auto exchange = [&]() {
+    std::swap(mesh.xyz, xyz);
+    std::swap(mesh.uv, uv);
+    if (!mesh.nodeT.empty()) std::swap(mesh.nodeT, t);
+    std::swap(mesh.cornerUV, cornerUV);
+  };
+  exchange();
+  try {
+    res.after = measureQuality(mesh, measure).stats;
+  } catch (...) {
+    exchange();  // back to the input
+    throw;
+  }
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return res;
 }
