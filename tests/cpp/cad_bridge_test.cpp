@@ -154,7 +154,9 @@ TEST_P(CadBridgePart, RecoversBRepMeshClassification) {
   EXPECT_LE(mismatches, allowed);
   EXPECT_LE(wrongFace, allowed);
   EXPECT_TRUE(r.flippedFaces.empty());
-  if (allowed == 0) EXPECT_TRUE(r.warnings.empty());
+  if (allowed == 0) {
+    EXPECT_TRUE(r.warnings.empty());
+  }
 
   // Every node within 1e-7·diag of its face / edge (independent OCC projections), and
   // face nodes' (u,v) reproduce their position and lie inside the trimmed face.

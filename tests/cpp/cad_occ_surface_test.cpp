@@ -1,0 +1,292 @@
+// SurfMesh — OpenCASCADE adapters (OccFaceSurface, OccEdgeCurve) and CadShape on real parts.
+#include "surfmesh/cad/cad_shape.h"
+#include "surfmesh/cad/occ_surface.h"
+
+#include <BRepBuilderAPI_MakeVertex.hxx>
+#include <BRepClass3d_SolidClassifier.hxx>
+#include <BRepClass_FaceClassifier.hxx>
+#include <BRepMesh_IncrementalMesh.hxx>
+#include <BRepTools.hxx>
+#include <BRepTools_WireExplorer.hxx>
+#include <BRep_Tool.hxx>
+#include <Poly_Triangulation.hxx>
+#include <TopExp.hxx>
+#include <TopExp_Explorer.hxx>
+#include <TopTools_IndexedMapOfShape.hxx>
+#include <TopoDS.hxx>
+#include <TopoDS_Wire.hxx>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <functional>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+
+using namespace surfmesh;
+
+namespace {
+
+std::shared_ptr<CadShape> load(const std::string& name) {
+  return CadShape::fromFile(std::string(SURFMESH_TEST_DATA_DIR) + "/" + name);
+}
+
+/// Interior (u,v) points of a face: the nodes of its BRepMesh triangulation that are not on
+/// an edge polygon.
+std::vector<Vec2> interiorUV(const TopoDS_Face& face, double deflection) {
+  BRepMesh_IncrementalMesh(face, deflection, Standard_False, 0.5);
+  TopLoc_Location loc;
+  const Handle(Poly_Triangulation) tri = BRep_Tool::Triangulation(face, loc);
+  std::vector<Vec2> out;
+  if (tri.IsNull() || !tri->HasUVNodes()) return out;
+  std::vector<unsigned char> onEdge(static_cast<std::size_t>(tri->NbNodes()) + 1, 0);
+  for (TopExp_Explorer ex(face, TopAbs_EDGE); ex.More(); ex.Next()) {
+    const auto poly = BRep_Tool::PolygonOnTriangulation(TopoDS::Edge(ex.Current()), tri, loc);
+    if (poly.IsNull()) continue;
+    for (int k = 1; k <= poly->NbNodes(); ++k) onEdge[static_cast<std::size_t>(poly->Node(k))] = 1;
+  }
+  for (int i = 1; i <= tri->NbNodes(); ++i)
+    if (!onEdge[static_cast<std::size_t>(i)]) out.emplace_back(tri->UVNode(i).X(), tri->UVNode(i).Y());
+  return out;
+}
+
+/// (u,v) centroids of a face's BRepMesh triangles (inside the face).
+std::vector<Vec2> triangleCentroidsUV(const TopoDS_Face& face, double deflection) {
+  BRepMesh_IncrementalMesh(face, deflection, Standard_False, 0.5);
+  TopLoc_Location loc;
+  const Handle(Poly_Triangulation) tri = BRep_Tool::Triangulation(face, loc);
+  std::vector<Vec2> out;
+  if (tri.IsNull() || !tri->HasUVNodes()) return out;
+  for (int t = 1; t <= tri->NbTriangles(); ++t) {
+    int a = 0, b = 0, c = 0;
+    tri->Triangle(t).Get(a, b, c);
+    const gp_XY m = (tri->UVNode(a).XY() + tri->UVNode(b).XY() + tri->UVNode(c).XY()) / 3.0;
+    out.emplace_back(m.X(), m.Y());
+  }
+  return out;
+}
+
+TEST(OccFaceSurface, DerivativesMatchFiniteDifferencesOnBSplineFaces) {
+  auto shape = load("occt_propeller.brep");
+  int tested = 0;
+  for (int f = 0; f < shape->faceCount() && tested < 4; ++f) {
+    if (shape->faceType(f) != "BSplineSurface") continue;
+    ++tested;
+    const OccFaceSurface& s = shape->surface(f);
+    const ParamBounds b = s.faceUVBounds();
+    for (double a : {0.3, 0.5, 0.7}) {
+      const double u = b.umin + a * (b.umax - b.umin), v = b.vmin + (1 - a) * (b.vmax - b.vmin);
+      const SurfaceD2 d = s.d2(u, v);
+      EXPECT_LE((d.p - s.value(u, v)).norm(), 1e-12 * (1 + d.p.norm()));
+      const SurfaceD1 d1 = s.d1(u, v);
+      EXPECT_LE((d1.du - d.du).norm(), 1e-12 * (1 + d.du.norm()));
+      // Central differences, error O(h²): compare at two steps and check the rate.
+      auto err = [&](double hu, double hv) {
+        const SurfaceD2 pu = s.d2(u + hu, v), mu = s.d2(u - hu, v);
+        const SurfaceD2 pv = s.d2(u, v + hv), mv = s.d2(u, v - hv);
+        std::array<double, 5> e = {
+            ((pu.p - mu.p) / (2 * hu) - d.du).norm() / (1 + d.du.norm()),
+            ((pv.p - mv.p) / (2 * hv) - d.dv).norm() / (1 + d.dv.norm()),
+            ((pu.du - mu.du) / (2 * hu) - d.duu).norm() / (1 + d.duu.norm()),
+            ((pv.dv - mv.dv) / (2 * hv) - d.dvv).norm() / (1 + d.dvv.norm()),
+            ((pv.du - mv.du) / (2 * hv) - d.duv).norm() / (1 + d.duv.norm())};
+        return e;
+      };
+      const double hu = 1e-3 * (b.umax - b.umin), hv = 1e-3 * (b.vmax - b.vmin);
+      const auto e1 = err(hu, hv), e2 = err(hu / 2, hv / 2);
+      for (std::size_t k = 0; k < 5; ++k) {
+        EXPECT_LT(e1[k], 1e-3) << "face " << f << " derivative " << k;
+        if (e1[k] > 1e-9) EXPECT_GT(e1[k] / std::max(e2[k], 1e-300), 3.0) << "face " << f;
+      }
+    }
+  }
+  EXPECT_EQ(tested, 4);
+}
+
+TEST(OccFaceSurface, NormalSignPointsOutOfTheSolid) {
+  auto shape = load("occt_screw.step");
+  const double diag = shape->diagonal();
+  int reversed = 0, forward = 0;
+  for (int f = 0; f < shape->faceCount(); ++f) {
+    const OccFaceSurface& s = shape->surface(f);
+    const bool rev = shape->face(f).Orientation() == TopAbs_REVERSED;
+    EXPECT_EQ(s.normalSign(), rev ? -1 : 1);
+    (rev ? reversed : forward)++;
+    const std::vector<Vec2> uv = triangleCentroidsUV(shape->face(f), 1e-3 * diag);
+    ASSERT_FALSE(uv.empty());
+    const Vec2 q = uv[uv.size() / 2];
+    const Vec3 p = s.value(q.x(), q.y()), n = s.normal(q.x(), q.y());
+    const double eps = 1e-4 * diag;
+    auto state = [&](const Vec3& x) {
+      BRepClass3d_SolidClassifier c(shape->shape(), gp_Pnt(x.x(), x.y(), x.z()), 1e-9);
+      return c.State();
+    };
+    EXPECT_EQ(state(p + eps * n), TopAbs_OUT) << "face " << f;
+    EXPECT_EQ(state(p - eps * n), TopAbs_IN) << "face " << f;
+  }
+  EXPECT_GT(reversed, 0);
+  EXPECT_GT(forward, 0);
+}
+
+TEST(OccFaceSurface, ContainsIsFalseInAHoleAndTrueInside) {
+  auto shape = load("occt_housing_bottom.brep");
+  int holes = 0;
+  for (int f = 0; f < shape->faceCount() && holes < 5; ++f) {
+    const TopoDS_Face& face = shape->face(f);
+    const TopoDS_Wire outer = BRepTools::OuterWire(face);
+    TopTools_IndexedMapOfShape wires;
+    TopExp::MapShapes(face, TopAbs_WIRE, wires);
+    if (wires.Extent() < 2) continue;
+    const OccFaceSurface& s = shape->surface(f);
+    if (s.isUPeriodic() || s.isVPeriodic()) continue;
+    for (int w = 1; w <= wires.Extent(); ++w) {
+      const TopoDS_Wire& wire = TopoDS::Wire(wires(w));
+      if (wire.IsSame(outer)) continue;
+      // The centre of an inner loop's (u,v) points: inside the hole for a convex hole.
+      Vec2 c = Vec2::Zero();
+      int k = 0;
+      for (BRepTools_WireExplorer ex(wire, face); ex.More(); ex.Next()) {
+        double a = 0, b = 0;
+        const auto pc = BRep_Tool::CurveOnSurface(ex.Current(), face, a, b);
+        for (int i = 0; i < 8; ++i) {
+          const gp_Pnt2d q = pc->Value(a + (b - a) * i / 8.0);
+          c += Vec2(q.X(), q.Y());
+          ++k;
+        }
+      }
+      c /= k;
+      BRepClass_FaceClassifier ref(face, gp_Pnt2d(c.x(), c.y()), 1e-9);
+      if (ref.State() != TopAbs_OUT) continue;  // not a convex hole
+      EXPECT_FALSE(s.contains(c.x(), c.y())) << "face " << f << " hole centre " << c.transpose();
+      ++holes;
+    }
+    for (const Vec2& q : interiorUV(face, 1e-3 * shape->diagonal()))
+      EXPECT_TRUE(s.contains(q.x(), q.y())) << "face " << f << " at " << q.transpose();
+  }
+  EXPECT_GE(holes, 3);
+}
+
+TEST(OccFaceSurface, PeriodicFacesWrapAroundTheirOwnRange) {
+  auto shape = load("occt_crankarm.brep");
+  int periodic = 0;
+  for (int f = 0; f < shape->faceCount(); ++f) {
+    const OccFaceSurface& s = shape->surface(f);
+    if (!s.isUPeriodic()) continue;
+    ++periodic;
+    const ParamBounds b = s.bounds(), fb = s.faceUVBounds();
+    EXPECT_NEAR(b.umax - b.umin, s.uPeriod(), 1e-12);
+    EXPECT_LE(b.umin, fb.umin + 1e-9);
+    EXPECT_GE(b.umax, fb.umax - 1e-9);
+    for (const Vec2& q : interiorUV(shape->face(f), 1e-3 * shape->diagonal())) {
+      EXPECT_TRUE(s.contains(q.x() + s.uPeriod(), q.y()));
+      EXPECT_LE((s.value(q.x() + s.uPeriod(), q.y()) - s.value(q.x(), q.y())).norm(),
+                1e-9 * shape->diagonal());
+    }
+  }
+  EXPECT_GT(periodic, 0);
+}
+
+TEST(OccEdgeCurve, DerivativesAndPcurvesAgreeWithTheEdge) {
+  auto shape = load("occt_bottle.brep");
+  const double diag = shape->diagonal();
+  int seams = 0;
+  for (int e = 0; e < shape->edgeCount(); ++e) {
+    const OccEdgeCurve& c = shape->curve(e);
+    if (c.isDegenerated()) continue;
+    const double t0 = c.tmin(), t1 = c.tmax(), h = 1e-4 * (t1 - t0);
+    const double tol = BRep_Tool::Tolerance(shape->edge(e));
+    for (double a : {0.25, 0.5, 0.75}) {
+      const double t = t0 + a * (t1 - t0);
+      const CurveD2 d = c.d2(t);
+      const Vec3 fd1 = (c.value(t + h) - c.value(t - h)) / (2 * h);
+      const Vec3 fd2 = (c.d2(t + h).dt - c.d2(t - h).dt) / (2 * h);
+      EXPECT_LE((fd1 - d.dt).norm(), 1e-5 * (1 + d.dt.norm())) << "edge " << e;
+      if (c.adaptor().Continuity() >= GeomAbs_C2)  // C'' jumps at the knots of C1 splines
+        EXPECT_LE((fd2 - d.dtt).norm(), 1e-4 * (1 + d.dtt.norm())) << "edge " << e;
+      for (int k = 0; k < c.faceCount(); ++k) {
+        const int f = c.faceId(k);
+        const OccFaceSurface& s = shape->surface(f);
+        const Vec2 uv = c.uvOnFace(f, t, Vec2(s.bounds().umin, s.bounds().vmin));
+        EXPECT_LE((s.value(uv.x(), uv.y()) - d.p).norm(), 2 * tol + 1e-7 * diag)
+            << "edge " << e << " face " << f;
+        if (c.isSeamOf(f)) {
+          // The two pcurves of a seam: `near` picks the closer one, a period apart.
+          const Vec2 a1 = c.uvOnFace(f, t, Vec2(s.bounds().umin, uv.y()));
+          const Vec2 a2 = c.uvOnFace(f, t, Vec2(s.bounds().umax, uv.y()));
+          if (s.isUPeriodic()) EXPECT_NEAR(std::abs(a2.x() - a1.x()), s.uPeriod(), 1e-9);
+          ++seams;
+        }
+      }
+    }
+  }
+  EXPECT_GT(seams, 0);
+  EXPECT_THROW(shape->curve(0).uvOnFace(-5, 0.0, Vec2::Zero()), std::invalid_argument);
+}
+
+TEST(OccEdgeCurve, ClosedCircularEdgesArePeriodic) {
+  auto shape = load("occt_crankarm.brep");
+  int closed = 0;
+  for (int e = 0; e < shape->edgeCount(); ++e) {
+    const OccEdgeCurve& c = shape->curve(e);
+    if (!c.isPeriodic()) continue;
+    ++closed;
+    EXPECT_NEAR(c.tmax() - c.tmin(), c.period(), 1e-9);
+    EXPECT_LE((c.value(c.tmin()) - c.value(c.tmax())).norm(), 1e-7 * shape->diagonal());
+    EXPECT_EQ(shape->edgeVertices(e).size(), 1u);
+  }
+  EXPECT_GT(closed, 0);
+}
+
+TEST(CadShape, IdsFollowTopExpMapShapesAndAdjacencyIsConsistent) {
+  auto shape = load("occt_propeller.brep");
+  EXPECT_EQ(shape->faceCount(), 76);
+  EXPECT_EQ(shape->edgeCount(), 170);
+  EXPECT_NEAR(shape->diagonal(), 1359, 30);
+  TopTools_IndexedMapOfShape faces;
+  TopExp::MapShapes(shape->shape(), TopAbs_FACE, faces);
+  for (int f = 0; f < shape->faceCount(); ++f) {
+    EXPECT_TRUE(shape->face(f).IsSame(faces(f + 1)));
+    EXPECT_EQ(shape->faceId(faces(f + 1)), f);
+    for (int e : shape->faceEdges(f)) {
+      const auto& ef = shape->edgeFaces(e);
+      EXPECT_TRUE(std::binary_search(ef.begin(), ef.end(), f));
+    }
+  }
+  EXPECT_THROW(shape->face(76), std::out_of_range);
+  EXPECT_NE(shape->describe().find("BSplineSurface"), std::string::npos);
+}
+
+std::string errorOf(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(CadShape, ReadErrorsSayWhatAndWhere) {
+  const std::string dir = SURFMESH_TEST_DATA_DIR;
+  EXPECT_NE(errorOf([&] { CadShape::fromFile(dir + "/missing.step"); }).find("missing.step"),
+            std::string::npos);
+  EXPECT_NE(errorOf([&] { CadShape::fromFile(dir + "/README.md"); }).find("unknown extension"),
+            std::string::npos);
+  EXPECT_NE(errorOf([] { CadShape::fromBrepString(""); }).find("empty"), std::string::npos);
+  EXPECT_NE(errorOf([] { CadShape::fromBrepString("not a brep"); }).find("BREP"),
+            std::string::npos);
+  std::ostringstream vertexOnly;
+  BRepTools::Write(BRepBuilderAPI_MakeVertex(gp_Pnt(1, 2, 3)).Vertex(), vertexOnly);
+  EXPECT_NE(errorOf([&] { CadShape::fromBrepString(vertexOnly.str()); }).find("no faces"),
+            std::string::npos);
+  // A BREP string round trip gives the same shape.
+  auto screw = load("occt_screw.step");
+  std::ostringstream brep;
+  BRepTools::Write(screw->shape(), brep);
+  auto again = CadShape::fromBrepString(brep.str());
+  EXPECT_EQ(again->faceCount(), screw->faceCount());
+  EXPECT_NEAR(again->diagonal(), screw->diagonal(), 1e-9 * screw->diagonal());
+}
+
+}  // namespace
