@@ -307,9 +307,9 @@ struct State {
   std::vector<Vec3> xyz;
   std::vector<Vec2> uv;
   std::vector<double> t;
-  std::vector<Vec3> nodeNormal;        // reference normal of Face nodes at their (u,v)
-  std::vector<NodeD2> d2;              // surface derivatives at a Face node's position
-  std::vector<unsigned char> d2Valid;  // whether d2[i] is current
+  std::vector<Vec3> nodeNormal;         // reference normal of Face nodes at their (u,v)
+  std::vector<NodeD2> d2;               // surface derivatives at a Face node's position
+  std::vector<unsigned char> d2Valid;   // whether d2[i] is current
   std::vector<std::int32_t> lastVisit;  // clock of the node's last update
   std::vector<std::int32_t> movedAt;    // clock of its last significant move (0: never)
   // ---- elements --------------------------------------------------------------------------
@@ -317,15 +317,20 @@ struct State {
   // corners), fixedNormal holding the corner normals of its Fixed and Edge corners.
   std::vector<Vec3> fixedNormal;
   std::vector<double> elemScale;  // mean squared corner edge length (frozen per sweep)
-  std::vector<double> eta0;       // η with δ = 0 (+∞ tangled), kept current in δ = 0 sweeps
-  std::vector<double> minSigma;   // scaled det S (≤ 0 tangled), idem
+  // Size² that scales δ for element e: the input's corner scales averaged over the elements
+  // around its corners, frozen for the whole run. Frozen, because a δ that followed the
+  // element's own size would let a tangled element shrink to a point at no cost; averaged,
+  // because a tangled input element may itself be tiny.
+  std::vector<double> deltaScale;
+  std::vector<double> eta0;      // η with δ = 0 (+∞ tangled), kept current in δ = 0 sweeps
+  std::vector<double> minSigma;  // scaled det S (≤ 0 tangled), idem
   // ---- sliding nodes ---------------------------------------------------------------------
   std::vector<std::int64_t> edgeSlot;  // N (or empty): first index in edgeNormal, −1
   std::vector<Vec3> edgeNormal;        // corner normal of an Edge node in each incident element
   // ---- sweep -----------------------------------------------------------------------------
-  double deltaHat = 0.0;  // dimensionless δ of the current sweep
-  bool trackCache = true;  // δ = 0 sweep: keep eta0/minSigma current at every accepted move
-  std::int32_t clock = 0;  // advanced once per color
+  double deltaHat = 0.0;       // dimensionless δ of the current sweep
+  bool trackCache = true;      // δ = 0 sweep: keep eta0/minSigma current at every accepted move
+  std::int32_t clock = 0;      // advanced once per color
   std::int32_t validFrom = 1;  // a node last visited before this clock is revisited
 
   State(const SurfaceMesh& m, const PlanarMeasure& pm, const OptimizeOptions& o)
@@ -342,8 +347,7 @@ struct State {
     movedAt.assign(N, 0);
     bool anyEdge = false;
     for (std::size_t i = 0; i < N; ++i) {
-      if (m.nodeKind[i] == NodeKind::Face)
-        nodeNormal[i] = m.referenceNormal(m.nodeFace[i], uv[i]);
+      if (m.nodeKind[i] == NodeKind::Face) nodeNormal[i] = m.referenceNormal(m.nodeFace[i], uv[i]);
       if (m.nodeKind[i] == NodeKind::Edge) anyEdge = true;
     }
     fixedNormal.assign(E, Vec3::Zero());
@@ -376,9 +380,9 @@ struct State {
   std::int64_t begin(std::size_t i) const { return inc.offset[i]; }
   std::int64_t end(std::size_t i) const { return inc.offset[i + 1]; }
 
-  /// Reference normal (any length) of element e with the corner normal of free node i (in this element)
-  /// replaced by `nfree` (i < 0: the current normals). `oldFree` is the corner normal i had
-  /// in e when i is an Edge node (it is part of fixedNormal), zero otherwise.
+  /// Reference normal (any length) of element e with the corner normal of free node i (in this
+  /// element) replaced by `nfree` (i < 0: the current normals). `oldFree` is the corner normal i
+  /// had in e when i is an Edge node (it is part of fixedNormal), zero otherwise.
   Vec3 elementNormal(std::size_t e, std::int64_t i, const Vec3& nfree, const Vec3& oldFree) const {
     const int nc = cornerCount(mesh.elemType[e]);
     const std::int32_t* nd = mesh.elementNodes(e);
@@ -421,8 +425,7 @@ struct State {
     if (mesh.elemType[e] == ElementType::Tri3) {
       const int k1 = local == 2 ? 0 : local + 1, k2 = local == 0 ? 2 : local - 1;
       return triangleKernel(measure, x, xyz[static_cast<std::size_t>(nd[k1])],
-                            xyz[static_cast<std::size_t>(nd[k2])], n, delta, wantEta0, grad,
-                            hess);
+                            xyz[static_cast<std::size_t>(nd[k2])], n, delta, wantEta0, grad, hess);
     }
     Vec3 xs[kMaxElementNodes];
     const int cnt = mesh.elementSize(e);
@@ -513,7 +516,7 @@ class NodeUpdater {
       const Vec3 nref = local < cornerCount(s_.mesh.elemType[e])
                             ? s_.elementNormal(e, static_cast<std::int64_t>(i), nfree(j), old(j))
                             : s_.elementNormal(e, -1, Vec3::Zero(), Vec3::Zero());
-      const double delta = s_.deltaHat * s_.elemScale[e];
+      const double delta = s_.deltaHat * s_.deltaScale[e];
       Vec3 ge;
       Mat3 He;
       const ElemOut ev =
@@ -580,9 +583,8 @@ class NodeUpdater {
     if (s_.end(i) == s_.begin(i)) return 0.0;
     const double L = s_.localSize(i);
     if (!(L > 0.0)) return 0.0;
-    const double orient =
-        static_cast<double>(s_.mesh.faceOrientation[static_cast<std::size_t>(face)] *
-                            surf.normalSign());
+    const double orient = static_cast<double>(
+        s_.mesh.faceOrientation[static_cast<std::size_t>(face)] * surf.normalSign());
     const bool monotone = s_.opt.monotone;
     auto zero = [](std::size_t) { return Vec3::Zero().eval(); };
     double moved = 0.0;
@@ -648,8 +650,13 @@ class NodeUpdater {
         const double lu = d.du.norm(), lv = d.dv.norm();
         if (lu > 0.0 && lv > 0.0) {
           const Vec2 eu(0.25 * L / lu, 0.0), ev(0.0, 0.25 * L / lv);
-          const Vec2 dirs[8] = {eu, -eu, ev, -ev, (eu + ev) * 0.7071067811865476,
-                                (eu - ev) * 0.7071067811865476, (ev - eu) * 0.7071067811865476,
+          const Vec2 dirs[8] = {eu,
+                                -eu,
+                                ev,
+                                -ev,
+                                (eu + ev) * 0.7071067811865476,
+                                (eu - ev) * 0.7071067811865476,
+                                (ev - eu) * 0.7071067811865476,
                                 -(eu + ev) * 0.7071067811865476};
           for (double scale : {1.0, 0.5, 0.25})
             for (const Vec2& dd : dirs)
@@ -853,7 +860,7 @@ OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
         [&](std::size_t a, std::size_t b) {
           double f = 0.0;
           for (std::size_t e = a; e < b; ++e) {
-            const ElemOut ev = s.evalWhole(e, deltaHat * s.elemScale[e]);
+            const ElemOut ev = s.evalWhole(e, deltaHat * s.deltaScale[e]);
             s.eta0[e] = ev.eta0;
             s.minSigma[e] = ev.tangled ? std::min(ev.minSigma, 0.0) : ev.minSigma;
             f += std::isfinite(ev.eta) ? 0.5 * (ev.eta - 1.0) * (ev.eta - 1.0) : kInf;
@@ -898,6 +905,23 @@ OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
   };
 
   freezeScales();
+  {
+    std::vector<double> nodeScale(mesh.nodeCount(), 0.0);
+    for (std::size_t i = 0; i < mesh.nodeCount(); ++i) {
+      const std::int64_t b = s.inc.offset[i], en = s.inc.offset[i + 1];
+      for (std::int64_t p = b; p < en; ++p)
+        nodeScale[i] +=
+            s.elemScale[static_cast<std::size_t>(s.inc.elem[static_cast<std::size_t>(p)])];
+      if (en > b) nodeScale[i] /= static_cast<double>(en - b);
+    }
+    s.deltaScale.assign(E, 0.0);
+    for (std::size_t e = 0; e < E; ++e) {
+      const int nc = cornerCount(mesh.elemType[e]);
+      const std::int32_t* nd = mesh.elementNodes(e);
+      for (int k = 0; k < nc; ++k) s.deltaScale[e] += nodeScale[static_cast<std::size_t>(nd[k])];
+      s.deltaScale[e] /= nc;
+    }
+  }
   GlobalEval g = fullEval(0.0);
   s.deltaHat = chooseDelta(g);
   res.initialObjective = s.deltaHat > 0.0 ? fullEval(s.deltaHat).objective : g.objective0;
@@ -938,7 +962,8 @@ OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
               const std::int32_t last = s.lastVisit[i];
               bool active = last < s.validFrom || s.movedAt[i] == last;
               for (std::int64_t p = s.begin(i); !active && p < s.end(i); ++p) {
-                const std::size_t e = static_cast<std::size_t>(s.inc.elem[static_cast<std::size_t>(p)]);
+                const std::size_t e =
+                    static_cast<std::size_t>(s.inc.elem[static_cast<std::size_t>(p)]);
                 const std::int32_t* nd = mesh.elementNodes(e);
                 for (int q = 0; q < mesh.elementSize(e); ++q)
                   if (s.movedAt[static_cast<std::size_t>(nd[q])] > last) active = true;
