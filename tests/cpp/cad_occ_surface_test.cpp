@@ -48,7 +48,8 @@ std::vector<Vec2> interiorUV(const TopoDS_Face& face, double deflection) {
     for (int k = 1; k <= poly->NbNodes(); ++k) onEdge[static_cast<std::size_t>(poly->Node(k))] = 1;
   }
   for (int i = 1; i <= tri->NbNodes(); ++i)
-    if (!onEdge[static_cast<std::size_t>(i)]) out.emplace_back(tri->UVNode(i).X(), tri->UVNode(i).Y());
+    if (!onEdge[static_cast<std::size_t>(i)])
+      out.emplace_back(tri->UVNode(i).X(), tri->UVNode(i).Y());
   return out;
 }
 
@@ -98,7 +99,9 @@ TEST(OccFaceSurface, DerivativesMatchFiniteDifferencesOnBSplineFaces) {
       const auto e1 = err(hu, hv), e2 = err(hu / 2, hv / 2);
       for (std::size_t k = 0; k < 5; ++k) {
         EXPECT_LT(e1[k], 1e-3) << "face " << f << " derivative " << k;
-        if (e1[k] > 1e-9) EXPECT_GT(e1[k] / std::max(e2[k], 1e-300), 3.0) << "face " << f;
+        if (e1[k] > 1e-9) {
+          EXPECT_GT(e1[k] / std::max(e2[k], 1e-300), 3.0) << "face " << f;
+        }
       }
     }
   }
@@ -203,8 +206,9 @@ TEST(OccEdgeCurve, DerivativesAndPcurvesAgreeWithTheEdge) {
       const Vec3 fd1 = (c.value(t + h) - c.value(t - h)) / (2 * h);
       const Vec3 fd2 = (c.d2(t + h).dt - c.d2(t - h).dt) / (2 * h);
       EXPECT_LE((fd1 - d.dt).norm(), 1e-5 * (1 + d.dt.norm())) << "edge " << e;
-      if (c.adaptor().Continuity() >= GeomAbs_C2)  // C'' jumps at the knots of C1 splines
+      if (c.adaptor().Continuity() >= GeomAbs_C2) {  // C'' jumps at the knots of C1 splines
         EXPECT_LE((fd2 - d.dtt).norm(), 1e-4 * (1 + d.dtt.norm())) << "edge " << e;
+      }
       for (int k = 0; k < c.faceCount(); ++k) {
         const int f = c.faceId(k);
         const OccFaceSurface& s = shape->surface(f);
@@ -215,7 +219,9 @@ TEST(OccEdgeCurve, DerivativesAndPcurvesAgreeWithTheEdge) {
           // The two pcurves of a seam: `near` picks the closer one, a period apart.
           const Vec2 a1 = c.uvOnFace(f, t, Vec2(s.bounds().umin, uv.y()));
           const Vec2 a2 = c.uvOnFace(f, t, Vec2(s.bounds().umax, uv.y()));
-          if (s.isUPeriodic()) EXPECT_NEAR(std::abs(a2.x() - a1.x()), s.uPeriod(), 1e-9);
+          if (s.isUPeriodic()) {
+            EXPECT_NEAR(std::abs(a2.x() - a1.x()), s.uPeriod(), 1e-9);
+          }
           ++seams;
         }
       }
