@@ -3,16 +3,23 @@
 // the B-rep (vertex, edge with curve parameter t, or face with (u,v)).
 //
 // Classification (CadMesh constructor):
-//   1. Every node gets the set C(n) of faces within `tolerance` of it: candidate faces from
-//      their bounding boxes, the point projected on the face's surface
-//      (ShapeAnalysis_Surface::NextValueOfUV, started from the previous node's (u,v) on that
-//      face), the result classified against the trimming loops (BRepTopAdaptor_FClass2d);
-//      outside the loops the distance is the one to the face's boundary edges
-//      (ShapeAnalysis_Curve::Project). Hints (Gmsh's node → face/edge/vertex) replace the search
-//      when they check out; a hint farther than the tolerance is ignored with a warning.
+//   1. Every node gets the set C(n) of faces it lies on: candidate faces from their bounding
+//      boxes (searched near the node first, out to `tolerance` only when no face is close);
+//      the point projected on each face's surface (closed form for planes, cylinders, cones,
+//      spheres and tori; OCC's local extremum search Extrema_GenLocateExtPS from the nearest
+//      samples of a grid on the face for free-form surfaces, confirmed by
+//      ShapeAnalysis_Surface::ValueOfUV when it finds no point on the surface); the result
+//      classified against the trimming loops (BRepTopAdaptor_FClass2d); outside them, or when
+//      not clearly on the surface, the distance to the face's boundary edges (Extrema_ExtPC on
+//      the edge's bounded curve). C(n) keeps the faces no farther than the nearest one plus
+//      the tolerance of their boundary near the node (≥ 1e-6·diagonal): a node near a tangent
+//      edge or on a thin wall is close to the neighbouring face too, but not on it.
+//      Hints (Gmsh's node → face/edge/vertex) replace the search when they check out; a hint
+//      farther than the tolerance is ignored, counted and reported in a warning.
 //   2. Every element is assigned the face shared by all its nodes (∩ C(n)); when several faces
-//      qualify, the one nearest to the element's centroid. An element whose nodes share no
-//      face is an error (std::invalid_argument naming the element and its nodes' faces).
+//      qualify, the one minimizing the sum of its nodes' distances plus its centroid's
+//      distance. An element whose nodes share no face is an error (std::invalid_argument
+//      naming the element and its nodes' faces): the mesh must conform to the B-rep.
 //   3. Every node gets the faces F(n) of its elements. One face → a face node (seam edges of
 //      periodic faces are inside the face), except on the mesh's own boundary, where the node
 //      is put on the nearest CAD edge of its face. Several faces → the node is on a CAD vertex
