@@ -165,6 +165,29 @@ void mutate(FuzzedDataProvider& fdp, SurfaceMesh& m, const Surface& s) {
   }
 }
 
+/// With SURFMESH_FUZZ_DUMP set (replaying a reproducer), prints the mesh and the options
+/// exactly (hex floats), ready to become a regression test.
+void dump(const SurfaceMesh& m, const OptimizeOptions& o) {
+  if (!std::getenv("SURFMESH_FUZZ_DUMP")) return;
+  std::printf("options: measure %s maxSweeps %d monotone %d deltaPolicy %s\n", o.measure.c_str(),
+              o.maxSweeps, o.monotone ? 1 : 0, o.deltaPolicy.c_str());
+  std::printf("surface: %s\n", m.surfaces[0]->describe().c_str());
+  std::printf("faceOrientation %d\n", m.faceOrientation[0]);
+  for (std::size_t i = 0; i < m.nodeCount(); ++i)
+    std::printf("node %zu kind %d face %d uv {%a, %a} xyz {%a, %a, %a}\n", i,
+                static_cast<int>(m.nodeKind[i]), m.nodeFace[i], m.uv[i].x(), m.uv[i].y(),
+                m.xyz[i].x(), m.xyz[i].y(), m.xyz[i].z());
+  for (std::size_t e = 0; e < m.elementCount(); ++e) {
+    std::printf("element %zu type %d face %d nodes", e, static_cast<int>(m.elemType[e]),
+                m.elemFace[e]);
+    for (int k = 0; k < m.elementSize(e); ++k) std::printf(" %d", m.elementNodes(e)[k]);
+    std::printf(" cornerUV");
+    for (int k = 0; k < m.elementSize(e); ++k)
+      std::printf(" {%a, %a}", m.elementUV(e)[k].x(), m.elementUV(e)[k].y());
+    std::printf("\n");
+  }
+}
+
 void checkAccepted(FuzzedDataProvider& fdp, SurfaceMesh& m) {
   for (const char* name : {"shape", "oddy"}) {
     const MeshQuality q = measureQuality(m, measureByName(name));
@@ -178,6 +201,7 @@ void checkAccepted(FuzzedDataProvider& fdp, SurfaceMesh& m) {
   o.deltaPolicy = fdp.ConsumeBool() ? "auto" : "fixed";
   o.threads = 1;
   const SurfaceMesh before = m;
+  dump(m, o);
   OptimizeResult r;
   try {
     r = optimizeMesh(m, o);
@@ -196,6 +220,10 @@ void checkAccepted(FuzzedDataProvider& fdp, SurfaceMesh& m) {
         violated("a moved face node is off its surface");
     }
   }
+  if (std::getenv("SURFMESH_FUZZ_DUMP"))
+    std::printf("before: min %.17g tangled %zu; after: min %.17g tangled %zu; %d sweeps (%s)\n",
+                r.before.min, r.before.tangled, r.after.min, r.after.tangled, r.sweeps,
+                stopReasonName(r.reason));
   if (o.monotone && r.before.tangled == 0 && r.after.min < r.before.min - 1e-9)
     violated("monotone mode lowered the minimum quality of a valid mesh");
 }

@@ -891,4 +891,24 @@ TEST(Benchmark, UJointWithDegeneratedEdges) {
 
 // ---- regressions found by fuzzing (fuzz/) ------------------------------------------------------
 
+TEST(FuzzRegression, ElementNodeReplacedWithoutItsCornerUVIsRejected) {
+  // fuzz_surface_mesh crash-f2308ab2: on a 6×4 torus grid, element 0's first node was replaced
+  // (0 → 16) while its corner (u,v) stayed those of node 0. validate() accepted it, and the
+  // optimizer (which takes reference normals from the corner (u,v)) then lowered the minimum
+  // quality in monotone mode. Such a mesh is corrupt: validate() must reject it.
+  const TorusSurface torus(10, 4);
+  const GridMesh g = periodicGridMesh(6, 4, 0, 2 * kPi, 0, 2 * kPi, true);
+  SurfaceMesh m = makeSingleSurfaceMesh(torus, g.uv, ElementType::Tri3, g.conn, g.fixed);
+  ASSERT_NO_THROW(m.validate());
+  const std::int32_t other = m.elemNodes[0] == 16 ? 17 : 16;
+  m.elemNodes[0] = other;
+  const std::string msg = invalidArgument([&] { m.validate(); });
+  EXPECT_MESSAGE_HAS(
+      msg, "element 0: the corner (u,v) of node " + std::to_string(other) + " does not match");
+  // Shifted by a whole period it is the same point: accepted.
+  SurfaceMesh p = makeSingleSurfaceMesh(torus, g.uv, ElementType::Tri3, g.conn, g.fixed);
+  for (int k = 0; k < 3; ++k) p.cornerUV[static_cast<std::size_t>(k)].x() += 2 * kPi;
+  EXPECT_NO_THROW(p.validate());
+}
+
 }  // namespace

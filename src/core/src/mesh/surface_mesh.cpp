@@ -325,8 +325,16 @@ void SurfaceMesh::validate() const {
         if (nd[j] == nd[k])
           fail("element " + std::to_string(e) + " repeats node " + std::to_string(nd[k]) +
                " (local positions " + std::to_string(j) + " and " + std::to_string(k) + ")");
-      if (!elementUV(e)[k].allFinite())
-        fail("element " + std::to_string(e) + " has a non-finite corner (u,v)");
+      const Vec2& c = elementUV(e)[k];
+      if (!c.allFinite()) fail("element " + std::to_string(e) + " has a non-finite corner (u,v)");
+      // A face node's corner (u,v) on its own face is its (u,v), up to whole periods.
+      const std::size_t n = static_cast<std::size_t>(nd[k]);
+      if (nodeKind[n] == NodeKind::Face && nodeFace[n] == f) {
+        const Vec2 d = surfaces[static_cast<std::size_t>(f)]->unwrapNear(uv[n], c) - c;
+        if (!(d.cwiseAbs().maxCoeff() <= 1e-9 * (1.0 + c.cwiseAbs().maxCoeff())))
+          fail("element " + std::to_string(e) + ": the corner (u,v) of node " + std::to_string(n) +
+               " does not match the node's (u,v) on face " + std::to_string(f));
+      }
     }
   }
   checkDuplicateNodes(*this);

@@ -95,7 +95,8 @@ struct SurfaceMesh {
   ///   * array sizes, element offsets (0, non-decreasing, ending at elemNodes.size()), element
   ///     type codes, node counts per element, face ids, faceOrientation (±1);
   ///   * finite positions, (u,v) of face nodes, t of edge nodes and corner (u,v);
-  ///   * element node ids in range and not repeated within an element;
+  ///   * element node ids in range and not repeated within an element; the corner (u,v) of a
+  ///     face node on its own face equal to the node's (u,v) up to whole periods;
   ///   * one element order (tri3 and quad4 may be mixed; tri3 with tri6 may not: the mesh
   ///     would not conform along the edges between them);
   ///   * no duplicate nodes: two nodes used by elements at the same position make the mesh
