@@ -129,16 +129,16 @@ INSTANTIATE_TEST_SUITE_P(Parts, CadOptimizePart, ::testing::ValuesIn(kParts),
                          });
 
 TEST(CadOptimize, PerturbedInteriorNodesOnSeveralFacesAreUntangled) {
-  // The crank arm: Gmsh itself leaves tangled elements on it (FREECAD_NOTES.md). With steps
-  // of 0.7·h instead of 0.5·h, 39 tangled elements on 5 faces end with 1 left tangled (all three
-  // nodes movable, on B-spline face 16): an open question for the optimizer.
+  // The crank arm: Gmsh itself leaves tangled elements on it (FREECAD_NOTES.md). Steps of up to
+  // 0.9·h tangle about 70 elements on several faces. (With 0.7·h and this seed, one element on
+  // B-spline face 16 stays tangled: a local minimum of the sweep, noted in the issue.)
   const char* part = "occt_crankarm.brep";
   auto shape = load(part);
   const double diag = shape->diagonal();
   const OccMesh om = meshWithBRepMesh(*shape, 1e-3 * diag, 0.5);
   CadMesh cm(shape, om.input);
   SurfaceMesh& m = cm.mesh();
-  // Perturb face nodes in (u,v) by up to 0.5 of their distance to the nearest neighbour in
+  // Perturb face nodes in (u,v) by up to 0.9 of their distance to the nearest neighbour in
   // (u,v), staying inside the trimmed face, on every third face.
   std::vector<std::vector<std::int32_t>> nbr(m.nodeCount());
   for (std::size_t e = 0; e < m.elementCount(); ++e)
@@ -157,8 +157,8 @@ TEST(CadOptimize, PerturbedInteriorNodesOnSeveralFacesAreUntangled) {
       h = std::min(h, d.norm());
     }
     const SurfaceD1 d1 = s.d1(m.uv[n].x(), m.uv[n].y());
-    const Vec2 step(0.5 * h * U(rng) / std::max(d1.du.norm(), 1e-300),
-                    0.5 * h * U(rng) / std::max(d1.dv.norm(), 1e-300));
+    const Vec2 step(0.9 * h * U(rng) / std::max(d1.du.norm(), 1e-300),
+                    0.9 * h * U(rng) / std::max(d1.dv.norm(), 1e-300));
     const Vec2 uv = s.wrap(m.uv[n] + step);
     if (!s.contains(uv.x(), uv.y())) continue;
     m.uv[n] = uv;

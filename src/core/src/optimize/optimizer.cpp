@@ -836,10 +836,12 @@ OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
   std::size_t movable = 0;
   for (const auto& c : colors) movable += c.size();
 
+  double epsilon = opt.deltaEpsilon;  // ε of the automatic policy, cycled on stalls
+  int epsilonLevel = 0;
   auto chooseDelta = [&](const GlobalEval& g) {
     if (g.tangled == 0) return 0.0;
     if (opt.deltaPolicy == "fixed") return opt.delta;
-    const double eps = opt.deltaEpsilon;
+    const double eps = epsilon;
     const double sm = std::min(g.minSigma, 0.0);
     return std::sqrt(eps * (eps - sm));
   };
@@ -929,6 +931,8 @@ OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
   if (movable == 0 || opt.maxSweeps == 0) res.reason = StopReason::NothingToDo;
 
   double prevDelta = -1.0;
+  std::size_t bestTangled = g.tangled;
+  int stalled = 0, zeroMoves = 0;
   for (int sweep = 1; movable > 0 && sweep <= opt.maxSweeps; ++sweep) {
     freezeScales();
     s.deltaHat = chooseDelta(g);
@@ -1013,6 +1017,28 @@ OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
         res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         return res;  // the mesh was never touched
       }
+    }
+    if (g.tangled > 0 && opt.deltaPolicy == "auto") {
+      // Untangling stalls: cycle ε through ε, ε/3, ε/9 (see OptimizeOptions::deltaEpsilon).
+      if (g.tangled < bestTangled) {
+        bestTangled = g.tangled;
+        stalled = 0;
+      } else {
+        ++stalled;
+      }
+      zeroMoves = moved == 0 ? zeroMoves + 1 : 0;
+      if (stalled >= std::max(1, opt.deltaStallSweeps) || moved == 0) {
+        epsilonLevel = (epsilonLevel + 1) % 3;
+        static const double kFactors[3] = {1.0, 1.0 / 3.0, 1.0 / 9.0};
+        epsilon = opt.deltaEpsilon * kFactors[epsilonLevel];
+        stalled = 0;
+      }
+      if (zeroMoves >= 3) {
+        // No node moved with any of the three ε: a fixed point.
+        res.reason = StopReason::Converged;
+        break;
+      }
+      continue;
     }
     if (moved == 0 && (g.tangled == 0 || chooseDelta(g) == s.deltaHat)) {
       // Nothing moved and the next sweep would repeat this one: a fixed point.

@@ -55,8 +55,14 @@ struct OptimizeOptions {
   int maxLineSearch = 30;
   /// δ policy: "auto" (Escobar, from σ_min each sweep) or "fixed" (use `delta` while tangled).
   std::string deltaPolicy = "auto";
-  /// ε of the automatic δ policy (dimensionless, relative to the local size²).
+  /// ε of the automatic δ policy (dimensionless, relative to the local size²). When the number
+  /// of tangled elements has not decreased for `deltaStallSweeps` sweeps (or no node moved),
+  /// ε cycles through ε, ε/3, ε/9: a smaller δ keeps more of the barrier (it freed a perturbed
+  /// crank arm where ε = 1e-2 left one element tangled), a larger one untangles heavily folded
+  /// meshes (the order-2 revolution surface with half its elements tangled).
   double deltaEpsilon = 1e-2;
+  /// Sweeps without fewer tangled elements before the automatic policy changes ε.
+  int deltaStallSweeps = 8;
   /// δ of the fixed policy (dimensionless).
   double delta = 1e-2;
   /// Reject any move that lowers the minimum quality of the node's submesh (when the submesh
