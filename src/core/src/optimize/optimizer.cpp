@@ -663,6 +663,50 @@ class NodeUpdater {
               if (tryStep(scale * dd)) accepted = true;
         }
       }
+      if (!accepted && s_.deltaHat > 0.0 && cur.tangled > 0) {
+        // A fold the local Newton step cannot open (every step that lowers f̂ tangles another
+        // element of the submesh): try the parametric centroid of the node's neighbours (a
+        // Laplacian step, as Gmsh's Laplace2D) and accept it when it leaves fewer elements
+        // of the submesh tangled — strict progress, so it cannot cycle.
+        Vec2 c = Vec2::Zero();
+        int cnt = 0;
+        for (std::int64_t p = s_.begin(i); p < s_.end(i); ++p) {
+          const std::size_t e = static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
+          const std::int32_t* nd = s_.mesh.elementNodes(e);
+          const int nc = cornerCount(s_.mesh.elemType[e]);
+          for (int k = 0; k < nc; ++k) {
+            const std::size_t j = static_cast<std::size_t>(nd[k]);
+            if (j == i) continue;
+            const bool sameFace =
+                s_.mesh.nodeKind[j] == NodeKind::Face && s_.mesh.nodeFace[j] == face;
+            const Vec2 uvj =
+                sameFace ? s_.uv[j]
+                         : s_.mesh.cornerUV[static_cast<std::size_t>(s_.mesh.elemOffset[e] + k)];
+            c += surf.unwrapNear(uvj, uv0);
+            ++cnt;
+          }
+        }
+        if (cnt > 0) {
+          const Vec2 lap = c / cnt - uv0;
+          for (double a : {1.0, 0.5, 0.25}) {
+            const Vec2 uvT = surf.wrap(uv0 + a * lap);
+            if (!surf.contains(uvT.x(), uvT.y())) continue;
+            const SurfaceD2 dT = surf.d2(uvT.x(), uvT.y());
+            if (isDegenerate({dT.p, dT.du, dT.dv})) continue;
+            const Vec3 cr = dT.du.cross(dT.dv);
+            const Vec3 nT = (orient / cr.norm()) * cr;
+            const LocalEval tr = evalLocal(
+                i, dT.p, [&](std::size_t) { return nT; }, zero, false, nullptr, nullptr, nullptr);
+            if (tr.finite && tr.tangled < cur.tangled) {
+              accepted = true;
+              uvNew = uvT;
+              dn = dT;
+              nn = nT;
+              break;
+            }
+          }
+        }
+      }
       if (!accepted) return moved;
       const double step = (dn.p - x0).norm();
       moved += step;
