@@ -128,17 +128,22 @@ INSTANTIATE_TEST_SUITE_P(Parts, CadOptimizePart, ::testing::ValuesIn(kParts),
                            return s;
                          });
 
-TEST(CadOptimize, PerturbedInteriorNodesOnSeveralFacesAreUntangled) {
-  // The crank arm: Gmsh itself leaves tangled elements on it (FREECAD_NOTES.md). Steps of up to
-  // 0.9·h tangle about 70 elements on several faces. (With 0.7·h and this seed, one element on
-  // B-spline face 16 stays tangled: a local minimum of the sweep, noted in the issue.)
-  const char* part = "occt_crankarm.brep";
+struct PerturbCase {
+  const char* part;
+  double amplitude;  // step bound, in units of the distance to the nearest neighbour
+};
+
+class CadPerturbed : public ::testing::TestWithParam<PerturbCase> {};
+
+TEST_P(CadPerturbed, InteriorNodesPerturbedOnSeveralFacesAreUntangled) {
+  const char* part = GetParam().part;
+  const double amp = GetParam().amplitude;
   auto shape = load(part);
   const double diag = shape->diagonal();
   const OccMesh om = meshWithBRepMesh(*shape, 1e-3 * diag, 0.5);
   CadMesh cm(shape, om.input);
   SurfaceMesh& m = cm.mesh();
-  // Perturb face nodes in (u,v) by up to 0.9 of their distance to the nearest neighbour in
+  // Perturb face nodes in (u,v) by up to `amp` times their distance to the nearest neighbour in
   // (u,v), staying inside the trimmed face, on every third face.
   std::vector<std::vector<std::int32_t>> nbr(m.nodeCount());
   for (std::size_t e = 0; e < m.elementCount(); ++e)
@@ -157,8 +162,8 @@ TEST(CadOptimize, PerturbedInteriorNodesOnSeveralFacesAreUntangled) {
       h = std::min(h, d.norm());
     }
     const SurfaceD1 d1 = s.d1(m.uv[n].x(), m.uv[n].y());
-    const Vec2 step(0.9 * h * U(rng) / std::max(d1.du.norm(), 1e-300),
-                    0.9 * h * U(rng) / std::max(d1.dv.norm(), 1e-300));
+    const Vec2 step(amp * h * U(rng) / std::max(d1.du.norm(), 1e-300),
+                    amp * h * U(rng) / std::max(d1.dv.norm(), 1e-300));
     const Vec2 uv = s.wrap(m.uv[n] + step);
     if (!s.contains(uv.x(), uv.y())) continue;
     m.uv[n] = uv;
@@ -182,6 +187,18 @@ TEST(CadOptimize, PerturbedInteriorNodesOnSeveralFacesAreUntangled) {
   EXPECT_LE(c.worstSurface, 1e-9 * diag);
   EXPECT_EQ(c.outside, 0u);
 }
+
+// The crank arm: Gmsh itself leaves tangled elements on it (FREECAD_NOTES.md); steps of 0.9·h
+// tangle about 70 elements on 5 faces. The housing (tori, spheres, B-spline blends) and the
+// bottle (cylinder/sphere/torus fillets): 160 and 20 elements.
+INSTANTIATE_TEST_SUITE_P(Parts, CadPerturbed,
+                         ::testing::Values(PerturbCase{"occt_crankarm.brep", 0.9},
+                                           PerturbCase{"occt_housing_bottom.brep", 0.7},
+                                           PerturbCase{"occt_bottle.brep", 0.7}),
+                         [](const ::testing::TestParamInfo<PerturbCase>& i) {
+                           std::string s = i.param.part;
+                           return s.substr(0, s.find('.'));
+                         });
 
 TEST(CadOptimize, SlidingEdgeNodesGainQualityAndStayOnTheirEdges) {
   for (const char* part : {"occt_crankarm.brep", "occt_screw.step", "occt_propeller.brep"}) {
