@@ -405,16 +405,17 @@ TEST(CadBridge, BadInputIsRejectedWithClearMessages) {
   expectError(noElems, "no elements");
 }
 
-// ---- performance ---------------------------------------------------------------------------
+// ---- larger meshes (times are printed; speed goals live in bench/, not in tests) -------------
 
-TEST(CadBridge, HousingClassificationIsFast) {
+TEST(CadBridge, HousingClassification) {
   auto shape = load("occt_housing_bottom.brep");
   OccMesh om = meshWithBRepMesh(*shape, 1e-3 * shape->diagonal(), 0.5);
   const auto t0 = std::chrono::steady_clock::now();
   CadMesh cm(shape, om.input);
   const double t = seconds(t0);
   std::cout << "housing: " << om.input.nodes.size() << " nodes classified in " << t << " s\n";
-  EXPECT_LT(t, 2.0);  // ~0.5 s on 2 idle cores
+  EXPECT_TRUE(cm.report().flippedFaces.empty());
+  EXPECT_EQ(cm.mesh().elementCount(), om.input.types.size());
 }
 
 TEST(CadBridge, HundredThousandNodes) {
@@ -428,7 +429,6 @@ TEST(CadBridge, HundredThousandNodes) {
             << cm.report().summary();
   EXPECT_GT(om.input.nodes.size(), 50000u);
   EXPECT_TRUE(cm.report().flippedFaces.empty());
-  EXPECT_LT(t, 60.0);
 }
 
 }  // namespace

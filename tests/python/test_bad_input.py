@@ -112,13 +112,15 @@ def arrays(nodes, elems, types=None):
 
 
 def mesh_points(mesh):
-    """Node coordinates of a Mesh.Mesh or Fem.FemMesh, for before/after comparisons."""
+    """Node coordinates of a Mesh.Mesh or Fem.FemMesh, for before/after comparisons (as text:
+    a NaN coordinate compares equal to itself)."""
     if isinstance(mesh, Mesh.Mesh):
-        return [(p.x, p.y, p.z) for p in mesh.Topology[0]], [tuple(f) for f in mesh.Topology[1]]
-    return (
+        return repr(([(p.x, p.y, p.z) for p in mesh.Topology[0]],
+                     [tuple(f) for f in mesh.Topology[1]]))
+    return repr((
         sorted((i, v.x, v.y, v.z) for i, v in mesh.Nodes.items()),
         sorted((e, tuple(mesh.getElementNodes(e))) for e in mesh.Faces),
-    )
+    ))
 
 
 def box_shape():

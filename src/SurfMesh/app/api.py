@@ -24,6 +24,7 @@ This module never imports FreeCADGui.
 from __future__ import annotations
 
 import dataclasses
+import re
 import time
 from typing import Callable, Optional
 
@@ -202,11 +203,14 @@ def prepare(mesh, shape, boundary="fixed", tolerance=None, hints="auto", collaps
     cshape = shape if part_shape is None else _core_shape(part_shape)
 
     def build(w):
-        return core().cad_mesh(
-            cshape, w.nodes, w.types, w.offsets, w.conn,
-            hint_face=w.hint_face, hint_edge=w.hint_edge, hint_vertex=w.hint_vertex,
-            tolerance=0.0 if tolerance is None else float(tolerance), boundary=boundary,
-        )
+        try:
+            return core().cad_mesh(
+                cshape, w.nodes, w.types, w.offsets, w.conn,
+                hint_face=w.hint_face, hint_edge=w.hint_edge, hint_vertex=w.hint_vertex,
+                tolerance=0.0 if tolerance is None else float(tolerance), boundary=boundary,
+            )
+        except ValueError as err:
+            raise ValueError(_name_by_ids(str(err), w)) from None
 
     handle = build(work)
     reasons = []
@@ -240,6 +244,36 @@ def prepare(mesh, shape, boundary="fixed", tolerance=None, hints="auto", collaps
         ]
         report["skipped_elements"] = [int(i) for i in ids]
     return data, handle
+
+
+_NODE_REF = re.compile(r"\b(nodes?|row) (\d+)((?:,| and) (\d+))?")
+_ELEMENT_REF = re.compile(r"\b(elements?) (\d+)((?:,| and) (\d+))?")
+
+
+def _name_by_ids(message, data):
+    """The core names nodes and elements by their 0-based position in the arrays it was given;
+    users know them by their ids (FEM node and element ids, which need not start at 0 or 1).
+    Rewrites "node 5", "nodes 2 and 7", "row 5" (a row of the node array) and "element 3"."""
+    def ids_of(table, pattern, label_row=False):
+        def sub(m):
+            out = []
+            for g in (m.group(2), m.group(4)):
+                if g is None:
+                    continue
+                k = int(g)
+                out.append(str(int(table[k])) if 0 <= k < len(table) else g)
+            word = "node" if (label_row and m.group(1) == "row") else m.group(1)
+            if len(out) == 2:
+                sep = m.group(3)[: -len(m.group(4))]
+                return f"{word} {out[0]}{sep}{out[1]}"
+            return f"{word} {out[0]}"
+        return sub
+
+    if getattr(data, "node_ids", None) is not None:
+        message = _NODE_REF.sub(ids_of(data.node_ids, _NODE_REF, label_row=True), message)
+    if getattr(data, "element_ids", None) is not None:
+        message = _ELEMENT_REF.sub(ids_of(data.element_ids, _ELEMENT_REF), message)
+    return message
 
 
 def _flat_boundary_elements(work, handle):

@@ -339,11 +339,13 @@ def _write_gmsh(out, src, new_nodes, version):
         gmsh.clear()
         gmsh.model.add("surfmesh")
         gmsh.model.addDiscreteEntity(2, 1)
-        gmsh.model.mesh.addNodes(2, 1, data.node_ids.tolist(), new_nodes.reshape(-1).tolist())
+        # Gmsh tags start at 1: 0-based ids (STL/OBJ inputs, arrays) are shifted by one.
+        tags = data.node_ids + 1 if data.node_ids.min() == 0 else data.node_ids
+        gmsh.model.mesh.addNodes(2, 1, tags.tolist(), new_nodes.reshape(-1).tolist())
         for code in np.unique(data.types):
             name = conversion.ELEMENT_NAMES[int(code)]
             sel = np.nonzero(data.types == code)[0]
-            conn = np.concatenate([data.node_ids[data.element(e)] for e in sel])
+            conn = np.concatenate([tags[data.element(e)] for e in sel])
             gmsh.model.mesh.addElementsByType(
                 1, GMSH_CODES[name], (data.element_ids[sel] + 1 if data.element_ids.min() == 0
                                       else data.element_ids[sel]).tolist(), conn.tolist()
