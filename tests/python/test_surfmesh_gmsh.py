@@ -92,7 +92,11 @@ class GmshCase(unittest.TestCase):
         mesh = examples.make_gmsh_mesh(self.doc, part, 1e22)
         self.assertIn("invalid", mesh.GmshMessages)  # Gmsh says it left invalid elements
         res = SurfMesh.optimize(mesh, part, measure="shape", boundary="fixed")
-        self.assertGreater(res.before.stats["tangled"], 0)
+        # Gmsh's invalid elements are either untangled or, when no node movement can repair
+        # them (a repeated node, a sliver along one CAD edge, two nodes on one CAD vertex),
+        # left out and reported: nothing measured stays tangled.
+        self.assertGreater(res.before.stats["tangled"] + res.before.stats["skipped"], 0)
+        self.assertTrue(any("left out" in w for w in res.before.bridge["warnings"]))
         self.assertEqual(res.after.stats["tangled"], 0)
         self.assertGreater(res.after.stats["min"], 0.0)
         skipped = res.before.skipped

@@ -233,7 +233,10 @@ def prepare(mesh, shape, boundary="fixed", tolerance=None, hints="auto", collaps
             work = data.subset(keep)
             data.kept = keep
             handle = build(work)
-            reasons.append(f"{int(flat.sum())} flat element(s) with every node on one CAD edge")
+            reasons.append(
+                f"{int(flat.sum())} flat element(s) on one CAD edge or with two nodes on one "
+                "CAD vertex"
+            )
     if data.kept is not None:
         ids = data.element_ids[bad]
         report = handle.report  # the handle's own dict: additions stay with it
@@ -277,19 +280,24 @@ def _name_by_ids(message, data):
 
 
 def _flat_boundary_elements(work, handle):
-    """Bool mask (over ``work``'s elements) of tangled, (nearly) zero-area elements (scaled
-    det S within 1e-2 of 0) whose corners all lie on CAD edges or vertices, the edge nodes all
-    on one edge: slivers along a CAD edge."""
+    """Bool mask (over ``work``'s elements) of tangled elements that no node movement can
+    repair: (nearly) zero-area ones (scaled det S within 1e-2 of 0) whose corners all lie on
+    CAD edges or vertices, the edge nodes all on one edge (slivers along a CAD edge), and ones
+    with two corners on the same CAD vertex (two mesh nodes within that vertex's tolerance: a
+    collapsed edge, like a repeated node)."""
     cls = np.asarray(handle.report["node_class"])
     ent = np.asarray(handle.report["node_entity"])
     q = handle.measure("shape")
     sigma = np.asarray(q["min_sigma"])
-    cand = np.nonzero(np.asarray(q["tangled"]) & (np.abs(sigma) <= 1e-2))[0]
+    tangled = np.asarray(q["tangled"])
     out = np.zeros(work.element_count, dtype=bool)
-    for e in cand:
+    for e in np.nonzero(tangled)[0]:
         nodes = work.element(e)[:3 if work.types[e] != conversion.ELEMENT_TYPES["quad4"] else 4]
         c = cls[nodes]
-        if np.all((c == 0) | (c == 1)):
+        vertices = ent[nodes][c == 0].tolist()
+        if len(vertices) != len(set(vertices)):
+            out[e] = True
+        elif abs(sigma[e]) <= 1e-2 and np.all((c == 0) | (c == 1)):
             edges = set(ent[nodes][c == 1].tolist())
             if len(edges) <= 1:
                 out[e] = True
