@@ -897,9 +897,24 @@ OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
         },
         error, errorMutex);
   };
-  // Every element at the current positions: fills the cache (η at δ = 0, det S) and sums.
   constexpr std::size_t kChunk = 4096;
   std::vector<double> chunkF((E + kChunk - 1) / kChunk);
+  // Tangled count, minimum quality, f at δ = 0 and smallest det S from the element cache.
+  auto summarize = [&](GlobalEval& g) {
+    for (std::size_t e = 0; e < E; ++e) {
+      const double et = s.eta0[e];
+      if (s.minSigma[e] <= 0.0 || !std::isfinite(et)) {
+        ++g.tangled;
+        g.minQuality = 0.0;
+        g.objective0 = kInf;
+      } else {
+        g.minQuality = std::min(g.minQuality, 1.0 / et);
+        g.objective0 += 0.5 * (et - 1.0) * (et - 1.0);
+      }
+      g.minSigma = std::min(g.minSigma, s.minSigma[e]);
+    }
+  };
+  // Every element at the current positions: fills the cache (η at δ = 0, det S) and sums.
   auto fullEval = [&](double deltaHat) {
     parallelChunks(
         team, E, kChunk,
@@ -916,36 +931,14 @@ OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
         error, errorMutex);
     GlobalEval g;
     for (double f : chunkF) g.objective += f;
-    for (std::size_t e = 0; e < E; ++e) {
-      const double et = s.eta0[e];
-      if (s.minSigma[e] <= 0.0 || !std::isfinite(et)) {
-        ++g.tangled;
-        g.minQuality = 0.0;
-        g.objective0 = kInf;
-      } else {
-        g.minQuality = std::min(g.minQuality, 1.0 / et);
-        g.objective0 += 0.5 * (et - 1.0) * (et - 1.0);
-      }
-      g.minSigma = std::min(g.minSigma, s.minSigma[e]);
-    }
+    summarize(g);
     return g;
   };
   // The same statistics from the cache (exact in δ = 0 sweeps, where every accepted move
   // refreshes its elements).
   auto cachedEval = [&]() {
     GlobalEval g;
-    for (std::size_t e = 0; e < E; ++e) {
-      const double et = s.eta0[e];
-      if (s.minSigma[e] <= 0.0 || !std::isfinite(et)) {
-        ++g.tangled;
-        g.minQuality = 0.0;
-        g.objective0 = kInf;
-      } else {
-        g.minQuality = std::min(g.minQuality, 1.0 / et);
-        g.objective0 += 0.5 * (et - 1.0) * (et - 1.0);
-      }
-      g.minSigma = std::min(g.minSigma, s.minSigma[e]);
-    }
+    summarize(g);
     g.objective = g.objective0;
     return g;
   };
