@@ -30,18 +30,7 @@ def format_table(rows, title=None, digits=2):
     show it once.  ``digits`` decimals for the quality columns.
     """
     head = ["Measure", "Mesh"] + list(COLUMNS)
-    body = []
-    last = None
-    for measure, label, stats in rows:
-        cells = [
-            f"{stats['min']:.{digits}f}",
-            f"{stats['max']:.{digits}f}",
-            f"{stats['mean']:.{digits}f}",
-            f"{stats['std']:.{digits}f}",
-            f"{int(stats['tangled'])}",
-        ]
-        body.append([measure.capitalize() if measure != last else "", label] + cells)
-        last = measure
+    body = _table_body(rows, digits)
     widths = [max(len(r[i]) for r in [head] + body) for i in range(len(head))]
     lines = []
     if title:
@@ -54,12 +43,10 @@ def format_table(rows, title=None, digits=2):
     return "\n".join(lines)
 
 
-def table_html(rows, digits=2):
-    """The same table as HTML (for the GUI's report dialog)."""
-    out = ["<table border='1' cellspacing='0' cellpadding='4'>", "<tr>"]
-    for h in ["Measure", "Mesh"] + list(COLUMNS):
-        out.append(f"<th>{h}</th>")
-    out.append("</tr>")
+def _table_body(rows, digits):
+    """Cells of the table rows: measure (shown once per run of equal measures), mesh label,
+    then the columns of COLUMNS."""
+    body = []
     last = None
     for measure, label, stats in rows:
         cells = [
@@ -69,8 +56,18 @@ def table_html(rows, digits=2):
             f"{stats['std']:.{digits}f}",
             f"{int(stats['tangled'])}",
         ]
-        name = measure.capitalize() if measure != last else ""
+        body.append([measure.capitalize() if measure != last else "", label] + cells)
         last = measure
+    return body
+
+
+def table_html(rows, digits=2):
+    """The same table as HTML (for the GUI's report dialog)."""
+    out = ["<table border='1' cellspacing='0' cellpadding='4'>", "<tr>"]
+    for h in ["Measure", "Mesh"] + list(COLUMNS):
+        out.append(f"<th>{h}</th>")
+    out.append("</tr>")
+    for name, label, *cells in _table_body(rows, digits):
         out.append("<tr><td>%s</td><td>%s</td>" % (name, label))
         out.extend(f"<td align='right'>{c}</td>" for c in cells)
         out.append("</tr>")
