@@ -8,6 +8,7 @@
 #include <BRepMesh_IncrementalMesh.hxx>
 #include <BRepTools.hxx>
 #include <BRepTools_WireExplorer.hxx>
+#include <BRepTopAdaptor_FClass2d.hxx>
 #include <BRep_Tool.hxx>
 #include <Poly_Triangulation.hxx>
 #include <TopExp.hxx>
@@ -21,6 +22,8 @@
 #include <array>
 #include <cmath>
 #include <functional>
+#include <iostream>
+#include <random>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -169,6 +172,66 @@ TEST(OccFaceSurface, ContainsIsFalseInAHoleAndTrueInside) {
       EXPECT_TRUE(s.contains(q.x(), q.y())) << "face " << f << " at " << q.transpose();
   }
   EXPECT_GE(holes, 3);
+}
+
+// contains() answers from a grid of cells that no pcurve comes near; it must give the same
+// answer as OCC's classifier asked directly, everywhere: on a lattice over each face's (u,v)
+// box and at points scattered around its pcurves (just inside and just outside the loops).
+TEST(OccFaceSurface, ContainsAgreesWithTheOccClassifierEverywhere) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  for (const char* part : {"occt_housing_bottom.brep", "occt_crankarm.brep", "nist_pmi_1.step"}) {
+    auto shape = load(part);
+    std::size_t checked = 0, inside = 0, mismatches = 0;
+    for (int f = 0; f < shape->faceCount(); ++f) {
+      const TopoDS_Face& face = shape->face(f);
+      const OccFaceSurface s(face, f);  // a fresh copy: its grid is built here
+      const bool recadre = s.uTurnPeriod() == 0.0 && s.vTurnPeriod() == 0.0;
+      BRepTopAdaptor_FClass2d ref(face, s.uvTolerance());
+      const ParamBounds b = s.faceUVBounds();
+      const double W = b.umax - b.umin, H = b.vmax - b.vmin;
+      std::vector<Vec2> pts;
+      const int n = 23;  // not a divisor of the grid's 48 cells
+      for (int i = 0; i <= n; ++i)
+        for (int j = 0; j <= n; ++j)
+          pts.emplace_back(b.umin - 0.01 * W + 1.02 * W * i / n,
+                           b.vmin - 0.01 * H + 1.02 * H * j / n);
+      for (TopExp_Explorer ex(face, TopAbs_EDGE); ex.More(); ex.Next()) {
+        double a = 0, c = 0;
+        const auto pc = BRep_Tool::CurveOnSurface(TopoDS::Edge(ex.Current()), face, a, c);
+        if (pc.IsNull()) continue;
+        for (int k = 0; k < 12; ++k) {
+          const gp_Pnt2d q = pc->Value(a + (c - a) * U(rng));
+          // 0.3 … 3 cells of the 48-cell grid away, in a random direction
+          const double r = (0.3 + 2.7 * U(rng)) / 48.0, t = 6.283185307179586 * U(rng);
+          pts.emplace_back(q.X() + r * W * std::cos(t), q.Y() + r * H * std::sin(t));
+        }
+      }
+      for (const Vec2& p : pts) {
+        const Vec2 w = s.wrap(p);
+        if (!s.isUPeriodic() &&
+            (w.x() < b.umin - s.uvTolerance() || w.x() > b.umax + s.uvTolerance()))
+          continue;  // outside the face's box: contains() answers without the classifier
+        if (!s.isVPeriodic() &&
+            (w.y() < b.vmin - s.uvTolerance() || w.y() > b.vmax + s.uvTolerance()))
+          continue;
+        const TopAbs_State st = ref.Perform(gp_Pnt2d(w.x(), w.y()), recadre);
+        const bool expected = st == TopAbs_IN || st == TopAbs_ON;
+        const bool got = s.contains(p.x(), p.y());
+        ++checked;
+        inside += expected ? 1 : 0;
+        if (got != expected) {
+          ++mismatches;
+          ADD_FAILURE() << part << " face " << f << " at " << p.transpose() << ": contains " << got
+                        << ", classifier " << expected;
+        }
+      }
+    }
+    std::cout << part << ": " << checked << " points, " << inside << " inside, " << mismatches
+              << " mismatches\n";
+    EXPECT_GT(inside, checked / 5);
+    EXPECT_LT(inside, checked);
+  }
 }
 
 TEST(OccFaceSurface, PeriodicFacesWrapAroundTheirOwnRange) {

@@ -9,6 +9,7 @@
 #include <Standard_Failure.hxx>
 #include <TopAbs_State.hxx>
 #include <TopExp.hxx>
+#include <TopExp_Explorer.hxx>
 #include <TopoDS.hxx>
 #include <TopoDS_Vertex.hxx>
 #include <gp_Pnt.hxx>
@@ -17,6 +18,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
@@ -162,6 +164,100 @@ SurfaceD2 OccFaceSurface::d2(double u, double v) const {
   return {toVec(p), toVec(du), toVec(dv), toVec(duu), toVec(duv), toVec(dvv)};
 }
 
+struct OccFaceSurface::TrimGrid {
+  static constexpr int kCells = 48;
+  double u0 = 0.0, v0 = 0.0, du = 1.0, dv = 1.0;
+  enum : std::uint8_t { Unknown = 0, In = 1, Out = 2, Boundary = 3 };
+  std::vector<std::uint8_t> state = std::vector<std::uint8_t>(kCells * kCells, Unknown);
+
+  /// Cell index of (u,v), −1 outside the grid.
+  int cell(double u, double v) const {
+    const double x = (u - u0) / du, y = (v - v0) / dv;
+    if (!(x >= 0.0 && x < kCells && y >= 0.0 && y < kCells)) return -1;
+    return static_cast<int>(y) * kCells + static_cast<int>(x);
+  }
+
+  /// Marks as Boundary every cell within a quarter cell (plus tol) of the segment's box.
+  void mark(const gp_Pnt2d& a, const gp_Pnt2d& b, double tol) {
+    const double mu = 0.25 * du + tol, mv = 0.25 * dv + tol;
+    auto clampIdx = [](double x) {
+      return static_cast<int>(std::min<double>(kCells - 1, std::max(0.0, std::floor(x))));
+    };
+    const int i0 = clampIdx((std::min(a.X(), b.X()) - mu - u0) / du);
+    const int i1 = clampIdx((std::max(a.X(), b.X()) + mu - u0) / du);
+    const int j0 = clampIdx((std::min(a.Y(), b.Y()) - mv - v0) / dv);
+    const int j1 = clampIdx((std::max(a.Y(), b.Y()) + mv - v0) / dv);
+    for (int j = j0; j <= j1; ++j)
+      for (int i = i0; i <= i1; ++i) state[static_cast<std::size_t>(j * kCells + i)] = Boundary;
+  }
+};
+
+namespace {
+
+/// The grid of OccFaceSurface::contains: every pcurve of the face is sampled finely enough
+/// (pieces at most one cell long, chord midpoints within 1/20 cell of the curve) and the
+/// cells around each piece are marked Boundary. Null when a pcurve is missing or infinite.
+std::unique_ptr<OccFaceSurface::TrimGrid> buildTrimGrid(const TopoDS_Face& face,
+                                                        const ParamBounds& b, double tol) {
+  using Grid = OccFaceSurface::TrimGrid;
+  const double W = b.umax - b.umin, H = b.vmax - b.vmin;
+  if (!(W > 0.0) || !(H > 0.0) || !std::isfinite(W) || !std::isfinite(H)) return nullptr;
+  auto g = std::make_unique<Grid>();
+  g->u0 = b.umin - tol;
+  g->v0 = b.vmin - tol;
+  g->du = (W + 2.0 * tol) / Grid::kCells;
+  g->dv = (H + 2.0 * tol) / Grid::kCells;
+  auto cells = [&](const gp_Pnt2d& p, const gp_Pnt2d& q) {
+    return std::hypot((p.X() - q.X()) / g->du, (p.Y() - q.Y()) / g->dv);
+  };
+  for (TopExp_Explorer ex(face, TopAbs_EDGE); ex.More(); ex.Next()) {
+    const TopoDS_Edge& e = TopoDS::Edge(ex.Current());
+    double f = 0.0, l = 0.0;
+    const Handle(Geom2d_Curve) c = BRep_Tool::CurveOnSurface(e, face, f, l);
+    if (c.IsNull() || !std::isfinite(f) || !std::isfinite(l)) return nullptr;
+    struct Piece {
+      double t0, t1;
+      gp_Pnt2d p0, p1;
+      int depth;
+    };
+    std::vector<Piece> stack;
+    constexpr int kStart = 8;
+    gp_Pnt2d prev = c->Value(f);
+    for (int k = 1; k <= kStart; ++k) {
+      const double t = f + (l - f) * k / kStart;
+      const gp_Pnt2d p = c->Value(t);
+      stack.push_back({f + (l - f) * (k - 1) / kStart, t, prev, p, 0});
+      prev = p;
+    }
+    std::size_t pieces = 0;
+    while (!stack.empty()) {
+      const Piece pc = stack.back();
+      stack.pop_back();
+      const double tm = 0.5 * (pc.t0 + pc.t1);
+      const gp_Pnt2d pm = c->Value(tm);
+      const gp_Pnt2d mid(0.5 * (pc.p0.X() + pc.p1.X()), 0.5 * (pc.p0.Y() + pc.p1.Y()));
+      const bool fine = cells(pc.p0, pc.p1) <= 1.0 && cells(pm, mid) <= 0.05;
+      if (!fine && pc.depth < 16) {
+        stack.push_back({pc.t0, tm, pc.p0, pm, pc.depth + 1});
+        stack.push_back({tm, pc.t1, pm, pc.p1, pc.depth + 1});
+        continue;
+      }
+      if (!fine || ++pieces > 2000000) return nullptr;  // a pathological pcurve
+      g->mark(pc.p0, pm, tol);
+      g->mark(pm, pc.p1, tol);
+    }
+  }
+  return g;
+}
+
+}  // namespace
+
+bool OccFaceSurface::classifyWithClassifier(double u, double v) const {
+  const TopAbs_State st = classifier_->Perform(
+      gp_Pnt2d(u, v), uTurn_ == 0.0 && vTurn_ == 0.0 ? Standard_True : Standard_False);
+  return st == TopAbs_IN || st == TopAbs_ON;
+}
+
 bool OccFaceSurface::contains(double u, double v) const {
   if (!std::isfinite(u) || !std::isfinite(v)) return false;
   const Vec2 w = wrap(Vec2(u, v));
@@ -171,10 +267,30 @@ bool OccFaceSurface::contains(double u, double v) const {
     return false;
   if (!vPeriodic_ && (w.y() < faceBounds_.vmin - tol || w.y() > faceBounds_.vmax + tol))
     return false;
-  if (!classifier_) classifier_ = std::make_unique<BRepTopAdaptor_FClass2d>(face_, tol);
-  const TopAbs_State st = classifier_->Perform(
-      gp_Pnt2d(w.x(), w.y()), uTurn_ == 0.0 && vTurn_ == 0.0 ? Standard_True : Standard_False);
-  return st == TopAbs_IN || st == TopAbs_ON;
+  if (!classifier_) {
+    classifier_ = std::make_unique<BRepTopAdaptor_FClass2d>(face_, tol);
+    try {
+      grid_ = buildTrimGrid(face_, faceBounds_, tol);
+    } catch (const Standard_Failure&) {
+      grid_.reset();
+    }
+  }
+  if (grid_) {
+    const int k = grid_->cell(w.x(), w.y());
+    if (k >= 0) {
+      std::uint8_t& st = grid_->state[static_cast<std::size_t>(k)];
+      if (st == TrimGrid::Unknown) {
+        // No trimming loop comes near this cell: the whole cell is where its centre is.
+        const int i = k % TrimGrid::kCells, j = k / TrimGrid::kCells;
+        st = classifyWithClassifier(grid_->u0 + (i + 0.5) * grid_->du,
+                                    grid_->v0 + (j + 0.5) * grid_->dv)
+                 ? TrimGrid::In
+                 : TrimGrid::Out;
+      }
+      if (st != TrimGrid::Boundary) return st == TrimGrid::In;
+    }
+  }
+  return classifyWithClassifier(w.x(), w.y());
 }
 
 std::unique_ptr<Surface> OccFaceSurface::clone() const {

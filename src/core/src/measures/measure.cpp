@@ -7,14 +7,6 @@
 
 namespace surfmesh {
 
-RegularizedSigma regularizedSigma(double sigma, double delta) {
-  if (delta == 0.0) return {sigma, 1.0, 0.0};
-  const double r = std::sqrt(sigma * sigma + 4.0 * delta * delta);
-  // (σ + r)/2 written without cancellation for σ < 0.
-  const double s = sigma >= 0.0 ? 0.5 * (sigma + r) : 2.0 * delta * delta / (r - sigma);
-  return {s, s / r, 2.0 * delta * delta / (r * r * r)};
-}
-
 double PlanarMeasure::value(const Mat2& S, double delta) const {
   return evaluate(S, delta, nullptr, nullptr);
 }
@@ -68,6 +60,10 @@ InvariantDerivs ShapeMeasure::invariants(double F, double /*sigma*/,
   return d;
 }
 
+double ShapeMeasure::invariantValue(double F, double /*sigma*/, double s) const {
+  return F / (2.0 * s);
+}
+
 std::string OddyMeasure::description() const {
   return "Oddy distortion eta = 3/2 sigma^-2 (|S^T S|^2 - |S|^4/3) = (|S|^4 - 3 sigma^2) / "
          "sigma^2 (Oddy et al. 1988, Knupp 2001, paper eq. 22)";
@@ -85,6 +81,10 @@ InvariantDerivs OddyMeasure::invariants(double F, double sigma, const Regularize
   d.hFs = -4.0 * F * s1 * s3i;
   d.hss = -6.0 * s2i + 24.0 * sigma * s1 * s3i + 6.0 * N * s1 * s1 * s4i - 2.0 * N * s2 * s3i;
   return d;
+}
+
+double OddyMeasure::invariantValue(double F, double sigma, double s) const {
+  return (F * F - 3.0 * sigma * sigma) / (s * s);
 }
 
 namespace {

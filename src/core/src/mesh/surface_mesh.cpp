@@ -48,8 +48,6 @@ int elementOrder(ElementType t) {
   return 0;
 }
 
-int cornerCount(ElementType t) { return t == ElementType::Quad4 ? 4 : 3; }
-
 const char* elementTypeName(ElementType t) {
   switch (t) {
     case ElementType::Tri3:

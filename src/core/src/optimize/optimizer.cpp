@@ -201,11 +201,25 @@ constexpr double kFallbackEta = 4.0;
 const double kInvSqrt3 = 0.57735026918962576451;
 const double kDetWinv = 2.0 * kInvSqrt3;  // det W⁻¹ of the equilateral ideal triangle
 
+/// Tangent basis of a Face node's (u,v) at its current position: derivatives are assembled
+/// directly in (u,v) (g_u = Jᵀ g, H_u = Jᵀ H J) instead of as 3×3 Hessians.
+struct Tangent {
+  Vec3 du, dv;
+  Mat2 metric;  // JᵀJ
+};
+
+/// What a linear triangle's derivatives are built from (see triangleKernel).
+struct TriPieces {
+  InvariantDerivs d;
+  Vec3 gF, gs, w, mw;
+  double pcoef = 0.0;  // coefficient of [w]×ᵀ(I − ννᵀ)[w]× in the Hessian (0 when degenerate)
+};
+
 /// Linear triangle (x0 free, x1, x2 the next corners counter-clockwise), equilateral ideal:
 /// the closed form of jacobianDistortion for b = (−1, −1), W⁻¹ = [[1, −1/√3], [0, 2/√3]].
-inline ElemOut triangleKernel(const PlanarMeasure& m, const Vec3& x0, const Vec3& x1,
-                              const Vec3& x2, const Vec3& n, double delta, bool wantEta0,
-                              Vec3* grad, Mat3* hess) {
+/// With `pieces` non-null, fills what the gradient and Hessian with respect to x0 are made of.
+inline ElemOut triangleCore(const PlanarMeasure& m, const Vec3& x0, const Vec3& x1, const Vec3& x2,
+                            const Vec3& n, double delta, bool wantEta0, TriPieces* pieces) {
   ElemOut r;
   const Vec3 J0 = x1 - x0, J1 = x2 - x0;
   const Vec3 K1 = (2.0 * J1 - J0) * kInvSqrt3;  // K = J W⁻¹ = [J0, K1]
@@ -228,30 +242,83 @@ inline ElemOut triangleKernel(const PlanarMeasure& m, const Vec3& x0, const Vec3
     r.eta = r.eta0 = kInf;
     return r;
   }
+  if (!pieces) {  // a value: line-search trials, whole-mesh sums
+    r.eta = m.invariantValue(F, sigma, regularizedSigmaValue(sigma, delta));
+    if (wantEta0)
+      r.eta0 = delta == 0.0 ? r.eta : r.tangled ? kInf : m.invariantValue(F, sigma, sigma);
+    return r;
+  }
   const InvariantDerivs d = m.invariants(F, sigma, regularizedSigma(sigma, delta));
   r.eta = d.h;
   if (wantEta0)
     r.eta0 = delta == 0.0 ? d.h
              : r.tangled  ? kInf
                           : m.invariants(F, sigma, regularizedSigma(sigma, 0.0)).h;
-  if (grad) {
+  {
     // β = W⁻ᵀ b = (−1, −1/√3); ∂F/∂x0 = 2 K β; w = x2 − x1; ∂σ/∂x0 = det W⁻¹ ν × w.
-    const Vec3 gF = -2.0 * (J0 + K1 * kInvSqrt3);
-    const Vec3 w = x2 - x1;
+    TriPieces& P = *pieces;
+    P.d = d;
+    P.gF = -2.0 * (J0 + K1 * kInvSqrt3);
+    P.w = x2 - x1;
     const Vec3 nu = regular ? Vec3(gamma * c / cn) : n.normalized();
-    const Vec3 mw = nu.cross(w);
-    const Vec3 gs = kDetWinv * mw;
-    *grad = d.hF * gF + d.hs * gs;
-    Mat3 H = d.hFF * gF * gF.transpose() + d.hFs * (gF * gs.transpose() + gs * gF.transpose()) +
-             d.hss * gs * gs.transpose();
+    P.mw = nu.cross(P.w);
+    P.gs = kDetWinv * P.mw;
+    P.pcoef = regular ? d.hs * kDetWinv * gamma / cn : 0.0;
+  }
+  return r;
+}
+
+/// triangleCore with the gradient and the 3×3 Hessian with respect to x0.
+inline ElemOut triangleKernel(const PlanarMeasure& m, const Vec3& x0, const Vec3& x1,
+                              const Vec3& x2, const Vec3& n, double delta, bool wantEta0,
+                              Vec3* grad, Mat3* hess) {
+  TriPieces P;
+  const ElemOut r = triangleCore(m, x0, x1, x2, n, delta, wantEta0, grad ? &P : nullptr);
+  if (grad && std::isfinite(r.eta)) {
+    const InvariantDerivs& d = P.d;
+    *grad = d.hF * P.gF + d.hs * P.gs;
+    Mat3 H = d.hFF * P.gF * P.gF.transpose() +
+             d.hFs * (P.gF * P.gs.transpose() + P.gs * P.gF.transpose()) +
+             d.hss * P.gs * P.gs.transpose();
     H.diagonal().array() += d.hF * (8.0 / 3.0);  // 2 ‖β‖²
-    if (regular) {
-      // [w]×ᵀ (I − ν νᵀ) [w]× = ‖w‖² I − w wᵀ − (ν × w)(ν × w)ᵀ
-      Mat3 P = -w * w.transpose() - mw * mw.transpose();
-      P.diagonal().array() += w.squaredNorm();
-      H += (d.hs * kDetWinv * gamma / cn) * P;
+    // [w]×ᵀ (I − ν νᵀ) [w]× = ‖w‖² I − w wᵀ − (ν × w)(ν × w)ᵀ
+    if (P.pcoef != 0.0) {
+      Mat3 Q = -P.w * P.w.transpose() - P.mw * P.mw.transpose();
+      Q.diagonal().array() += P.w.squaredNorm();
+      H += P.pcoef * Q;
     }
     *hess = H;
+  }
+  return r;
+}
+
+/// Symmetric 2×2 a·xxᵀ + b·(xyᵀ + yxᵀ) + c·yyᵀ as (h00, h01, h11).
+inline Vec3 sym2(double a, double b, double c, const Vec2& x, const Vec2& y) {
+  return Vec3(a * x.x() * x.x() + 2.0 * b * x.x() * y.x() + c * y.x() * y.x(),
+              a * x.x() * x.y() + b * (x.x() * y.y() + x.y() * y.x()) + c * y.x() * y.y(),
+              a * x.y() * x.y() + 2.0 * b * x.y() * y.y() + c * y.y() * y.y());
+}
+
+/// triangleCore with the 3D gradient and the Hessian projected on the tangent basis, Jᵀ H J,
+/// assembled from projected vectors (2×2 arithmetic instead of 3×3).
+inline ElemOut triangleKernelUV(const PlanarMeasure& m, const Vec3& x0, const Vec3& x1,
+                                const Vec3& x2, const Vec3& n, double delta, bool wantEta0,
+                                const Tangent& T, Vec3* grad, Vec3* hessUV) {
+  TriPieces P;
+  const ElemOut r = triangleCore(m, x0, x1, x2, n, delta, wantEta0, &P);
+  if (std::isfinite(r.eta)) {
+    const InvariantDerivs& d = P.d;
+    *grad = d.hF * P.gF + d.hs * P.gs;
+    const Vec2 gF(T.du.dot(P.gF), T.dv.dot(P.gF)), gs(T.du.dot(P.gs), T.dv.dot(P.gs));
+    Vec3 h = sym2(d.hFF, d.hFs, d.hss, gF, gs);
+    double gcoef = d.hF * (8.0 / 3.0);
+    if (P.pcoef != 0.0) {
+      const Vec2 w(T.du.dot(P.w), T.dv.dot(P.w)), mw(T.du.dot(P.mw), T.dv.dot(P.mw));
+      gcoef += P.pcoef * P.w.squaredNorm();
+      h -= P.pcoef * (sym2(1.0, 0.0, 1.0, w, mw));
+    }
+    h += gcoef * Vec3(T.metric(0, 0), T.metric(0, 1), T.metric(1, 1));
+    *hessUV = h;
   }
   return r;
 }
@@ -316,7 +383,8 @@ struct State {
   // Reference normal of element e: normalized (fixedNormal[e] + Σ nodeNormal over its Face
   // corners), fixedNormal holding the corner normals of its Fixed and Edge corners.
   std::vector<Vec3> fixedNormal;
-  std::vector<double> elemScale;  // mean squared corner edge length (frozen per sweep)
+  std::vector<std::uint8_t> faceCorners;  // bit k: corner k of element e is a Face node
+  std::vector<double> elemScale;          // mean squared corner edge length (frozen per sweep)
   // Size² that scales δ for element e: the input's corner scales averaged over the elements
   // around its corners, frozen for the whole run. Frozen, because a δ that followed the
   // element's own size would let a tangled element shrink to a point at no cost; averaged,
@@ -351,12 +419,16 @@ struct State {
       if (m.nodeKind[i] == NodeKind::Edge) anyEdge = true;
     }
     fixedNormal.assign(E, Vec3::Zero());
+    faceCorners.assign(E, 0);
     for (std::size_t e = 0; e < E; ++e) {
       const int nc = cornerCount(m.elemType[e]);
       const std::int32_t* nd = m.elementNodes(e);
-      for (int k = 0; k < nc; ++k)
+      for (int k = 0; k < nc; ++k) {
         if (m.nodeKind[static_cast<std::size_t>(nd[k])] != NodeKind::Face)
           fixedNormal[e] += m.referenceNormal(m.elemFace[e], m.elementUV(e)[k]);
+        else
+          faceCorners[e] = static_cast<std::uint8_t>(faceCorners[e] | (1u << k));
+      }
     }
     if (anyEdge) {
       edgeSlot.assign(N, -1);
@@ -384,19 +456,30 @@ struct State {
   /// element) replaced by `nfree` (i < 0: the current normals). `oldFree` is the corner normal i
   /// had in e when i is an Edge node (it is part of fixedNormal), zero otherwise.
   Vec3 elementNormal(std::size_t e, std::int64_t i, const Vec3& nfree, const Vec3& oldFree) const {
+    return usableNormal(e, rawNormal(e, i, nfree, oldFree));
+  }
+
+  /// elementNormal without the fallback for a zero sum.
+  Vec3 rawNormal(std::size_t e, std::int64_t i, const Vec3& nfree, const Vec3& oldFree) const {
     const int nc = cornerCount(mesh.elemType[e]);
     const std::int32_t* nd = mesh.elementNodes(e);
+    const unsigned mask = faceCorners[e];
     Vec3 n = fixedNormal[e];
     for (int k = 0; k < nc; ++k) {
-      const std::size_t j = static_cast<std::size_t>(nd[k]);
-      if (static_cast<std::int64_t>(j) == i) {
+      const std::int32_t j = nd[k];
+      if (j == i) {
         n += nfree - oldFree;
-      } else if (mesh.nodeKind[j] == NodeKind::Face) {
-        n += nodeNormal[j];
+      } else if ((mask >> k) & 1u) {
+        n += nodeNormal[static_cast<std::size_t>(j)];
       }
     }
-    // Not normalized: the element measures only use its direction (the sign of c·n, and
-    // n/‖n‖ for degenerate elements).
+    return n;
+  }
+
+  /// Not normalized: the element measures only use its direction (the sign of c·n, and n/‖n‖
+  /// for degenerate elements). A zero sum (opposite corner normals) falls back to the
+  /// element's reference normal from its corners' (u,v).
+  Vec3 usableNormal(std::size_t e, const Vec3& n) const {
     if (n.squaredNorm() == 0.0) return elementReferenceNormal(mesh, e);
     return n;
   }
@@ -448,6 +531,25 @@ struct State {
     return r;
   }
 
+  /// evalElement with the Hessian projected on the tangent basis T (as (h00, h01, h11)).
+  ElemOut evalElementUV(std::size_t e, int local, const Vec3& x, const Vec3& n, double delta,
+                        bool wantEta0, const Tangent& T, Vec3* grad, Vec3* hessUV) const {
+    if (mesh.elemType[e] == ElementType::Tri3) {
+      const std::int32_t* nd = mesh.elementNodes(e);
+      const int k1 = local == 2 ? 0 : local + 1, k2 = local == 0 ? 2 : local - 1;
+      return triangleKernelUV(measure, x, xyz[static_cast<std::size_t>(nd[k1])],
+                              xyz[static_cast<std::size_t>(nd[k2])], n, delta, wantEta0, T, grad,
+                              hessUV);
+    }
+    Mat3 H;
+    const ElemOut r = evalElement(e, local, x, n, delta, wantEta0, grad, &H);
+    if (std::isfinite(r.eta)) {
+      const Vec3 Hdu = H * T.du, Hdv = H * T.dv;
+      *hessUV = Vec3(T.du.dot(Hdu), T.du.dot(Hdv), T.dv.dot(Hdv));
+    }
+    return r;
+  }
+
   /// Whole-mesh element e at the current positions.
   ElemOut evalWhole(std::size_t e, double delta) const {
     const Vec3 n = elementNormal(e, -1, Vec3::Zero(), Vec3::Zero());
@@ -473,10 +575,12 @@ struct alignas(64) Worker {
     eta0.resize(s.maxDegree);
     sig.resize(s.maxDegree);
     normals.resize(s.maxDegree);
+    baseNormal.resize(s.maxDegree);
   }
   ThreadGeometry geo;
   std::vector<double> eta0, sig;  // trial's per-element η(δ=0) and scaled det S
   std::vector<Vec3> normals;      // trial's corner normals of a sliding node
+  std::vector<Vec3> baseNormal;   // per incident element: its normal without the free corner
   double maxRelMove = 0.0;
   std::size_t updated = 0, moved = 0;
   char pad[64];
@@ -501,26 +605,37 @@ class NodeUpdater {
   /// j-th incident element, `old(j)` its normal there before the move (Edge nodes).
   /// With derivatives when g/H are non-null. A trial (`cur` non-null) stops as soon as it
   /// cannot be accepted against `cur`; its per-element values land in the worker's scratch.
+  /// With a tangent basis `T` (and `HUV` non-null) the Hessian is accumulated projected on it,
+  /// as (h00, h01, h11), instead of in H.
   template <class NFree, class NOld>
   LocalEval evalLocal(std::size_t i, const Vec3& x, NFree nfree, NOld old, bool wantQuality,
-                      const LocalEval* cur, Vec3* g, Mat3* H) {
+                      const LocalEval* cur, Vec3* g, Mat3* H, const Tangent* T = nullptr,
+                      Vec3* HUV = nullptr) {
     LocalEval r;
     if (g) g->setZero();
     if (H) H->setZero();
+    if (HUV) HUV->setZero();
     const std::int64_t b = s_.begin(i), en = s_.end(i);
     const bool needEta0 = wantQuality || (cur && s_.trackCache);
+    Vec3* base = w_.baseNormal.data();
     for (std::int64_t p = b; p < en; ++p) {
       const std::size_t e = static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
       const int local = s_.inc.local[static_cast<std::size_t>(p)];
       const std::size_t j = static_cast<std::size_t>(p - b);
-      const Vec3 nref = local < cornerCount(s_.mesh.elemType[e])
-                            ? s_.elementNormal(e, static_cast<std::int64_t>(i), nfree(j), old(j))
-                            : s_.elementNormal(e, -1, Vec3::Zero(), Vec3::Zero());
+      const bool corner = local < cornerCount(s_.mesh.elemType[e]);
+      // The element's normal without the free node's corner: the same for every trial of
+      // this update (the nodes of one color share no element), so trials reuse it.
+      if (!cur)
+        base[j] = corner ? s_.rawNormal(e, static_cast<std::int64_t>(i), Vec3::Zero(), old(j))
+                         : s_.rawNormal(e, -1, Vec3::Zero(), Vec3::Zero());
+      const Vec3 nref = s_.usableNormal(e, corner ? Vec3(base[j] + nfree(j)) : base[j]);
       const double delta = s_.deltaHat * s_.deltaScale[e];
       Vec3 ge;
       Mat3 He;
-      const ElemOut ev =
-          s_.evalElement(e, local, x, nref, delta, needEta0, g ? &ge : nullptr, H ? &He : nullptr);
+      Vec3 heUV = Vec3::Zero();
+      const ElemOut ev = HUV ? s_.evalElementUV(e, local, x, nref, delta, needEta0, *T, &ge, &heUV)
+                             : s_.evalElement(e, local, x, nref, delta, needEta0, g ? &ge : nullptr,
+                                              H ? &He : nullptr);
       if (cur) {
         w_.eta0[j] = ev.eta0;
         w_.sig[j] = ev.minSigma;
@@ -541,6 +656,10 @@ class NodeUpdater {
       if (cur && !(r.f < cur->f)) return reject();
       if (g) *g += 2.0 * d * ge;
       if (H) *H += 2.0 * (ge * ge.transpose() + d * He);
+      if (HUV) {
+        const Vec2 gu(T->du.dot(ge), T->dv.dot(ge));
+        *HUV += 2.0 * (Vec3(gu.x() * gu.x(), gu.x() * gu.y(), gu.y() * gu.y()) + d * heUV);
+      }
       if (wantQuality) {
         const double q = (ev.tangled || !std::isfinite(ev.eta0)) ? 0.0 : 1.0 / ev.eta0;
         r.minQuality = std::min(r.minQuality, q);
@@ -598,19 +717,23 @@ class NodeUpdater {
       const NodeD2& d = s_.d2[i];
       if (isDegenerate({Vec3::Zero(), d.du, d.dv})) return moved;  // a pole: stays fixed
       const Vec3 n0 = s_.nodeNormal[i];
-      Vec3 gx;
-      Mat3 Hx;
+      Tangent T;
+      T.du = d.du;
+      T.dv = d.dv;
+      T.metric(0, 0) = d.du.squaredNorm();
+      T.metric(0, 1) = T.metric(1, 0) = d.du.dot(d.dv);
+      T.metric(1, 1) = d.dv.squaredNorm();
+      Vec3 gx, hJ;
       const Vec3 x0 = s_.xyz[i];
       const LocalEval cur = evalLocal(
-          i, x0, [&](std::size_t) { return n0; }, zero, monotone, nullptr, &gx, &Hx);
+          i, x0, [&](std::size_t) { return n0; }, zero, monotone, nullptr, &gx, nullptr, &T, &hJ);
       if (!cur.finite || cur.f == 0.0) return moved;
-      // Chain rule to (u,v): g_u = Jᵀ g, H_u = Jᵀ H J + Σ g·∇²φ.
+      // Chain rule to (u,v): g_u = Jᵀ g, H_u = Jᵀ H J + Σ g·∇²φ (JᵀHJ assembled in evalLocal).
       const Vec2 gu(d.du.dot(gx), d.dv.dot(gx));
-      const Vec3 Hdu = Hx * d.du, Hdv = Hx * d.dv;
       Mat2 Hu;
-      Hu(0, 0) = d.du.dot(Hdu) + gx.dot(d.duu);
-      Hu(0, 1) = Hu(1, 0) = d.du.dot(Hdv) + gx.dot(d.duv);
-      Hu(1, 1) = d.dv.dot(Hdv) + gx.dot(d.dvv);
+      Hu(0, 0) = hJ.x() + gx.dot(d.duu);
+      Hu(0, 1) = Hu(1, 0) = hJ.y() + gx.dot(d.duv);
+      Hu(1, 1) = hJ.z() + gx.dot(d.dvv);
       if (!gu.allFinite() || !Hu.allFinite()) return moved;
       Vec2 dir = newtonDirection(gu, Hu);
       if (gu.dot(dir) >= 0.0) dir = -gu;  // not a descent direction: use the gradient

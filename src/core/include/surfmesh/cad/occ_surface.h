@@ -13,6 +13,9 @@
 //   * normalSign() = −1 when face.Orientation() == TopAbs_REVERSED;
 //   * contains(u,v) classifies (u,v) against the face's trimming loops (holes, inner wires)
 //     with BRepTopAdaptor_FClass2d, after wrapping periodic coordinates; ON counts as inside.
+//     A 48 × 48 grid over the face's (u,v) box answers at once in the cells that no pcurve
+//     of the face comes near (each classified once, at its centre, by the classifier): the
+//     optimizer asks contains() at every line-search trial.
 //
 // Neither class is thread-safe (OCC adaptors and the lazily built classifier are not): use
 // clone() to get an independent copy per thread.
@@ -75,6 +78,10 @@ class OccFaceSurface final : public Surface {
   const BRepAdaptor_Surface& adaptor() const { return adaptor_; }
   int faceId() const { return faceId_; }
 
+  /// Cells of the face's (u,v) box that no trimming loop crosses answer contains() at once
+  /// (defined in occ_surface.cpp).
+  struct TrimGrid;
+
  private:
   TopoDS_Face face_;
   int faceId_;
@@ -86,6 +93,8 @@ class OccFaceSurface final : public Surface {
   int normalSign_ = 1;
   double uvTol_ = 1e-9;
   mutable std::unique_ptr<BRepTopAdaptor_FClass2d> classifier_;  // built on first contains()
+  mutable std::unique_ptr<TrimGrid> grid_;  // built with the classifier (null: not usable)
+  bool classifyWithClassifier(double u, double v) const;
 };
 
 /// One face adjacent to an edge, with the edge's pcurve(s) on it.

@@ -17,6 +17,7 @@
 
 #include <Eigen/Dense>
 
+#include <cmath>
 #include <memory>
 #include <string>
 #include <vector>
@@ -39,7 +40,19 @@ struct InvariantDerivs {
 struct RegularizedSigma {
   double value, d1, d2;
 };
-RegularizedSigma regularizedSigma(double sigma, double delta);
+inline RegularizedSigma regularizedSigma(double sigma, double delta) {
+  if (delta == 0.0) return {sigma, 1.0, 0.0};
+  const double r = std::sqrt(sigma * sigma + 4.0 * delta * delta);
+  // (σ + r)/2 written without cancellation for σ < 0.
+  const double s = sigma >= 0.0 ? 0.5 * (sigma + r) : 2.0 * delta * delta / (r - sigma);
+  return {s, s / r, 2.0 * delta * delta / (r * r * r)};
+}
+/// σ*(σ; δ) alone.
+inline double regularizedSigmaValue(double sigma, double delta) {
+  if (delta == 0.0) return sigma;
+  const double r = std::sqrt(sigma * sigma + 4.0 * delta * delta);
+  return sigma >= 0.0 ? 0.5 * (sigma + r) : 2.0 * delta * delta / (r - sigma);
+}
 
 class PlanarMeasure {
  public:
@@ -65,6 +78,10 @@ class PlanarMeasure {
   /// derivatives. Elements on surfaces are evaluated through this (the measures are rotation
   /// invariant, so η depends on the element's plane only through F and σ).
   virtual InvariantDerivs invariants(double F, double sigma, const RegularizedSigma& s) const = 0;
+  /// h alone (s = σ* > 0): what line-search trials need.
+  virtual double invariantValue(double F, double sigma, double s) const {
+    return invariants(F, sigma, {s, 1.0, 0.0}).h;
+  }
 };
 
 /// Shape distortion (Knupp 2001; paper eq. 20): η = ‖S‖² / (2σ), σ → σ* for untangling.
@@ -76,6 +93,7 @@ class ShapeMeasure final : public PlanarMeasure {
   std::string description() const override;
 
   InvariantDerivs invariants(double F, double sigma, const RegularizedSigma& s) const override;
+  double invariantValue(double F, double sigma, double s) const override;
 };
 
 /// Oddy distortion (Oddy et al. 1988; Knupp 2001; paper eq. 22):
@@ -88,6 +106,7 @@ class OddyMeasure final : public PlanarMeasure {
   std::string description() const override;
 
   InvariantDerivs invariants(double F, double sigma, const RegularizedSigma& s) const override;
+  double invariantValue(double F, double sigma, double s) const override;
 };
 
 /// Names of every registered measure, in registration order.

@@ -38,7 +38,7 @@ int nodeCount(ElementType t);
 /// Polynomial order (1 for Tri3 and Quad4).
 int elementOrder(ElementType t);
 /// Number of corner (vertex) nodes: 3 or 4.
-int cornerCount(ElementType t);
+inline int cornerCount(ElementType t) { return t == ElementType::Quad4 ? 4 : 3; }
 /// "tri3", "quad4", "tri6", "tri10", "tri15", "tri21".
 const char* elementTypeName(ElementType t);
 /// Inverse of elementTypeName; throws std::invalid_argument on an unknown name.
