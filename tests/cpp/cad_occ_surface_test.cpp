@@ -200,10 +200,12 @@ TEST(OccFaceSurface, ContainsAgreesWithTheOccClassifierEverywhere) {
         double a = 0, c = 0;
         const auto pc = BRep_Tool::CurveOnSurface(TopoDS::Edge(ex.Current()), face, a, c);
         if (pc.IsNull()) continue;
-        for (int k = 0; k < 12; ++k) {
+        for (int k = 0; k < 16; ++k) {
           const gp_Pnt2d q = pc->Value(a + (c - a) * U(rng));
-          // 0.3 … 3 cells of the 48-cell grid away, in a random direction
-          const double r = (0.3 + 2.7 * U(rng)) / 48.0, t = 6.283185307179586 * U(rng);
+          // 0.3 … 3 cells of the 48-cell grid, or of its 16 × 16 sub-cells, away in a random
+          // direction
+          const double cell = k % 2 == 0 ? 1.0 / 48.0 : 1.0 / (48.0 * 16.0);
+          const double r = (0.3 + 2.7 * U(rng)) * cell, t = 6.283185307179586 * U(rng);
           pts.emplace_back(q.X() + r * W * std::cos(t), q.Y() + r * H * std::sin(t));
         }
       }

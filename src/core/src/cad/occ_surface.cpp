@@ -17,6 +17,7 @@
 #include <gp_Vec.hxx>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -164,51 +165,152 @@ SurfaceD2 OccFaceSurface::d2(double u, double v) const {
   return {toVec(p), toVec(du), toVec(dv), toVec(duu), toVec(duv), toVec(dvv)};
 }
 
+/// Two levels of cells over the face's (u,v) box: kCells² cells, and kSub² sub-cells in each
+/// cell that a pcurve comes near. A (sub-)cell that no pcurve comes near lies entirely on one
+/// side of the trimming loops: it is classified once, at its centre, and answers every later
+/// query in it. Only sub-cells a pcurve passes through go to the classifier each time.
 struct OccFaceSurface::TrimGrid {
-  static constexpr int kCells = 48;
-  double u0 = 0.0, v0 = 0.0, du = 1.0, dv = 1.0;
+  static constexpr int kCells = 48, kSub = 16;
   enum : std::uint8_t { Unknown = 0, In = 1, Out = 2, Boundary = 3 };
+  double u0 = 0.0, v0 = 0.0, du = 1.0, dv = 1.0, tol = 0.0;
   std::vector<std::uint8_t> state = std::vector<std::uint8_t>(kCells * kCells, Unknown);
+  /// The pcurves as pieces (u0, v0, u1, v1) and the pieces near each cell (CSR).
+  std::vector<std::array<double, 4>> pieces;
+  std::vector<int> cellStart, cellPieces;
+  /// Sub-cell states of a Boundary cell (kSub² each, built on the cell's first query).
+  std::vector<int> subOf = std::vector<int>(kCells * kCells, -1);
+  std::vector<std::uint8_t> sub;
 
-  /// Cell index of (u,v), −1 outside the grid.
-  int cell(double u, double v) const {
-    const double x = (u - u0) / du, y = (v - v0) / dv;
-    if (!(x >= 0.0 && x < kCells && y >= 0.0 && y < kCells)) return -1;
-    return static_cast<int>(y) * kCells + static_cast<int>(x);
+  /// Index range [i0, i1] × [j0, j1] of the cells (n per unit of du, dv) within `margin`
+  /// cells of the piece's box, clamped to [0, n).
+  static void span(const std::array<double, 4>& q, double x0, double y0, double hx, double hy,
+                   double mx, double my, int n, int* r) {
+    auto clampIdx = [n](double x) {
+      return static_cast<int>(std::min<double>(n - 1, std::max(0.0, std::floor(x))));
+    };
+    r[0] = clampIdx((std::min(q[0], q[2]) - mx - x0) / hx);
+    r[1] = clampIdx((std::max(q[0], q[2]) + mx - x0) / hx);
+    r[2] = clampIdx((std::min(q[1], q[3]) - my - y0) / hy);
+    r[3] = clampIdx((std::max(q[1], q[3]) + my - y0) / hy);
   }
 
-  /// Marks as Boundary every cell within a quarter cell (plus tol) of the segment's box.
-  void mark(const gp_Pnt2d& a, const gp_Pnt2d& b, double tol) {
-    const double mu = 0.25 * du + tol, mv = 0.25 * dv + tol;
-    auto clampIdx = [](double x) {
-      return static_cast<int>(std::min<double>(kCells - 1, std::max(0.0, std::floor(x))));
-    };
-    const int i0 = clampIdx((std::min(a.X(), b.X()) - mu - u0) / du);
-    const int i1 = clampIdx((std::max(a.X(), b.X()) + mu - u0) / du);
-    const int j0 = clampIdx((std::min(a.Y(), b.Y()) - mv - v0) / dv);
-    const int j1 = clampIdx((std::max(a.Y(), b.Y()) + mv - v0) / dv);
-    for (int j = j0; j <= j1; ++j)
-      for (int i = i0; i <= i1; ++i) state[static_cast<std::size_t>(j * kCells + i)] = Boundary;
+  /// Sub-cell size; a piece marks the (sub-)cells within a quarter sub-cell plus the
+  /// classifier's tolerance of its box.
+  double subDu() const { return du / kSub; }
+  double subDv() const { return dv / kSub; }
+
+  void buildBuckets() {
+    std::vector<std::vector<int>> lists(static_cast<std::size_t>(kCells * kCells));
+    const double mu = 0.25 * subDu() + tol, mv = 0.25 * subDv() + tol;
+    for (std::size_t k = 0; k < pieces.size(); ++k) {
+      int r[4];
+      span(pieces[k], u0, v0, du, dv, mu, mv, kCells, r);
+      for (int j = r[2]; j <= r[3]; ++j)
+        for (int i = r[0]; i <= r[1]; ++i) {
+          lists[static_cast<std::size_t>(j * kCells + i)].push_back(static_cast<int>(k));
+          state[static_cast<std::size_t>(j * kCells + i)] = Boundary;
+        }
+    }
+    cellStart.assign(1, 0);
+    for (const auto& l : lists) {
+      cellPieces.insert(cellPieces.end(), l.begin(), l.end());
+      cellStart.push_back(static_cast<int>(cellPieces.size()));
+    }
+  }
+
+  /// Sets state `v` on the Unknown cells 4-connected to cell (i, j) of an n × n array `st`
+  /// through Unknown cells: a region free of pcurves lies on one side of the loops.
+  static void flood(std::uint8_t* st, int n, int i, int j, std::uint8_t v,
+                    std::vector<int>& stack) {
+    if (st[j * n + i] != Unknown) return;
+    st[j * n + i] = v;
+    stack.assign(1, j * n + i);
+    while (!stack.empty()) {
+      const int c = stack.back();
+      stack.pop_back();
+      const int ci = c % n, cj = c / n;
+      const int nb[4][2] = {{ci - 1, cj}, {ci + 1, cj}, {ci, cj - 1}, {ci, cj + 1}};
+      for (const auto& q : nb) {
+        if (q[0] < 0 || q[0] >= n || q[1] < 0 || q[1] >= n) continue;
+        std::uint8_t& t = st[q[1] * n + q[0]];
+        if (t != Unknown) continue;
+        t = v;
+        stack.push_back(q[1] * n + q[0]);
+      }
+    }
+  }
+  std::vector<int> scratch;
+
+  /// The sub-cell states of Boundary cell k (built on first use). Sub-cells along a side
+  /// shared with a classified cell that no pcurve comes near take its state (and pass it on
+  /// to the sub-cells connected to them).
+  template <class Classify>
+  std::uint8_t* subCells(int k, Classify classify) {
+    if (subOf[static_cast<std::size_t>(k)] < 0) {
+      const int ci = k % kCells, cj = k / kCells;
+      // Neighbour states first (classifying them may flood the top level).
+      std::uint8_t nbState[4] = {Boundary, Boundary, Boundary, Boundary};
+      const int nb[4][2] = {{ci - 1, cj}, {ci + 1, cj}, {ci, cj - 1}, {ci, cj + 1}};
+      for (int s = 0; s < 4; ++s) {
+        const int ni = nb[s][0], nj = nb[s][1];
+        if (ni < 0 || ni >= kCells || nj < 0 || nj >= kCells) continue;
+        std::uint8_t& t = state[static_cast<std::size_t>(nj * kCells + ni)];
+        if (t == Unknown)
+          flood(state.data(), kCells, ni, nj,
+                classify(u0 + (ni + 0.5) * du, v0 + (nj + 0.5) * dv) ? In : Out, scratch);
+        nbState[s] = t;
+      }
+      subOf[static_cast<std::size_t>(k)] = static_cast<int>(sub.size());
+      sub.resize(sub.size() + kSub * kSub, Unknown);
+      std::uint8_t* st = sub.data() + subOf[static_cast<std::size_t>(k)];
+      {
+        const double x0 = u0 + ci * du, y0 = v0 + cj * dv;
+        const double mu = 0.25 * subDu() + tol, mv = 0.25 * subDv() + tol;
+        for (int p = cellStart[static_cast<std::size_t>(k)];
+             p < cellStart[static_cast<std::size_t>(k) + 1]; ++p) {
+          const auto& q = pieces[static_cast<std::size_t>(cellPieces[static_cast<std::size_t>(p)])];
+          int r[4];
+          span(q, x0, y0, subDu(), subDv(), mu, mv, kSub, r);
+          // span() clamps to the cell: pieces only near the cell must not mark its border.
+          if (std::max(q[0], q[2]) + mu < x0 || std::min(q[0], q[2]) - mu > x0 + du ||
+              std::max(q[1], q[3]) + mv < y0 || std::min(q[1], q[3]) - mv > y0 + dv)
+            continue;
+          for (int j = r[2]; j <= r[3]; ++j)
+            for (int i = r[0]; i <= r[1]; ++i) st[j * kSub + i] = Boundary;
+        }
+        for (int s = 0; s < 4; ++s) {
+          if (nbState[s] != In && nbState[s] != Out) continue;
+          for (int m = 0; m < kSub; ++m) {
+            const int i = s == 0 ? 0 : s == 1 ? kSub - 1 : m;
+            const int j = s == 2 ? 0 : s == 3 ? kSub - 1 : m;
+            flood(st, kSub, i, j, nbState[s], scratch);
+          }
+        }
+      }
+    }
+    return sub.data() + subOf[static_cast<std::size_t>(k)];
   }
 };
 
 namespace {
 
-/// The grid of OccFaceSurface::contains: every pcurve of the face is sampled finely enough
-/// (pieces at most one cell long, chord midpoints within 1/20 cell of the curve) and the
-/// cells around each piece are marked Boundary. Null when a pcurve is missing or infinite.
+/// The grid of OccFaceSurface::contains: every pcurve of the face is cut into pieces at most
+/// four sub-cells long whose chord midpoints are within 1/20 sub-cell of the curve (a piece
+/// marks every (sub-)cell its box comes near). Null when a pcurve is missing or infinite.
 std::unique_ptr<OccFaceSurface::TrimGrid> buildTrimGrid(const TopoDS_Face& face,
                                                         const ParamBounds& b, double tol) {
   using Grid = OccFaceSurface::TrimGrid;
   const double W = b.umax - b.umin, H = b.vmax - b.vmin;
   if (!(W > 0.0) || !(H > 0.0) || !std::isfinite(W) || !std::isfinite(H)) return nullptr;
   auto g = std::make_unique<Grid>();
+  g->tol = tol;
   g->u0 = b.umin - tol;
   g->v0 = b.vmin - tol;
   g->du = (W + 2.0 * tol) / Grid::kCells;
   g->dv = (H + 2.0 * tol) / Grid::kCells;
-  auto cells = [&](const gp_Pnt2d& p, const gp_Pnt2d& q) {
-    return std::hypot((p.X() - q.X()) / g->du, (p.Y() - q.Y()) / g->dv);
+  const double su = g->subDu(), sv = g->subDv();
+  auto subCells = [&](const gp_Pnt2d& p, const gp_Pnt2d& q) {
+    return std::hypot((p.X() - q.X()) / su, (p.Y() - q.Y()) / sv);
   };
   for (TopExp_Explorer ex(face, TopAbs_EDGE); ex.More(); ex.Next()) {
     const TopoDS_Edge& e = TopoDS::Edge(ex.Current());
@@ -229,24 +331,24 @@ std::unique_ptr<OccFaceSurface::TrimGrid> buildTrimGrid(const TopoDS_Face& face,
       stack.push_back({f + (l - f) * (k - 1) / kStart, t, prev, p, 0});
       prev = p;
     }
-    std::size_t pieces = 0;
     while (!stack.empty()) {
       const Piece pc = stack.back();
       stack.pop_back();
       const double tm = 0.5 * (pc.t0 + pc.t1);
       const gp_Pnt2d pm = c->Value(tm);
       const gp_Pnt2d mid(0.5 * (pc.p0.X() + pc.p1.X()), 0.5 * (pc.p0.Y() + pc.p1.Y()));
-      const bool fine = cells(pc.p0, pc.p1) <= 1.0 && cells(pm, mid) <= 0.05;
-      if (!fine && pc.depth < 16) {
+      const bool fine = subCells(pc.p0, pc.p1) <= 4.0 && subCells(pm, mid) <= 0.05;
+      if (!fine && pc.depth < 24) {
         stack.push_back({pc.t0, tm, pc.p0, pm, pc.depth + 1});
         stack.push_back({tm, pc.t1, pm, pc.p1, pc.depth + 1});
         continue;
       }
-      if (!fine || ++pieces > 2000000) return nullptr;  // a pathological pcurve
-      g->mark(pc.p0, pm, tol);
-      g->mark(pm, pc.p1, tol);
+      if (!fine || g->pieces.size() > 4000000) return nullptr;  // a pathological pcurve
+      g->pieces.push_back({pc.p0.X(), pc.p0.Y(), pm.X(), pm.Y()});
+      g->pieces.push_back({pm.X(), pm.Y(), pc.p1.X(), pc.p1.Y()});
     }
   }
+  g->buildBuckets();
   return g;
 }
 
@@ -276,16 +378,34 @@ bool OccFaceSurface::contains(double u, double v) const {
     }
   }
   if (grid_) {
-    const int k = grid_->cell(w.x(), w.y());
-    if (k >= 0) {
-      std::uint8_t& st = grid_->state[static_cast<std::size_t>(k)];
+    TrimGrid& g = *grid_;
+    const double x = (w.x() - g.u0) / g.du, y = (w.y() - g.v0) / g.dv;
+    if (x >= 0.0 && x < TrimGrid::kCells && y >= 0.0 && y < TrimGrid::kCells) {
+      const int ci = static_cast<int>(x), cj = static_cast<int>(y);
+      const int k = cj * TrimGrid::kCells + ci;
+      auto classify = [this](double cu, double cv) { return classifyWithClassifier(cu, cv); };
+      std::uint8_t st = g.state[static_cast<std::size_t>(k)];
       if (st == TrimGrid::Unknown) {
-        // No trimming loop comes near this cell: the whole cell is where its centre is.
-        const int i = k % TrimGrid::kCells, j = k / TrimGrid::kCells;
-        st = classifyWithClassifier(grid_->u0 + (i + 0.5) * grid_->du,
-                                    grid_->v0 + (j + 0.5) * grid_->dv)
-                 ? TrimGrid::In
-                 : TrimGrid::Out;
+        // No pcurve comes near this cell (nor the cells connected to it through such cells):
+        // all of them are where its centre is.
+        TrimGrid::flood(g.state.data(), TrimGrid::kCells, ci, cj,
+                        classify(g.u0 + (ci + 0.5) * g.du, g.v0 + (cj + 0.5) * g.dv)
+                            ? TrimGrid::In
+                            : TrimGrid::Out,
+                        g.scratch);
+        st = g.state[static_cast<std::size_t>(k)];
+      } else if (st == TrimGrid::Boundary) {
+        const int si = std::min(TrimGrid::kSub - 1, static_cast<int>((x - ci) * TrimGrid::kSub));
+        const int sj = std::min(TrimGrid::kSub - 1, static_cast<int>((y - cj) * TrimGrid::kSub));
+        std::uint8_t* sc = g.subCells(k, classify);
+        if (sc[sj * TrimGrid::kSub + si] == TrimGrid::Unknown)
+          TrimGrid::flood(sc, TrimGrid::kSub, si, sj,
+                          classify(g.u0 + ci * g.du + (si + 0.5) * g.subDu(),
+                                   g.v0 + cj * g.dv + (sj + 0.5) * g.subDv())
+                              ? TrimGrid::In
+                              : TrimGrid::Out,
+                          g.scratch);
+        st = sc[sj * TrimGrid::kSub + si];
       }
       if (st != TrimGrid::Boundary) return st == TrimGrid::In;
     }

@@ -13,9 +13,11 @@
 //   * normalSign() = −1 when face.Orientation() == TopAbs_REVERSED;
 //   * contains(u,v) classifies (u,v) against the face's trimming loops (holes, inner wires)
 //     with BRepTopAdaptor_FClass2d, after wrapping periodic coordinates; ON counts as inside.
-//     A 48 × 48 grid over the face's (u,v) box answers at once in the cells that no pcurve
-//     of the face comes near (each classified once, at its centre, by the classifier): the
-//     optimizer asks contains() at every line-search trial.
+//     A 48 × 48 grid over the face's (u,v) box, with 16 × 16 sub-cells in the cells a pcurve
+//     comes near, answers at once in every (sub-)cell no pcurve comes near: such regions are
+//     classified once (by the classifier at one centre, then flood-filled); only points in
+//     the sub-cells a pcurve passes through go to the classifier. The optimizer asks
+//     contains() at every line-search trial.
 //
 // Neither class is thread-safe (OCC adaptors and the lazily built classifier are not): use
 // clone() to get an independent copy per thread.
