@@ -73,6 +73,9 @@ void bind_optimize(MeshClass& cls) {
         d["final_objective"] = r.finalObjective;
         d["moved_nodes"] = r.movedNodes;
         d["threads"] = r.threadsUsed;
+        d["tangled_unmovable"] = r.tangledUnmovable;
+        d["tangled_movable"] = r.tangledMovable;
+        d["warnings"] = r.warnings;
         return d;
       },
       py::arg("measure") = "shape", py::arg("max_sweeps") = 100, py::arg("rel_tol") = 1e-5,
@@ -81,7 +84,9 @@ void bind_optimize(MeshClass& cls) {
       py::arg("monotone") = true, py::arg("threads") = 0, py::arg("progress") = py::none(),
       "Optimizes the mesh in place (nodes stay on their surfaces). progress(dict) is called "
       "after every sweep; returning False cancels (reason 'cancelled', mesh unchanged). "
-      "Returns a dict: before, after (stats), sweeps, seconds, reason, moved_nodes, threads.");
+      "Returns a dict: before, after (stats), sweeps, seconds, reason, moved_nodes, threads, "
+      "tangled_unmovable / tangled_movable (ids of the elements left tangled without / with a "
+      "movable node) and warnings (a line for each non-empty list).");
 }
 
 }  // namespace surfmesh::bindings

@@ -1,8 +1,10 @@
 // SurfMesh — end to end on real parts: BRepMesh mesh → CAD bridge → optimizer. The optimized
 // nodes must stay on their CAD faces (checked with OCC's own Geom surfaces and
-// BRepClass_FaceClassifier), nothing may end tangled, and quality must not drop.
+// BRepClass_FaceClassifier), nothing that a node move can repair may end tangled, and quality
+// must not drop; sliding edge nodes must never end worse than fixed ones.
 #include "surfmesh/cad/cad_bridge.h"
 #include "surfmesh/cad/occ_mesher.h"
+#include "surfmesh/measures/element_measure.h"
 #include "surfmesh/measures/measure.h"
 #include "surfmesh/mesh/quality.h"
 #include "surfmesh/optimize/optimizer.h"
@@ -16,7 +18,9 @@
 #include <gp_Pnt2d.hxx>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <iostream>
 #include <map>
 #include <random>
@@ -77,6 +81,20 @@ std::string statsText(const QualityStats& s) {
   return os.str();
 }
 
+/// Elements tangled in `q` none of whose nodes may move.
+std::set<std::size_t> unmovableTangled(const SurfaceMesh& m, const MeshQuality& q) {
+  std::set<std::size_t> r;
+  for (std::size_t e = 0; e < m.elementCount(); ++e) {
+    if (!q.tangled[e]) continue;
+    bool movable = false;
+    for (int k = 0; k < m.elementSize(e); ++k)
+      movable =
+          movable || m.nodeKind[static_cast<std::size_t>(m.elementNodes(e)[k])] != NodeKind::Fixed;
+    if (!movable) r.insert(e);
+  }
+  return r;
+}
+
 const char* kParts[] = {"occt_propeller.brep", "occt_housing_bottom.brep", "occt_crankarm.brep",
                         "occt_bottle.brep",    "occt_screw.step",          "nist_pmi_1.step"};
 
@@ -95,17 +113,29 @@ TEST_P(CadOptimizePart, FixedBoundaryKeepsNodesOnTheirFacesAndImprovesQuality) {
   std::cout << GetParam() << ": " << m.nodeCount() << " nodes, before " << statsText(r.before)
             << ", after " << statsText(r.after) << ", " << r.sweeps << " sweeps, " << r.seconds
             << " s\n";
-  // BRepMesh leaves 4 tangled triangles on the propeller: two with all three nodes on CAD
-  // vertices/edges (nothing may move with a fixed boundary), two at a nearly singular corner
-  // of a blade fillet patch. Nothing else may be or become tangled.
-  EXPECT_LE(r.after.tangled, r.before.tangled);
+  // Everything a node move can repair is repaired: the tangled elements left are exactly the
+  // input's tangled elements without a movable node (on the propeller: two triangles with all
+  // three nodes on CAD vertices and a fixed CAD edge), and the result reports them.
+  const MeshQuality q0 = measureQuality(CadMesh(shape, om.input).mesh(), measureByName("shape"));
+  const std::set<std::size_t> stuck = unmovableTangled(m, q0);
+  const MeshQuality q1 = measureQuality(m, measureByName("shape"));
+  EXPECT_EQ(q1.stats.tangled, r.after.tangled);
+  std::set<std::size_t> tangledAfter;
+  for (std::size_t e = 0; e < m.elementCount(); ++e)
+    if (q1.tangled[e]) tangledAfter.insert(e);
+  EXPECT_EQ(tangledAfter, stuck);
+  EXPECT_TRUE(r.tangledMovable.empty());
+  EXPECT_EQ(std::set<std::size_t>(r.tangledUnmovable.begin(), r.tangledUnmovable.end()), stuck);
+  EXPECT_EQ(r.warnings.empty(), stuck.empty());
+  if (!stuck.empty()) {
+    EXPECT_NE(r.warnings[0].find(std::to_string(stuck.size()) + " element"), std::string::npos);
+    EXPECT_NE(r.warnings[0].find(std::to_string(*stuck.begin())), std::string::npos);
+  }
+  // Quality: the minimum over the elements that can change never drops, the mean rises.
   if (r.before.tangled == 0) {
-    EXPECT_EQ(r.after.tangled, 0u);
     EXPECT_GE(r.after.min, r.before.min - 1e-12);
   }
   EXPECT_GE(r.after.mean, r.before.mean);
-  const QualityStats check = measureQuality(m, measureByName("shape")).stats;
-  EXPECT_EQ(check.tangled, r.after.tangled);
   const OnShapeCheck c = checkMovedNodes(*shape, m, before);
   std::cout << "  moved " << c.moved << " nodes: surface " << c.worstSurface / diag
             << " diag, GeomAPI projection " << c.worstProjection / diag << " diag, outside "
@@ -131,6 +161,7 @@ INSTANTIATE_TEST_SUITE_P(Parts, CadOptimizePart, ::testing::ValuesIn(kParts),
 struct PerturbCase {
   const char* part;
   double amplitude;  // step bound, in units of the distance to the nearest neighbour
+  unsigned seed;     // of the random steps
 };
 
 class CadPerturbed : public ::testing::TestWithParam<PerturbCase> {};
@@ -138,6 +169,7 @@ class CadPerturbed : public ::testing::TestWithParam<PerturbCase> {};
 TEST_P(CadPerturbed, InteriorNodesPerturbedOnSeveralFacesAreUntangled) {
   const char* part = GetParam().part;
   const double amp = GetParam().amplitude;
+  const unsigned seed = GetParam().seed;
   auto shape = load(part);
   const double diag = shape->diagonal();
   const OccMesh om = meshWithBRepMesh(*shape, 1e-3 * diag, 0.5);
@@ -151,7 +183,7 @@ TEST_P(CadPerturbed, InteriorNodesPerturbedOnSeveralFacesAreUntangled) {
       for (int b = 0; b < 3; ++b)
         if (a != b)
           nbr[static_cast<std::size_t>(m.elementNodes(e)[a])].push_back(m.elementNodes(e)[b]);
-  std::mt19937 rng(7);
+  std::mt19937 rng(seed);
   std::uniform_real_distribution<double> U(-1.0, 1.0);
   for (std::size_t n = 0; n < m.nodeCount(); ++n) {
     if (m.nodeKind[n] != NodeKind::Face || m.nodeFace[n] % 2 != 0) continue;
@@ -173,9 +205,9 @@ TEST_P(CadPerturbed, InteriorNodesPerturbedOnSeveralFacesAreUntangled) {
   std::set<int> tangledFaces;
   for (std::size_t e = 0; e < m.elementCount(); ++e)
     if (q0.tangled[e]) tangledFaces.insert(m.elemFace[e]);
-  std::cout << "perturbed " << part << ": " << statsText(q0.stats) << " on " << tangledFaces.size()
-            << " faces\n";
-  ASSERT_GE(tangledFaces.size(), 3u);
+  std::cout << "perturbed " << part << " (amplitude " << amp << ", seed " << seed
+            << "): " << statsText(q0.stats) << " on " << tangledFaces.size() << " faces\n";
+  ASSERT_GE(tangledFaces.size(), 2u);
   const std::vector<Vec3> before = m.xyz;
   OptimizeOptions opt;
   opt.maxSweeps = 100;
@@ -189,19 +221,35 @@ TEST_P(CadPerturbed, InteriorNodesPerturbedOnSeveralFacesAreUntangled) {
 }
 
 // The crank arm: Gmsh itself leaves tangled elements on it (FREECAD_NOTES.md); steps of 0.9·h
-// tangle about 70 elements on 5 faces. The housing (tori, spheres, B-spline blends) and the
-// bottle (cylinder/sphere/torus fillets): 160 and 20 elements.
-INSTANTIATE_TEST_SUITE_P(Parts, CadPerturbed,
-                         ::testing::Values(PerturbCase{"occt_crankarm.brep", 0.9},
-                                           PerturbCase{"occt_housing_bottom.brep", 0.7},
-                                           PerturbCase{"occt_bottle.brep", 0.7}),
-                         [](const ::testing::TestParamInfo<PerturbCase>& i) {
-                           std::string s = i.param.part;
-                           return s.substr(0, s.find('.'));
-                         });
+// tangle about 70–90 elements on 5 faces, 0.5·h about 10. The node-by-node sweep used to end
+// in a local minimum with one element tangled for several of these seeds (0.7 with seeds 2
+// and 7, 0.9 with seed 2): the escapes for stuck elements (kernel centre, harmonic patch)
+// free them. The bottle (cylinder/sphere/torus fillets), the screw and the housing (tori,
+// spheres, B-spline blends; 160 elements).
+INSTANTIATE_TEST_SUITE_P(
+    Parts, CadPerturbed,
+    ::testing::Values(
+        PerturbCase{"occt_crankarm.brep", 0.5, 3}, PerturbCase{"occt_crankarm.brep", 0.7, 2},
+        PerturbCase{"occt_crankarm.brep", 0.7, 7}, PerturbCase{"occt_crankarm.brep", 0.9, 2},
+        PerturbCase{"occt_crankarm.brep", 0.9, 7}, PerturbCase{"occt_crankarm.brep", 0.9, 11},
+        PerturbCase{"occt_bottle.brep", 0.7, 7}, PerturbCase{"occt_bottle.brep", 0.9, 3},
+        PerturbCase{"occt_screw.step", 0.9, 1}, PerturbCase{"occt_screw.step", 0.9, 7},
+        PerturbCase{"occt_housing_bottom.brep", 0.7, 7}),
+    [](const ::testing::TestParamInfo<PerturbCase>& i) {
+      std::string s = i.param.part;
+      s = s.substr(5, s.find('.') - 5) + "_" +
+          std::to_string(static_cast<int>(std::lround(10 * i.param.amplitude))) + "_seed" +
+          std::to_string(i.param.seed);
+      return s;
+    });
 
-TEST(CadOptimize, SlidingEdgeNodesGainQualityAndStayOnTheirEdges) {
-  for (const char* part : {"occt_crankarm.brep", "occt_screw.step", "occt_propeller.brep"}) {
+// Boundary "slide" against "fixed" on every part: never more tangled elements, never a lower
+// minimum quality, no tangled element with a movable node left. Prints the gains (one table
+// row per part).
+TEST(CadOptimize, SlidingEdgeNodesNeverEndWorseThanFixedOnes) {
+  std::printf("%-26s | %-28s | %-28s | %-28s | %s\n", "part", "before: min mean tangled",
+              "fixed: min mean tangled", "slide: min mean tangled", "slide - fixed: min mean");
+  for (const char* part : kParts) {
     auto shape = load(part);
     const double diag = shape->diagonal();
     const OccMesh om = meshWithBRepMesh(*shape, 1e-3 * diag, 0.5);
@@ -212,20 +260,81 @@ TEST(CadOptimize, SlidingEdgeNodesGainQualityAndStayOnTheirEdges) {
     BridgeOptions bo;
     bo.boundary = "slide";
     CadMesh slide(shape, om.input, bo);
+    ASSERT_GT(slide.report().slidingNodes, 0u) << part;
     const std::vector<Vec3> before = slide.mesh().xyz;
     const OptimizeResult rs = optimizeMesh(slide.mesh(), opt);
-    std::cout << part << ": before " << statsText(rf.before) << "; fixed edges "
-              << statsText(rf.after) << "; sliding edges (" << slide.report().slidingNodes
-              << " nodes) " << statsText(rs.after) << "\n";
-    EXPECT_LE(rs.after.tangled, rf.before.tangled);
-    EXPECT_GE(rs.after.mean, rf.before.mean);
-    if (rf.before.tangled == 0) {
-      EXPECT_GE(rs.after.min, rf.before.min - 1e-12);
-    }
+    std::printf(
+        "%-26s | %.4f %.4f %-12zu | %.4f %.4f %-12zu | %.4f %.4f %-12zu | %+.4f %+.4f   (%zu "
+        "sliding nodes, %.2f s / %.2f s)\n",
+        part, rf.before.min, rf.before.mean, rf.before.tangled, rf.after.min, rf.after.mean,
+        rf.after.tangled, rs.after.min, rs.after.mean, rs.after.tangled,
+        rs.after.min - rf.after.min, rs.after.mean - rf.after.mean, slide.report().slidingNodes,
+        rf.seconds, rs.seconds);
+    EXPECT_LE(rs.after.tangled, rf.after.tangled) << part;
+    EXPECT_GE(rs.after.min, rf.after.min - 1e-12) << part;
+    EXPECT_GE(rs.after.mean, rf.before.mean) << part;
+    const MeshQuality q = measureQuality(slide.mesh(), measureByName("shape"));
+    EXPECT_EQ(q.stats.tangled, rs.after.tangled);
+    // Nothing that a node move (sliding ones included) could repair is left tangled: on the
+    // propeller, the two triangles on CAD vertices and a fixed edge are untangled by sliding
+    // their edge node close to the CAD vertex (their only valid positions).
+    EXPECT_TRUE(rs.tangledMovable.empty()) << part;
+    EXPECT_EQ(unmovableTangled(slide.mesh(), q).size(), rs.tangledUnmovable.size()) << part;
+    EXPECT_EQ(rs.tangledMovable.size() + rs.tangledUnmovable.size(), rs.after.tangled);
     const OnShapeCheck c = checkMovedNodes(*shape, slide.mesh(), before);
-    EXPECT_LE(c.worstCurve, 1e-9 * diag);
-    EXPECT_LE(c.worstSurface, 1e-9 * diag);
-    EXPECT_EQ(c.outside, 0u);
+    EXPECT_LE(c.worstCurve, 1e-9 * diag) << part;
+    EXPECT_LE(c.worstSurface, 1e-9 * diag) << part;
+    EXPECT_EQ(c.outside, 0u) << part;
+  }
+}
+
+// The triangles BRepMesh leaves tangled on the propeller's blade patches are really flipped:
+// positively wound in (u,v), but their 3-D plane faces against the surface normal at their
+// parametric centroid and at two of their three corners — the patch turns its normal by more
+// than 100° across one triangle (a corner where φ_u and φ_v are 5–10° apart), so the linear
+// triangle cannot follow it. Not an artefact of the reference normal.
+TEST(CadOptimize, PropellerTangledTrianglesAreFlippedAgainstTheSurface) {
+  auto shape = load("occt_propeller.brep");
+  const OccMesh om = meshWithBRepMesh(*shape, 1e-3 * shape->diagonal(), 0.5);
+  CadMesh cm(shape, om.input);
+  const SurfaceMesh& m = cm.mesh();
+  const MeshQuality q = measureQuality(m, measureByName("shape"));
+  ASSERT_GT(q.stats.tangled, 0u);
+  for (std::size_t e = 0; e < m.elementCount(); ++e) {
+    if (!q.tangled[e]) continue;
+    const int f = m.elemFace[e];
+    const Surface& s = *m.surfaces[static_cast<std::size_t>(f)];
+    const Vec2* uv = m.elementUV(e);
+    const std::int32_t* nd = m.elementNodes(e);
+    const Vec3 x0 = m.xyz[static_cast<std::size_t>(nd[0])],
+               x1 = m.xyz[static_cast<std::size_t>(nd[1])],
+               x2 = m.xyz[static_cast<std::size_t>(nd[2])];
+    const Vec3 c = (x1 - x0).cross(x2 - x0).normalized();
+    const Vec2 a = uv[1] - uv[0], b = uv[2] - uv[0];
+    const double uvCross = a.x() * b.y() - a.y() * b.x();
+    EXPECT_GT(uvCross * s.normalSign() * m.faceOrientation[static_cast<std::size_t>(f)], 0.0)
+        << "element " << e;
+    const Vec2 centroid = (uv[0] + uv[1] + uv[2]) / 3.0;
+    EXPECT_LT(c.dot(m.referenceNormal(f, centroid)), -0.3) << "element " << e;
+    int against = 0;
+    double minSin = 1.0;
+    for (int k = 0; k < 3; ++k) {
+      if (c.dot(m.referenceNormal(f, uv[k])) < 0.0) ++against;
+      const SurfaceD1 d = s.d1(uv[k].x(), uv[k].y());
+      minSin = std::min(minSin, d.du.cross(d.dv).norm() / (d.du.norm() * d.dv.norm()));
+    }
+    EXPECT_GE(against, 2) << "element " << e;
+    double minDot = 1.0;  // the surface normal turns by more than 100° across the triangle
+    for (int k = 0; k < 3; ++k)
+      minDot =
+          std::min(minDot, m.referenceNormal(f, uv[k]).dot(m.referenceNormal(f, uv[(k + 1) % 3])));
+    EXPECT_LT(minDot, std::cos(100.0 * M_PI / 180.0)) << "element " << e;
+    EXPECT_FALSE(isDegenerate(s.d1(centroid.x(), centroid.y()))) << "element " << e;
+    EXPECT_LT(elementReferenceNormal(m, e).dot(c), 0.0) << "element " << e;
+    std::printf(
+        "propeller element %zu on face %d (%s): centroid normal · triangle normal %.3f, "
+        "%d of 3 corners against, smallest sin(φu, φv) at a corner %.3f\n",
+        e, f, shape->faceType(f).c_str(), c.dot(m.referenceNormal(f, centroid)), against, minSin);
   }
 }
 

@@ -597,6 +597,157 @@ class NodeUpdater {
     return 0.0;
   }
 
+  /// Escape from a local minimum of the node-by-node sweep: a tangled element can be stuck
+  /// when no single node can untangle it (e.g. a fan of thin triangles between two boundary
+  /// nodes whose inner nodes have swapped their order: every node's kernel is empty while the
+  /// others stay). For each tangled element (in the element cache) with a movable Face node,
+  /// the Face nodes of its face within 0, 1, 2, 3 rings of it are relocated together to the
+  /// harmonic (uniform Tutte) embedding in (u,v) of that patch with the nodes around it held —
+  /// a valid embedding whenever the patch's outline is convex in (u,v). The smallest patch
+  /// that leaves fewer tangled elements among all elements of the moved nodes is kept —
+  /// strict progress, so it cannot cycle. Runs on one thread between sweeps; returns the
+  /// number of elements untangled.
+  std::size_t escapeTangledElements(const std::vector<unsigned char>& frozen) {
+    std::size_t gained = 0;
+    std::vector<std::size_t> patch, elems;
+    std::vector<Vec2> uvSave, iter;
+    std::vector<Vec3> xyzSave, nSave;
+    std::vector<std::int64_t> nbrOffset;
+    std::vector<std::int32_t> nbrIndex;  // index in the patch, −1 for a held node
+    std::vector<Vec2> nbrUV;             // held neighbours: their (u,v) next to the node's
+    for (std::size_t e = 0; e < s_.mesh.elementCount(); ++e) {
+      if (frozen[e] || s_.minSigma[e] > 0.0) continue;
+      const int face = s_.mesh.elemFace[e];
+      const Surface& surf = *w_.geo.surfaces[static_cast<std::size_t>(face)];
+      const double orient = static_cast<double>(
+          s_.mesh.faceOrientation[static_cast<std::size_t>(face)] * surf.normalSign());
+      auto inPatch = [&](std::size_t j) {
+        return std::find(patch.begin(), patch.end(), j) != patch.end();
+      };
+      auto movableHere = [&](std::size_t j) {
+        return s_.mesh.nodeKind[j] == NodeKind::Face && s_.mesh.nodeFace[j] == face;
+      };
+      patch.clear();
+      const std::int32_t* nd = s_.mesh.elementNodes(e);
+      for (int k = 0; k < s_.mesh.elementSize(e); ++k) {
+        const std::size_t j = static_cast<std::size_t>(nd[k]);
+        if (movableHere(j) && !inPatch(j)) patch.push_back(j);
+      }
+      if (patch.empty()) continue;
+      bool kept = false;
+      for (int ring = 0; ring <= 3 && !kept; ++ring) {
+        if (ring > 0) {  // grow by one ring of Face nodes of this face
+          const std::size_t n0 = patch.size();
+          for (std::size_t q = 0; q < n0; ++q)
+            for (std::int64_t p = s_.begin(patch[q]); p < s_.end(patch[q]); ++p) {
+              const std::size_t f =
+                  static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
+              const std::int32_t* fn = s_.mesh.elementNodes(f);
+              for (int k = 0; k < s_.mesh.elementSize(f); ++k) {
+                const std::size_t j = static_cast<std::size_t>(fn[k]);
+                if (movableHere(j) && !inPatch(j)) patch.push_back(j);
+              }
+            }
+          if (patch.size() == n0 || patch.size() > 256) break;
+        }
+        elems.clear();
+        for (std::size_t j : patch)
+          for (std::int64_t p = s_.begin(j); p < s_.end(j); ++p)
+            elems.push_back(static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]));
+        std::sort(elems.begin(), elems.end());
+        elems.erase(std::unique(elems.begin(), elems.end()), elems.end());
+        auto countTangled = [&]() {
+          std::size_t t = 0;
+          for (std::size_t q : elems)
+            if (s_.evalWhole(q, 0.0).tangled) ++t;
+          return t;
+        };
+        const std::size_t t0 = countTangled();
+        // Neighbour lists of the patch nodes (corners of their elements).
+        nbrOffset.assign(1, 0);
+        nbrIndex.clear();
+        nbrUV.clear();
+        for (std::size_t j : patch) {
+          for (std::int64_t p = s_.begin(j); p < s_.end(j); ++p) {
+            const std::size_t f =
+                static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
+            const std::int32_t* fn = s_.mesh.elementNodes(f);
+            for (int k = 0; k < cornerCount(s_.mesh.elemType[f]); ++k) {
+              const std::size_t o = static_cast<std::size_t>(fn[k]);
+              if (o == j) continue;
+              const auto it = std::find(patch.begin(), patch.end(), o);
+              nbrIndex.push_back(it == patch.end() ? -1
+                                                   : static_cast<std::int32_t>(it - patch.begin()));
+              nbrUV.push_back(cornerOnFace(f, k, face, surf, s_.uv[j]));
+            }
+          }
+          nbrOffset.push_back(static_cast<std::int64_t>(nbrIndex.size()));
+        }
+        // Gauss–Seidel on the uniform Laplacian of the patch (its outline held).
+        iter.clear();
+        for (std::size_t j : patch) iter.push_back(s_.uv[j]);
+        for (int sweep = 0; sweep < 200; ++sweep) {
+          double change = 0.0;
+          for (std::size_t q = 0; q < patch.size(); ++q) {
+            Vec2 c = Vec2::Zero();
+            const std::int64_t b0 = nbrOffset[q], b1 = nbrOffset[q + 1];
+            for (std::int64_t r = b0; r < b1; ++r) {
+              const std::int32_t o = nbrIndex[static_cast<std::size_t>(r)];
+              c += o < 0 ? nbrUV[static_cast<std::size_t>(r)]
+                         : surf.unwrapNear(iter[static_cast<std::size_t>(o)], iter[q]);
+            }
+            if (b1 > b0) {
+              c /= static_cast<double>(b1 - b0);
+              change = std::max(change, (c - iter[q]).lpNorm<Eigen::Infinity>());
+              iter[q] = c;
+            }
+          }
+          if (change == 0.0) break;
+        }
+        // Place, count, keep or put back.
+        uvSave.clear();
+        xyzSave.clear();
+        nSave.clear();
+        for (std::size_t j : patch) {
+          uvSave.push_back(s_.uv[j]);
+          xyzSave.push_back(s_.xyz[j]);
+          nSave.push_back(s_.nodeNormal[j]);
+        }
+        bool ok = true;
+        for (std::size_t q = 0; q < patch.size() && ok; ++q) {
+          const Vec2 w = surf.wrap(iter[q]);
+          if (!w.allFinite() || !surf.contains(w.x(), w.y())) {
+            ok = false;
+            break;
+          }
+          const SurfaceD1 d = surf.d1(w.x(), w.y());
+          if (isDegenerate(d)) {
+            ok = false;
+            break;
+          }
+          const std::size_t j = patch[q];
+          s_.uv[j] = w;
+          s_.xyz[j] = d.p;
+          const Vec3 c = d.du.cross(d.dv);
+          s_.nodeNormal[j] = (orient / c.norm()) * c;
+        }
+        const std::size_t t1 = ok ? countTangled() : t0;
+        if (ok && t1 < t0) {
+          kept = true;
+          gained += t0 - t1;
+          for (std::size_t j : patch) s_.d2Valid[j] = 0;
+        } else {
+          for (std::size_t q = 0; q < patch.size(); ++q) {
+            s_.uv[patch[q]] = uvSave[q];
+            s_.xyz[patch[q]] = xyzSave[q];
+            s_.nodeNormal[patch[q]] = nSave[q];
+          }
+        }
+      }
+    }
+    return gained;
+  }
+
  private:
   State& s_;
   Worker& w_;
@@ -786,33 +937,27 @@ class NodeUpdater {
               if (tryStep(scale * dd)) accepted = true;
         }
       }
-      if (!accepted && s_.deltaHat > 0.0 && cur.tangled > 0) {
+      const bool creeping =
+          accepted && best.tangled >= cur.tangled && (dn.p - x0).norm() < s_.opt.moveTol * L;
+      if (s_.deltaHat > 0.0 && cur.tangled > 0 && (!accepted || creeping)) {
         // A fold the local Newton step cannot open (every step that lowers f̂ tangles another
-        // element of the submesh): try the parametric centroid of the node's neighbours (a
-        // Laplacian step, as Gmsh's Laplace2D) and accept it when it leaves fewer elements
-        // of the submesh tangled — strict progress, so it cannot cycle.
-        Vec2 c = Vec2::Zero();
-        int cnt = 0;
-        for (std::int64_t p = s_.begin(i); p < s_.end(i); ++p) {
-          const std::size_t e = static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
-          const std::int32_t* nd = s_.mesh.elementNodes(e);
-          const int nc = cornerCount(s_.mesh.elemType[e]);
-          for (int k = 0; k < nc; ++k) {
-            const std::size_t j = static_cast<std::size_t>(nd[k]);
-            if (j == i) continue;
-            const bool sameFace =
-                s_.mesh.nodeKind[j] == NodeKind::Face && s_.mesh.nodeFace[j] == face;
-            const Vec2 uvj =
-                sameFace ? s_.uv[j]
-                         : s_.mesh.cornerUV[static_cast<std::size_t>(s_.mesh.elemOffset[e] + k)];
-            c += surf.unwrapNear(uvj, uv0);
-            ++cnt;
-          }
-        }
-        if (cnt > 0) {
-          const Vec2 lap = c / cnt - uv0;
+        // element of the submesh, or the steps only creep towards a local minimum of f̂ with
+        // an element still tangled — e.g. the node pulled onto the face boundary next to a
+        // tangled sliver): try the centre of the node's kernel in (u,v) (where all its
+        // elements are wound right in the parameter plane) and the parametric centroid of its
+        // neighbours (a Laplacian step, as Gmsh's Laplace2D), and the points halfway and a
+        // quarter of the way there. The candidate leaving the fewest elements of the submesh
+        // tangled (then the lowest f̂) is taken when it leaves fewer tangled than the current
+        // position and the Newton step — strict progress, so it cannot cycle.
+        Vec2 targets[2];
+        int nt = 0;
+        if (kernelCenter(i, face, surf, uv0, d, orient, &targets[nt])) ++nt;
+        if (neighbourCentroid(i, face, surf, uv0, &targets[nt])) ++nt;
+        int bestTangled = accepted ? best.tangled : cur.tangled;
+        double bestF = kInf;
+        for (int k = 0; k < nt; ++k)
           for (double a : {1.0, 0.5, 0.25}) {
-            const Vec2 uvT = surf.wrap(uv0 + a * lap);
+            const Vec2 uvT = surf.wrap(uv0 + a * (targets[k] - uv0));
             if (!surf.contains(uvT.x(), uvT.y())) continue;
             const SurfaceD2 dT = surf.d2(uvT.x(), uvT.y());
             if (isDegenerate({dT.p, dT.du, dT.dv})) continue;
@@ -820,15 +965,17 @@ class NodeUpdater {
             const Vec3 nT = (orient / cr.norm()) * cr;
             const LocalEval tr = evalLocal(
                 i, dT.p, [&](std::size_t) { return nT; }, zero, false, nullptr, nullptr, nullptr);
-            if (tr.finite && tr.tangled < cur.tangled) {
+            if (!tr.finite) continue;
+            if (tr.tangled < bestTangled ||
+                (tr.tangled == bestTangled && tr.f < bestF && bestF < kInf)) {
+              bestTangled = tr.tangled;
+              bestF = tr.f;
               accepted = true;
               uvNew = uvT;
               dn = dT;
               nn = nT;
-              break;
             }
           }
-        }
       }
       if (!accepted) return moved;
       const double step = (dn.p - x0).norm();
@@ -894,37 +1041,207 @@ class NodeUpdater {
       const double tn = t0 + alpha * dt;
       if (!(tn > lo + margin && tn < hi - margin)) continue;
       const Vec3 xn = curve.value(tn);
-      // Corner normals on each incident element's face at the new point.
-      for (std::int64_t p = s_.begin(i); p < s_.end(i); ++p) {
-        const std::size_t pp = static_cast<std::size_t>(p);
-        const std::size_t e = static_cast<std::size_t>(s_.inc.elem[pp]);
-        const std::size_t slot = static_cast<std::size_t>(s_.mesh.elemOffset[e]) + s_.inc.local[pp];
-        const int f = s_.mesh.elemFace[e];
-        const Vec2 uvf = curve.uvOnFace(f, tn, s_.mesh.cornerUV[slot]);
-        const Surface& sf = *w_.geo.surfaces[static_cast<std::size_t>(f)];
-        trialN[p - s_.begin(i)] =
-            (s_.mesh.faceOrientation[static_cast<std::size_t>(f)] * sf.normal(uvf.x(), uvf.y()))
-                .eval();
-      }
+      edgeTrialNormals(i, curve, tn);
       const LocalEval tr = evalLocal(
           i, xn, [&](std::size_t j) { return trialN[j]; }, old, wantQ, &cur, nullptr, nullptr);
       if (!acceptable(cur, tr)) continue;
-      s_.t[i] = tn;
-      s_.xyz[i] = xn;
-      // The node's corner normals are part of its elements' fixedNormal: swap them.
-      Vec3* slotN = s_.edgeNormal.data() + s_.edgeSlot[i];
-      for (std::int64_t p = s_.begin(i); p < s_.end(i); ++p) {
-        const std::size_t j = static_cast<std::size_t>(p - s_.begin(i));
-        const std::size_t e = static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
-        if (s_.inc.local[static_cast<std::size_t>(p)] < cornerCount(s_.mesh.elemType[e])) {
-          s_.fixedNormal[e] += trialN[j] - slotN[j];
-          slotN[j] = trialN[j];
-        }
-      }
-      commitElements(i);
-      return (xn - x0).norm();
+      double tb = tn;
+      if (s_.deltaHat > 0.0 && cur.tangled > 0 && tr.tangled >= cur.tangled &&
+          (xn - x0).norm() < s_.opt.moveTol * L)
+        slideEscape(i, curve, lo + margin, hi - margin, tr.tangled, &tb);
+      return commitEdgeMove(i, curve, tb, x0);
     }
+    double tb = t0;
+    if (s_.deltaHat > 0.0 && cur.tangled > 0 &&
+        slideEscape(i, curve, lo + margin, hi - margin, cur.tangled, &tb))
+      return commitEdgeMove(i, curve, tb, x0);
     return 0.0;
+  }
+
+  /// The corner normals of sliding node i in each incident element at curve parameter t, into
+  /// the worker's scratch.
+  void edgeTrialNormals(std::size_t i, const Curve& curve, double t) {
+    for (std::int64_t p = s_.begin(i); p < s_.end(i); ++p) {
+      const std::size_t pp = static_cast<std::size_t>(p);
+      const std::size_t e = static_cast<std::size_t>(s_.inc.elem[pp]);
+      const std::size_t slot = static_cast<std::size_t>(s_.mesh.elemOffset[e]) + s_.inc.local[pp];
+      const int f = s_.mesh.elemFace[e];
+      const Vec2 uvf = curve.uvOnFace(f, t, s_.mesh.cornerUV[slot]);
+      const Surface& sf = *w_.geo.surfaces[static_cast<std::size_t>(f)];
+      w_.normals[static_cast<std::size_t>(p - s_.begin(i))] =
+          (s_.mesh.faceOrientation[static_cast<std::size_t>(f)] * sf.normal(uvf.x(), uvf.y()))
+              .eval();
+    }
+  }
+
+  /// Moves sliding node i to C(t) (its corner normals swapped in its elements' fixedNormal);
+  /// returns the 3D move.
+  double commitEdgeMove(std::size_t i, const Curve& curve, double t, const Vec3& x0) {
+    edgeTrialNormals(i, curve, t);
+    const Vec3 xn = curve.value(t);
+    s_.t[i] = t;
+    s_.xyz[i] = xn;
+    Vec3* slotN = s_.edgeNormal.data() + s_.edgeSlot[i];
+    for (std::int64_t p = s_.begin(i); p < s_.end(i); ++p) {
+      const std::size_t j = static_cast<std::size_t>(p - s_.begin(i));
+      const std::size_t e = static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
+      if (s_.inc.local[static_cast<std::size_t>(p)] < cornerCount(s_.mesh.elemType[e])) {
+        s_.fixedNormal[e] += w_.normals[j] - slotN[j];
+        slotN[j] = w_.normals[j];
+      }
+    }
+    commitElements(i);
+    return (xn - x0).norm();
+  }
+
+  /// The 1-D counterpart of a Face node's escape: a sliding node whose Newton step fails or
+  /// creeps while an element of its submesh (on either face of its edge) stays tangled scans
+  /// its admissible interval [a, b] (uniformly, and geometrically towards both ends, where a
+  /// triangle next to a CAD vertex may only be valid very close to it) and takes the point
+  /// with the fewest tangled elements of its submesh (then the lowest f̂) when that is below
+  /// `threshold` — strict progress, so it cannot cycle.
+  bool slideEscape(std::size_t i, const Curve& curve, double a, double b, int threshold,
+                   double* tOut) {
+    if (!(b > a)) return false;
+    const Vec3* oldN = s_.edgeNormal.data() + s_.edgeSlot[i];
+    auto old = [&](std::size_t j) { return oldN[j]; };
+    const Vec3* trialN = w_.normals.data();
+    int bestTangled = threshold;
+    double bestF = kInf;
+    bool found = false;
+    auto tryT = [&](double t) {
+      edgeTrialNormals(i, curve, t);
+      const LocalEval tr = evalLocal(
+          i, curve.value(t), [&](std::size_t j) { return trialN[j]; }, old, false, nullptr, nullptr,
+          nullptr);
+      if (!tr.finite) return;
+      if (tr.tangled < bestTangled || (found && tr.tangled == bestTangled && tr.f < bestF)) {
+        bestTangled = tr.tangled;
+        bestF = tr.f;
+        *tOut = t;
+        found = true;
+      }
+    };
+    constexpr int kUniform = 32;
+    for (int k = 1; k < kUniform; ++k) tryT(a + (b - a) * k / kUniform);
+    for (double r = 1.0 / kUniform; r > 1e-4; r *= 0.3) {
+      tryT(a + (b - a) * r);
+      tryT(b - (b - a) * r);
+    }
+    return found;
+  }
+
+  /// Current (u,v) on face `face`, next to `near`, of node j at corner k of element e (on that
+  /// face): Face nodes of the face at their current (u,v), sliding Edge nodes at their current
+  /// curve point (through the edge's pcurve), other nodes at their corner (u,v).
+  Vec2 cornerOnFace(std::size_t e, int k, int face, const Surface& surf, const Vec2& near) const {
+    const std::size_t j = static_cast<std::size_t>(s_.mesh.elementNodes(e)[k]);
+    const Vec2& corner = s_.mesh.cornerUV[static_cast<std::size_t>(s_.mesh.elemOffset[e] + k)];
+    Vec2 uvj = corner;
+    if (s_.mesh.nodeKind[j] == NodeKind::Face && s_.mesh.nodeFace[j] == face) {
+      uvj = s_.uv[j];
+    } else if (s_.mesh.nodeKind[j] == NodeKind::Edge) {
+      const Curve& cj = *w_.geo.curves[static_cast<std::size_t>(s_.mesh.nodeEdge[j])];
+      uvj = cj.uvOnFace(face, s_.t[j], corner);
+    }
+    return surf.unwrapNear(uvj, near);
+  }
+
+  /// Parametric centroid, on face `face` next to uv0, of the corners of Face node i's elements
+  /// other than i (a Laplacian target, as Gmsh's Laplace2D).
+  bool neighbourCentroid(std::size_t i, int face, const Surface& surf, const Vec2& uv0, Vec2* c) {
+    Vec2 sum = Vec2::Zero();
+    int cnt = 0;
+    for (std::int64_t p = s_.begin(i); p < s_.end(i); ++p) {
+      const std::size_t e = static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
+      const int nc = cornerCount(s_.mesh.elemType[e]);
+      for (int k = 0; k < nc; ++k) {
+        if (static_cast<std::size_t>(s_.mesh.elementNodes(e)[k]) == i) continue;
+        sum += cornerOnFace(e, k, face, surf, uv0);
+        ++cnt;
+      }
+    }
+    if (cnt == 0 || !sum.allFinite()) return false;
+    *c = sum / cnt;
+    return true;
+  }
+
+  /// The point of Face node i's "kernel" in (u,v) farthest from its boundary: every corner
+  /// triangle of node i's elements that contains i is positively wound in (u,v) (for the face's
+  /// reference orientation `orient`) exactly when i lies on the inner side of the line through
+  /// the triangle's other two corners. The Chebyshev centre of these half-planes, measured in
+  /// the metric of the surface's first fundamental form at uv0 (so that a strongly anisotropic
+  /// parameterization does not skew it), found by enumerating the triples of lines (a 2-D
+  /// linear program with a handful of constraints). False when the kernel is empty.
+  bool kernelCenter(std::size_t i, int face, const Surface& surf, const Vec2& uv0, const NodeD2& d,
+                    double orient, Vec2* centre) {
+    // Metric: q = R (uv − uv0) with RᵀR = JᵀJ (Cholesky, R upper triangular, det R > 0).
+    const double g11 = d.du.squaredNorm(), g12 = d.du.dot(d.dv), g22 = d.dv.squaredNorm();
+    const double r11 = std::sqrt(g11);
+    if (!(r11 > 0.0)) return false;
+    const double r12 = g12 / r11, r22sq = g22 - r12 * r12;
+    if (!(r22sq > 0.0)) return false;
+    const double r22 = std::sqrt(r22sq);
+    auto toQ = [&](const Vec2& uv) {
+      const Vec2 w = uv - uv0;
+      return Vec2(r11 * w.x() + r12 * w.y(), r22 * w.y());
+    };
+    // Lines a·q ≥ b with ‖a‖ = 1 (inner side).
+    constexpr int kMaxLines = 64;
+    Vec2 A[kMaxLines];
+    double B[kMaxLines];
+    int n = 0;
+    auto addLine = [&](const Vec2& x, const Vec2& y) {  // node on the left of x → y
+      const Vec2 qx = toQ(x), qy = toQ(y);
+      const Vec2 t = qy - qx;
+      const double len = t.norm();
+      if (!(len > 0.0) || n >= kMaxLines) return;
+      // orient · (y − x) × (q − x) > 0  ⇔  a·q > b with a = orient · (−t_y, t_x)
+      const Vec2 a = orient * Vec2(-t.y(), t.x()) / len;
+      A[n] = a;
+      B[n] = a.dot(qx);
+      ++n;
+    };
+    for (std::int64_t p = s_.begin(i); p < s_.end(i); ++p) {
+      const std::size_t e = static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
+      const int local = s_.inc.local[static_cast<std::size_t>(p)];
+      const int nc = cornerCount(s_.mesh.elemType[e]);
+      if (local >= nc) return false;  // an edge or interior node of a high-order element
+      const Vec2 nx = cornerOnFace(e, (local + 1) % nc, face, surf, uv0);
+      const Vec2 pv = cornerOnFace(e, (local + nc - 1) % nc, face, surf, uv0);
+      addLine(nx, pv);  // the corner triangle at i (i, next, prev)
+      if (nc == 4) {
+        // The corner triangles at next (next, next², i) and at prev (prev, i, prev²).
+        const Vec2 nn = cornerOnFace(e, (local + 2) % nc, face, surf, uv0);
+        addLine(nx, nn);
+        addLine(nn, pv);
+      }
+    }
+    if (n < 3) return false;
+    double bestR = 0.0;
+    bool found = false;
+    for (int a = 0; a < n; ++a)
+      for (int b = a + 1; b < n; ++b)
+        for (int c = b + 1; c < n; ++c) {
+          // a_k·q − r = b_k for k in {a, b, c}.
+          Eigen::Matrix3d M;
+          M << A[a].x(), A[a].y(), -1.0, A[b].x(), A[b].y(), -1.0, A[c].x(), A[c].y(), -1.0;
+          const double det = M.determinant();
+          if (!(std::abs(det) > 1e-14)) continue;
+          const Eigen::Vector3d x = M.partialPivLu().solve(Eigen::Vector3d(B[a], B[b], B[c]));
+          const double r = x.z();
+          if (!(r > bestR)) continue;
+          const Vec2 q(x.x(), x.y());
+          bool ok = true;
+          for (int k = 0; k < n && ok; ++k) ok = A[k].dot(q) - B[k] >= r - 1e-9 * std::abs(r);
+          if (!ok) continue;
+          bestR = r;
+          // Back to (u,v): w = R⁻¹ q.
+          const double wy = q.y() / r22;
+          *centre = uv0 + Vec2((q.x() - r12 * wy) / r11, wy);
+          found = true;
+        }
+    return found && centre->allFinite();
   }
 };
 
@@ -937,12 +1254,24 @@ std::vector<std::vector<std::int32_t>> colorMovableNodes(const SurfaceMesh& mesh
 namespace {
 
 struct GlobalEval {
-  double objective = 0.0;   // ½ Σ (η − 1)² with the sweep's δ
-  double objective0 = 0.0;  // the same with δ = 0 (+∞ while tangled)
-  std::size_t tangled = 0;
+  double objective = 0.0;         // ½ Σ (η − 1)² with the sweep's δ
+  double objective0 = 0.0;        // the same with δ = 0 (+∞ while tangled)
+  std::size_t tangled = 0;        // tangled elements with a movable node
+  std::size_t frozenTangled = 0;  // tangled elements without one (no move can change them)
   double minSigma = kInf;
   double minQuality = 1.0;
 };
+
+/// Per element: 1 when none of its nodes may move (it is in no node's submesh).
+std::vector<unsigned char> frozenElements(const SurfaceMesh& m) {
+  std::vector<unsigned char> frozen(m.elementCount(), 1);
+  for (std::size_t e = 0; e < m.elementCount(); ++e) {
+    const std::int32_t* nd = m.elementNodes(e);
+    for (int k = 0; k < m.elementSize(e); ++k)
+      if (isMovable(m.nodeKind[static_cast<std::size_t>(nd[k])])) frozen[e] = 0;
+  }
+  return frozen;
+}
 
 /// Runs `body(begin, end)` over [0, n) in chunks of fixed size taken dynamically by the team
 /// (chunk boundaries do not depend on the thread count).
@@ -968,7 +1297,43 @@ void parallelChunks(Team& team, std::size_t n, std::size_t chunk, Body&& body,
 
 }  // namespace
 
-OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
+namespace {
+
+/// Sorts the elements tangled in `q` into those with a movable node and those without (no
+/// node motion can repair the latter), with a warning for each non-empty list.
+void reportTangled(const SurfaceMesh& mesh, const MeshQuality& q, OptimizeResult* res) {
+  res->tangledUnmovable.clear();
+  res->tangledMovable.clear();
+  for (std::size_t e = 0; e < mesh.elementCount(); ++e) {
+    if (!q.tangled[e]) continue;
+    const std::int32_t* nd = mesh.elementNodes(e);
+    bool movable = false;
+    for (int k = 0; k < mesh.elementSize(e); ++k)
+      movable = movable || isMovable(mesh.nodeKind[static_cast<std::size_t>(nd[k])]);
+    (movable ? res->tangledMovable : res->tangledUnmovable).push_back(static_cast<std::int32_t>(e));
+  }
+  auto ids = [](const std::vector<std::int32_t>& v) {
+    std::string t;
+    const std::size_t shown = std::min<std::size_t>(v.size(), 20);
+    for (std::size_t k = 0; k < shown; ++k) t += (k ? ", " : "") + std::to_string(v[k]);
+    if (shown < v.size()) t += ", …";
+    return t;
+  };
+  res->warnings.clear();
+  if (!res->tangledUnmovable.empty())
+    res->warnings.push_back(
+        std::to_string(res->tangledUnmovable.size()) +
+        " element(s) stay tangled with no movable node (all on CAD vertices, fixed CAD edges "
+        "or poles): moving nodes cannot repair them, the mesh must be changed there (elements " +
+        ids(res->tangledUnmovable) + ")");
+  if (!res->tangledMovable.empty())
+    res->warnings.push_back(std::to_string(res->tangledMovable.size()) +
+                            " element(s) stay tangled although some of their nodes may move "
+                            "(elements " +
+                            ids(res->tangledMovable) + ")");
+}
+
+OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
                             const ProgressCallback& progress) {
   const auto t0 = std::chrono::steady_clock::now();
   if (opt.maxSweeps < 0) throw std::invalid_argument("maxSweeps must be >= 0");
@@ -1023,9 +1388,16 @@ OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
   constexpr std::size_t kChunk = 4096;
   std::vector<double> chunkF((E + kChunk - 1) / kChunk);
   // Tangled count, minimum quality, f at δ = 0 and smallest det S from the element cache.
+  // A tangled element without a movable node cannot change: it neither keeps the untangling
+  // (δ > 0) sweeps going nor sets δ; it is counted apart.
+  const std::vector<unsigned char> frozen = frozenElements(mesh);
   auto summarize = [&](GlobalEval& g) {
     for (std::size_t e = 0; e < E; ++e) {
       const double et = s.eta0[e];
+      if (frozen[e] && (s.minSigma[e] <= 0.0 || !std::isfinite(et))) {
+        ++g.frozenTangled;
+        continue;
+      }
       if (s.minSigma[e] <= 0.0 || !std::isfinite(et)) {
         ++g.tangled;
         g.minQuality = 0.0;
@@ -1168,8 +1540,8 @@ OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
       pr.sweep = sweep;
       pr.maxSweeps = opt.maxSweeps;
       pr.objective = fEnd;
-      pr.tangled = g.tangled;
-      pr.minQuality = g.minQuality;
+      pr.tangled = g.tangled + g.frozenTangled;
+      pr.minQuality = g.frozenTangled > 0 ? 0.0 : g.minQuality;
       pr.delta = s.deltaHat;
       if (!progress(pr)) {
         res.reason = StopReason::Cancelled;
@@ -1178,6 +1550,9 @@ OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
         return res;  // the mesh was never touched
       }
     }
+    if (g.tangled > 0 && g.tangled >= bestTangled &&
+        NodeUpdater(s, *workers[0]).escapeTangledElements(frozen) > 0)
+      g = fullEval(s.deltaHat);  // a stuck element untangled by moving its nodes together
     if (g.tangled > 0 && opt.deltaPolicy == "auto") {
       // Untangling stalls: cycle ε through ε, ε/3, ε/9 (see OptimizeOptions::deltaEpsilon).
       if (g.tangled < bestTangled) {
@@ -1254,11 +1629,79 @@ OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
   };
   exchange();
   try {
-    res.after = measureQuality(mesh, measure).stats;
+    const MeshQuality q = measureQuality(mesh, measure);
+    res.after = q.stats;
+    reportTangled(mesh, q, &res);
   } catch (...) {
     exchange();  // back to the input
     throw;
   }
+  res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return res;
+}
+
+}  // namespace
+
+OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
+                            const ProgressCallback& progress) {
+  const bool sliding =
+      std::find(mesh.nodeKind.begin(), mesh.nodeKind.end(), NodeKind::Edge) != mesh.nodeKind.end();
+  if (!sliding || opt.maxSweeps == 0) return optimizeOnce(mesh, opt, progress);
+  // Sliding edge nodes: first the run with them held (the fixed boundary), then the run that
+  // lets them slide from there. The second run never increases the number of tangled elements
+  // and (monotone) never lowers the minimum quality of a valid mesh, so sliding never ends
+  // worse than the fixed boundary would in those two respects.
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::vector<NodeKind> kinds = mesh.nodeKind;
+  const std::vector<Vec3> xyz0 = mesh.xyz;
+  const std::vector<Vec2> uv0 = mesh.uv;
+  const std::vector<double> t0s = mesh.nodeT;
+  const std::vector<Vec2> corner0 = mesh.cornerUV;
+  auto restoreInput = [&]() {
+    mesh.xyz = xyz0;
+    mesh.uv = uv0;
+    mesh.nodeT = t0s;
+    mesh.cornerUV = corner0;
+  };
+  int offset = 0;
+  ProgressCallback phased;
+  if (progress)
+    phased = [&](const OptimizeProgress& p) {
+      OptimizeProgress q = p;
+      q.sweep += offset;
+      q.maxSweeps = 2 * opt.maxSweeps;
+      return progress(q);
+    };
+  OptimizeResult held;
+  for (NodeKind& k : mesh.nodeKind)
+    if (k == NodeKind::Edge) k = NodeKind::Fixed;
+  try {
+    held = optimizeOnce(mesh, opt, phased);
+  } catch (...) {
+    mesh.nodeKind = kinds;
+    throw;
+  }
+  mesh.nodeKind = kinds;
+  if (held.reason == StopReason::Cancelled) return held;  // the mesh was never touched
+  offset = held.sweeps;
+  OptimizeResult res;
+  try {
+    res = optimizeOnce(mesh, opt, phased);
+  } catch (...) {
+    restoreInput();
+    throw;
+  }
+  if (res.reason == StopReason::Cancelled) {
+    restoreInput();
+    res.after = held.before;
+  }
+  res.before = held.before;
+  res.sweeps += held.sweeps;
+  res.initialObjective = held.initialObjective;
+  if (res.reason == StopReason::NothingToDo) res.reason = held.reason;
+  res.movedNodes = 0;
+  for (std::size_t i = 0; i < mesh.nodeCount(); ++i)
+    if (mesh.xyz[i] != xyz0[i]) ++res.movedNodes;
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return res;
 }

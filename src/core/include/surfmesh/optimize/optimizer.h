@@ -17,8 +17,16 @@
 // barrier between colors. While tangled elements remain every node is updated each sweep;
 // afterwards only the active ones (see moveTol). A node whose Newton step fails in a badly
 // shaped submesh (an element with η > 4) also tries short steps along ±φ_u, ±φ_v and the
-// diagonals. A sweep also stops early (StopReason::Converged) when no node moved and the
-// next sweep would repeat it (a fixed point, even with tangled elements left).
+// diagonals. A sweep also stops early (StopReason::Converged) when no node moved and the next
+// sweep would repeat it (a fixed point, even with tangled elements left).
+//
+// Escapes from local minima while elements stay tangled (each accepted only when it leaves
+// fewer tangled elements among those it changes — strict progress, so nothing cycles): a Face
+// node whose Newton step fails or only creeps tries the centre of its kernel in (u,v) and the
+// centroid of its neighbours; a sliding node scans its interval on the edge; between sweeps
+// without progress, the Face nodes of a stuck element and of up to three rings around it are
+// moved together to the harmonic embedding of that patch. Tangled elements without a movable
+// node cannot change: they do not keep δ > 0 and are reported (OptimizeResult::warnings).
 //
 // Guarantees: the number of tangled elements of a node's submesh never increases (so the
 // mesh's never does); in monotone mode the minimum quality of a valid submesh never
@@ -29,8 +37,10 @@
 #include "surfmesh/mesh/quality.h"
 #include "surfmesh/mesh/surface_mesh.h"
 
+#include <cstdint>
 #include <functional>
 #include <string>
+#include <vector>
 
 namespace surfmesh {
 
@@ -96,9 +106,25 @@ struct OptimizeResult {
   double finalObjective = 0.0;
   std::size_t movedNodes = 0;  ///< nodes whose position changed
   int threadsUsed = 1;
+  /// Elements tangled after the run none of whose nodes may move (all on CAD vertices, on
+  /// fixed CAD edges or poles): no node motion can repair them.
+  std::vector<std::int32_t> tangledUnmovable;
+  /// Elements tangled after the run with at least one movable node.
+  std::vector<std::int32_t> tangledMovable;
+  /// One line per non-empty list above (count and element ids).
+  std::vector<std::string> warnings;
 };
 
-/// Optimizes `mesh` in place (xyz, uv, nodeT, cornerUV of movable nodes). On cancellation
+/// Optimizes `mesh` in place (xyz, uv, nodeT, cornerUV of movable nodes).
+///
+/// With sliding (NodeKind::Edge) nodes the run has two phases of up to maxSweeps sweeps each:
+/// first the Edge nodes are held (the result of a fixed boundary), then they slide from there.
+/// The second phase never increases the number of tangled elements and, in monotone mode,
+/// never lowers the minimum quality of a valid mesh: sliding never ends with more tangled
+/// elements or a lower minimum quality than the fixed boundary. `sweeps` counts both phases,
+/// progress reports sweeps out of 2 × maxSweeps.
+///
+/// On cancellation
 /// (callback returned false) or on an exception the mesh is left exactly as it was.
 /// Throws std::invalid_argument for an invalid mesh or options.
 OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& options = {},
