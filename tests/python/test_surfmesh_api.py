@@ -157,6 +157,39 @@ class TestOptimize(ApiCase):
         d = T.distance_to_shape(shape, res.nodes[:: max(1, len(res.nodes) // 150)])
         self.assertLess(d.max(), 1e-6 * shape.BoundBox.DiagonalLength + 1e-7)
 
+    def test_unrepairable_tangled_elements_are_named(self):
+        # BRepMesh leaves tangled triangles on the propeller's blades; two have every node on
+        # CAD vertices or edges (the surface turns by more than 100° across them): a fixed
+        # boundary cannot repair them, and the result names them by facet index. Sliding edge
+        # nodes repairs them.
+        path = T.find_part("occt_propeller.brep")
+        if path is None:
+            self.skipTest("occt_propeller.brep not available")
+        import MeshPart
+        import Part
+
+        shape = Part.read(path)
+        diag = shape.BoundBox.DiagonalLength
+        m = MeshPart.meshFromShape(Shape=shape, LinearDeflection=1e-3 * diag,
+                                   AngularDeflection=0.5, Relative=False)
+        res = SurfMesh.optimize(m, shape, max_sweeps=30)
+        tangled = set(np.nonzero(res.after.tangled)[0].tolist())
+        self.assertGreater(res.before.stats["tangled"], 0)
+        self.assertEqual(tangled, set(res.tangled_unmovable) | set(res.tangled_movable))
+        self.assertEqual(res.tangled_movable, [])
+        self.assertGreater(len(res.tangled_unmovable), 0)
+        self.assertTrue(any("no node that may move" in w for w in res.warnings))
+        # every node of those facets lies on a CAD edge or vertex (FreeCAD's own query)
+        edges = Part.Compound(shape.Edges)
+        for f in res.tangled_unmovable:
+            for p in m.Facets[f].Points:
+                d = edges.distToShape(Part.Vertex(FreeCAD.Vector(*p)))[0]
+                self.assertLess(d, 1e-5 * diag, f"facet {f}: node {p} is not on a CAD edge")
+        slide = SurfMesh.optimize(m, shape, boundary="slide", max_sweeps=30)
+        self.assertEqual(slide.after.stats["tangled"], 0)
+        self.assertEqual(slide.warnings, [])
+        self.assertGreaterEqual(slide.after.stats["min"], res.after.stats["min"])
+
     def test_progress_and_cancel(self):
         tor, mesh = T.torus_fem(self.doc, tangled=True)
         before = T.fem_snapshot(mesh.FemMesh)

@@ -104,6 +104,13 @@ class OptimizeResult:
     threads: int = 1
     options: dict = dataclasses.field(default_factory=dict)
     bridge: dict = dataclasses.field(default_factory=dict)
+    # Elements still tangled after the run, by their ids (FEM element ids; 0-based indices of
+    # the input for Mesh.Mesh facets and arrays): those with no node that may move (all on
+    # CAD vertices, fixed CAD edges or poles: only changing the mesh repairs them) and those
+    # the sweeps could not free. ``warnings`` says the same in words.
+    tangled_unmovable: list = dataclasses.field(default_factory=list)
+    tangled_movable: list = dataclasses.field(default_factory=list)
+    warnings: list = dataclasses.field(default_factory=list)
 
     def __repr__(self):
         b, a = self.before.stats, self.after.stats
@@ -123,6 +130,9 @@ class OptimizeResult:
             "reason": self.reason,
             "moved_nodes": self.moved_nodes,
             "threads": self.threads,
+            "tangled_unmovable": list(self.tangled_unmovable),
+            "tangled_movable": list(self.tangled_movable),
+            "warnings": list(self.warnings),
             "options": dict(self.options),
             "bridge": self.bridge,
         }
@@ -420,6 +430,20 @@ def optimize(
     new_nodes = handle.positions()
     after = _report(data, handle, measure, bridge)
     new_mesh = conversion.rebuild(data, new_nodes) if data.kind in ("mesh", "fem") else None
+    unmovable = _user_element_ids(data, r.get("tangled_unmovable", []))
+    movable = _user_element_ids(data, r.get("tangled_movable", []))
+    warnings = []
+    if unmovable:
+        warnings.append(
+            f"{len(unmovable)} element(s) stay tangled with no node that may move (all on CAD "
+            "vertices, fixed CAD edges or poles; try boundary='slide', or change the mesh "
+            f"there): elements {_id_list(unmovable)}"
+        )
+    if movable:
+        warnings.append(
+            f"{len(movable)} element(s) stay tangled although some of their nodes may move "
+            f"(try more sweeps, or boundary='slide'): elements {_id_list(movable)}"
+        )
     return OptimizeResult(
         mesh=new_mesh,
         nodes=new_nodes,
@@ -432,7 +456,28 @@ def optimize(
         threads=int(r.get("threads", 1)),
         options=dict(opts, measure=measure, boundary=boundary),
         bridge=bridge,
+        tangled_unmovable=unmovable,
+        tangled_movable=movable,
+        warnings=warnings,
     )
+
+
+def _user_element_ids(data, core_indices):
+    """Core element indices (over the elements that were optimized, i.e. without the skipped
+    ones) → the user's element ids (FEM ids, else 0-based input indices)."""
+    idx = np.asarray(list(core_indices), dtype=np.int64)
+    kept = getattr(data, "kept", None)
+    if kept is not None:
+        idx = np.nonzero(kept)[0][idx]
+    ids = getattr(data, "element_ids", None)
+    if ids is not None:
+        idx = np.asarray(ids)[idx]
+    return [int(i) for i in idx]
+
+
+def _id_list(ids, shown=20):
+    text = ", ".join(str(i) for i in ids[:shown])
+    return text + (", …" if len(ids) > shown else "")
 
 
 def _check_options(o):

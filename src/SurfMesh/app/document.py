@@ -219,7 +219,13 @@ def optimize_object(obj, shape=None, measure="shape", boundary="fixed", name=Non
             "sweeps": str(res.sweeps),
             "seconds": f"{res.seconds:.3f}",
             "reason": res.reason,
+            **({"warnings": " | ".join(res.warnings)} if res.warnings else {}),
         }
+        if res.warnings:
+            import FreeCAD
+
+            for w in res.warnings:
+                FreeCAD.Console.PrintWarning(f"SurfMesh: {w}\n")
         store_report(new, res.before, before=True)
         store_report(new, res.after)
         if color:

@@ -118,6 +118,8 @@ def run(argv):
         print(reports.format_table([(args.measure, "Initial", res.before.stats),
                                     (args.measure, "Optimized", res.after.stats)]))
         print(f"{res.sweeps} sweeps, {res.seconds:.2f} s ({res.reason}); wrote {args.output}")
+        for w in res.warnings:
+            print(f"warning: {w}", file=sys.stderr)
         out.update(res.to_dict())
         out["output"] = os.path.abspath(args.output)
         out["bridge"] = _bridge_summary(res.bridge)
