@@ -165,9 +165,8 @@ void checkDuplicateNodes(const SurfaceMesh& m) {
   }
 }
 
-/// Elements with the same corner nodes; mesh edges shared by more than two elements of one
-/// face.
-void checkTopology(const SurfaceMesh& m) {
+/// Elements with the same corner nodes.
+void checkDuplicateElements(const SurfaceMesh& m) {
   const std::size_t E = m.elementCount();
   // Duplicate elements.
   std::vector<std::array<std::int32_t, 5>> keys(E);  // sorted corners (−1 padded), element
@@ -192,6 +191,13 @@ void checkTopology(const SurfaceMesh& m) {
       << " (same corner nodes as another element), e.g. elements " << e0 << " and " << e1;
     fail(s.str());
   }
+}
+
+/// Elements with the same corner nodes; mesh edges shared by more than two elements of one
+/// face.
+void checkTopology(const SurfaceMesh& m) {
+  const std::size_t E = m.elementCount();
+  checkDuplicateElements(m);
   // Edges per face.
   struct EdgeUse {
     std::int32_t a, b, face, elem;
@@ -200,7 +206,10 @@ void checkTopology(const SurfaceMesh& m) {
     }
   };
   std::vector<EdgeUse> uses;
-  uses.reserve(4 * E);
+  std::size_t corners = 0;
+  for (std::size_t e = 0; e < E; ++e)
+    corners += static_cast<std::size_t>(cornerCount(m.elemType[e]));
+  uses.reserve(corners);
   for (std::size_t e = 0; e < E; ++e) {
     const int nc = cornerCount(m.elemType[e]);
     const std::int32_t* nd = m.elementNodes(e);

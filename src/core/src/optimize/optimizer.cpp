@@ -12,6 +12,7 @@
 #include <mutex>
 #include <stdexcept>
 #include <thread>
+#include <type_traits>
 
 namespace surfmesh {
 
@@ -916,11 +917,13 @@ class NodeUpdater {
       double alpha = 1.0;
       for (int ls = 0; ls < s_.opt.maxLineSearch && !accepted; ++ls, alpha *= 0.5)
         accepted = tryStep(alpha * dir);
-      if (!accepted && s_.deltaHat == 0.0 && cur.maxEta > kFallbackEta) {
-        // A badly shaped submesh where the Newton direction fails (e.g. three nearly collinear
-        // nodes on a curved surface, whose element plane stands across the surface: its
-        // orientation flips under any step along the gradient). Try steps along ±φ_u, ±φ_v
-        // and the diagonals, a quarter of the local size long, and keep the best acceptable.
+      if ((!accepted || best.f > 0.5 * cur.f) && s_.deltaHat == 0.0 && cur.maxEta > kFallbackEta) {
+        // A badly shaped submesh where the Newton direction fails or barely helps (e.g. three
+        // nearly collinear nodes on a curved surface, whose element plane stands across the
+        // surface: its orientation flips under any step along the gradient; or a needle left
+        // by untangling, where the barrier's curvature makes Newton steps tiny). Try steps
+        // along ±φ_u, ±φ_v and the diagonals, a quarter of the local size long, and keep the
+        // best acceptable (it must beat the Newton step's result).
         const double lu = d.du.norm(), lv = d.dv.norm();
         if (lu > 0.0 && lv > 0.0) {
           const Vec2 eu(0.25 * L / lu, 0.0), ev(0.0, 0.25 * L / lv);
@@ -1594,6 +1597,15 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
   // (unwrapped next to their previous value, across periodic seams). Built in copies and
   // swapped in, so that an exception here or while measuring the result leaves the mesh
   // exactly as it was (as on cancellation).
+  // What the write-back does not need goes first (it lowers the run's peak memory).
+  auto release = [](auto& v) { std::decay_t<decltype(v)>().swap(v); };
+  release(s.d2);
+  release(s.nodeNormal);
+  release(s.fixedNormal);
+  release(s.elemScale);
+  release(s.deltaScale);
+  release(s.eta0);
+  release(s.minSigma);
   const ThreadGeometry& geo = workers[0]->geo;
   std::vector<Vec2> cornerUV = mesh.cornerUV;
   std::size_t moved = 0;
