@@ -136,8 +136,12 @@ class TestOptimize(ApiCase):
         self.assertLess(T.torus_distance(pts).max(), 14 * 4e-7)
         d = T.distance_to_shape(tor.Shape, pts[::40])
         self.assertLess(d.max(), 1e-5)
-        # the double-precision result itself is on the surface
-        self.assertLess(T.torus_distance(res.nodes).max(), 1e-9)
+        # the double-precision result itself is on the surface where nodes moved; nodes that
+        # did not move keep their float32 input position exactly
+        data = SurfMesh.app.conversion.read_mesh(mobj.Mesh)
+        moved = np.any(res.nodes != data.nodes, axis=1)
+        self.assertGreater(moved.sum(), len(moved) // 2)
+        self.assertLess(T.torus_distance(res.nodes[moved]).max(), 1e-9)
         self.assertGreaterEqual(res.after.stats["min"], res.before.stats["min"])
         self.assertGreater(res.after.stats["mean"], res.before.stats["mean"])
 
