@@ -717,6 +717,15 @@ TEST(CadInput, BadHints) {
   MeshInput in = boxInput();
   in.hintFace.assign(in.nodes.size() - 1, -1);
   EXPECT_MESSAGE_HAS(invalidArgument([&] { CadMesh(boxShape(), in); }), "hintFace must be");
+  // Hint arrays one short of the nodes, or made before a node was added (the input of
+  // fuzz_cad_mesh crash-269d252c, whose harness itself wrote past such an array).
+  in = boxInput();
+  in.hintEdge.assign(in.nodes.size() - 1, -1);
+  EXPECT_MESSAGE_HAS(invalidArgument([&] { CadMesh(boxShape(), in); }), "hintEdge must be");
+  in = boxInput();
+  in.hintVertex.assign(in.nodes.size(), -1);
+  in.nodes.push_back(in.nodes[0]);
+  EXPECT_MESSAGE_HAS(invalidArgument([&] { CadMesh(boxShape(), in); }), "hintVertex must be");
   in = boxInput();
   in.hintEdge.assign(in.nodes.size(), -1);
   in.hintEdge[4] = 12;  // the box has 12 edges: 0..11

@@ -10,7 +10,9 @@
 // The reference normal n of an element is the normalized sum of the reference (outward) normals
 // of its face at its corners, skipping corners where the parameterization is degenerate
 // (poles). Elements store these corner normals so that the same n is used by the quality report
-// and by the optimizer.
+// and by the optimizer. Where that n is ill-defined (corner normals that cancel) or the element
+// stands across it (its plane contains n), the element is tangled: see kNormalCancelTol and
+// orientationDefined().
 //
 // The restricted measure (paper Remark 1, eq. 12–13) is the distortion as a function of one
 // free node; its gradient and Hessian with respect to that node's position are exact, and
