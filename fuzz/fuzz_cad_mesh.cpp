@@ -138,7 +138,10 @@ void mutate(FuzzedDataProvider& fdp, MeshInput& in, const CadShape& shape) {
                           : &h == &in.hintEdge ? shape.edgeCount()
                                                : shape.vertexCount();
         if (h.empty()) h.assign(N, -1);
-        h[n] = fdp.ConsumeIntegralInRange<std::int32_t>(-2, limit + 1);
+        // The array may already be one short (below) or the nodes more (crash-269d252c: a
+        // write past its end, in this harness).
+        const std::int32_t hint = fdp.ConsumeIntegralInRange<std::int32_t>(-2, limit + 1);
+        if (n < h.size()) h[n] = hint;
         if (fdp.ConsumeIntegralInRange<int>(0, 15) == 0) h.pop_back();
         break;
       }

@@ -127,6 +127,25 @@ def box_shape():
     return Part.makeBox(10, 10, 10)
 
 
+def write_msh(path, nodes, elems, node_ids=None, types=None):
+    """Gmsh .msh 2.2 (ASCII) with the given node coordinates (written with repr: nan/inf
+    survive) and elements (0-based node indices; `types` Gmsh element type codes, default by
+    node count: 3 → 2 (tri3), 4 → 3 (quad4), 6 → 9 (tri6), 8 → 16 (quad8)). Node ids are
+    1-based indices unless `node_ids` is given; an element may name any id (out of range too)
+    through a negative index −id."""
+    node_ids = list(range(1, len(nodes) + 1)) if node_ids is None else list(node_ids)
+    with open(path, "w") as f:
+        f.write("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n%d\n" % len(nodes))
+        for i, p in zip(node_ids, nodes):
+            f.write("%d %r %r %r\n" % (i, float(p[0]), float(p[1]), float(p[2])))
+        f.write("$EndNodes\n$Elements\n%d\n" % len(elems))
+        for e, el in enumerate(elems):
+            code = types[e] if types is not None else {3: 2, 4: 3, 6: 9, 8: 16}[len(el)]
+            ids = [(-int(k) if int(k) < 0 else node_ids[int(k)]) for k in el]
+            f.write("%d %d 2 1 1 %s\n" % (e + 1, code, " ".join(map(str, ids))))
+        f.write("$EndElements\n")
+
+
 # ---- the API catalogue -----------------------------------------------------------------------
 
 
@@ -490,6 +509,61 @@ class DocumentUnchanged(unittest.TestCase):
                     fn(self.part)  # not a mesh
                 self.assertEqual(self.snapshot(), before)
 
+    def test_catalogue_on_document_objects(self):
+        """Each bad FEM mesh of the catalogue in a document object: measure_object and
+        optimize_object raise ValueError naming the problem, and the document (objects, undo
+        stack, node coordinates, properties) is unchanged."""
+        nodes, tris = box_grid()
+        i = interior_node(nodes)
+        cases = []
+        n = nodes.copy()
+        n[i, 0] = math.nan
+        cases.append(("nan", make_fem(n, tris), ["non-finite", str(FEM_NODE_ID0 + i)]))
+        e = int(np.nonzero((tris == i).any(axis=1))[0][0])
+        t2 = tris.copy()
+        t2[e][t2[e] == i] = len(nodes)
+        cases.append(("duplicate", make_fem(np.vstack([nodes, nodes[i]]), t2),
+                      ["duplicate node", f"{FEM_NODE_ID0 + i} and {FEM_NODE_ID0 + len(nodes)}"]))
+        a, b, c = (int(k) for k in tris[e])
+        axis = next(d for d in range(3) if nodes[i][d] in (0.0, 10.0))
+        far = next(k for k in range(len(nodes)) if nodes[k][axis] == nodes[i][axis]
+                   and np.linalg.norm(nodes[k] - nodes[i]) > 4.0 and k != c)
+        cases.append(("non-manifold", make_fem(nodes, np.vstack([tris, [a, b, far]])),
+                      ["non-manifold"]))
+        n = nodes.copy()
+        d = next(d for d in range(3) if n[i][d] in (0.0, 10.0))
+        n[i][d] += 1.0 if n[i][d] == 10.0 else -1.0
+        cases.append(("off shape", make_fem(n, tris),
+                      ["farther than the tolerance", f"node {FEM_NODE_ID0 + i}"]))
+        mixed_nodes = list(map(list, nodes))
+        p0, p1, p2 = (int(k) for k in tris[0])
+        mids = []
+        for p, q in ((p0, p1), (p1, p2), (p2, p0)):
+            mixed_nodes.append(list(0.5 * (nodes[p] + nodes[q])))
+            mids.append(len(mixed_nodes) - 1)
+        cases.append(("mixed orders", make_fem(mixed_nodes, [[p0, p1, p2] + mids]
+                                               + [list(t) for t in tris[1:]]),
+                      ["mixes element orders"]))
+        cases.append(("empty", Fem.FemMesh(), ["no face elements"]))
+        for name, fem, fragments in cases:
+            obj = self.doc.addObject("Fem::FemMeshObject", "Bad")
+            obj.FemMesh = fem
+            self.doc.recompute()
+            self.doc.clearUndos()
+            before = self.snapshot()
+            bad_before = (mesh_points(obj.FemMesh), list(obj.PropertiesList))
+            for fn in (SurfMesh.measure_object, SurfMesh.optimize_object):
+                with self.subTest(case=name, fn=fn.__name__):
+                    with self.assertRaises(ValueError) as cm:
+                        fn(obj, self.part)
+                    for f in fragments:
+                        self.assertIn(f.lower(), str(cm.exception).lower())
+                    self.assertEqual(self.snapshot(), before)
+                    self.assertEqual((mesh_points(obj.FemMesh), list(obj.PropertiesList)),
+                                     bad_before)
+                    self.assertEqual(self.doc.UndoCount, 0)
+            self.doc.removeObject(obj.Name)
+
     def test_a_good_run_still_works_after_the_errors(self):
         with self.assertRaises(ValueError):
             SurfMesh.optimize_object(self.fem_obj, self.part, measure="aspect")
@@ -608,10 +682,167 @@ class BadInputCli(unittest.TestCase):
     def test_bad_options(self):
         self.expect_failure("optimize", self.box, self.mesh, "-o", "{out}", "--measure",
                             "aspect", fragments=["aspect"])
-        self.expect_failure("optimize", self.box, self.mesh, "-o", "{out}", "--tolerance", "-1",
-                            fragments=["tolerance"])
+        for bad in ("-1", "0", "nan"):
+            with self.subTest(tolerance=bad):
+                self.expect_failure("optimize", self.box, self.mesh, "-o", "{out}",
+                                    "--tolerance", bad, fragments=["tolerance"])
+                self.expect_failure("measure", self.box, self.mesh, "--report", "{report}",
+                                    "--tolerance", bad, fragments=["tolerance"])
+        self.expect_failure("optimize", self.box, self.mesh, "-o", "{out}", "--rel-tol", "-1",
+                            fragments=["rel_tol"])
+        self.expect_failure("optimize", self.box, self.mesh, "-o", "{out}", "--max-sweeps",
+                            "0", fragments=["max_sweeps"])
         self.expect_failure("optimize", self.box, self.mesh, "-o", "{out}", "--boundary", "glue",
                             fragments=["glue"])
+
+    # -- the bad-input catalogue as .msh files (both CLI commands)
+    def bad_msh(self, name, nodes, elems, **kw):
+        path = os.path.join(self.tmp.name, name + ".msh")
+        write_msh(path, nodes, elems, **kw)
+        return path
+
+    def expect_both_fail(self, path, fragments):
+        before = open(path, "rb").read()
+        for command in ("measure", "optimize"):
+            with self.subTest(command=command, file=os.path.basename(path)):
+                args = [command, self.box, path, "--report", "{report}"]
+                if command == "optimize":
+                    args += ["-o", "{msh}"]
+                p, out, report = self.run_cli(*args)
+                text = p.stdout + p.stderr
+                self.assertNotEqual(p.returncode, 0, f"exit 0 for {path}:\n{text[-2000:]}")
+                self.assertNotIn("Traceback", text, text[-2000:])
+                for f in fragments:
+                    self.assertIn(f.lower(), text.lower(), f"output lacks {f!r}:\n{text[-2000:]}")
+                self.assertFalse(os.path.exists(out), "an output mesh was written")
+                self.assertFalse(os.path.exists(report), "a report was written")
+        self.assertEqual(open(path, "rb").read(), before, "the input file was changed")
+
+    def test_catalogue_nan_and_inf_coordinates(self):
+        nodes, tris = box_grid()
+        i = interior_node(nodes)
+        for bad in (math.nan, math.inf):
+            n = nodes.copy()
+            n[i, 2] = bad
+            path = self.bad_msh(f"nonfinite_{bad}", n, tris)
+            self.expect_both_fail(path, ["non-finite", f"node {i + 1}"])
+
+    def test_catalogue_element_node_out_of_range(self):
+        nodes, tris = box_grid()
+        elems = [list(t) for t in tris]
+        elems[5][1] = -(len(nodes) + 7)  # node id N + 7: not in the file
+        path = self.bad_msh("out_of_range", nodes, elems)
+        self.expect_both_fail(path, [str(len(nodes) + 7)])
+
+    def test_catalogue_repeated_node_in_one_element(self):
+        # Policy: left out and reported (a warning naming the element), the rest is processed.
+        nodes, tris = box_grid()
+        elems = [list(t) for t in tris]
+        elems[5][2] = elems[5][0]
+        path = self.bad_msh("repeated_node", nodes, elems)
+        p, out, report = self.run_cli("optimize", self.box, path, "-o", "{msh}", "--report",
+                                      "{report}")
+        text = p.stdout + p.stderr
+        self.assertEqual(p.returncode, 0, text[-2000:])
+        import json
+
+        with open(report) as f:
+            rep = json.load(f)
+        warnings = " ".join(rep["bridge"]["warnings"])
+        self.assertIn("collapsed", warnings)
+        self.assertIn("6", warnings)  # element id 6 (1-based in the file)
+        # Every element collapsed: an error.
+        path = self.bad_msh("all_repeated", nodes[:3], [[0, 1, 0]])
+        self.expect_both_fail(path, ["repeat a node"])
+
+    def test_catalogue_duplicate_nodes(self):
+        nodes, tris = box_grid()
+        i = interior_node(nodes)
+        elems = [list(t) for t in tris]
+        e = next(k for k, t in enumerate(elems) if i in t)
+        nodes2 = np.vstack([nodes, nodes[i]])
+        elems[e][elems[e].index(i)] = len(nodes)
+        path = self.bad_msh("duplicate_nodes", nodes2, elems)
+        self.expect_both_fail(path, ["duplicate node", f"{i + 1} and {len(nodes) + 1}"])
+
+    def test_catalogue_degenerate_element_is_tangled_and_untangled(self):
+        nodes, tris = box_grid()
+        inner = {k for k in range(len(nodes))
+                 if sum(1 for c in nodes[k] if 1e-9 < c < 10 - 1e-9) == 2}
+        e = next(e for e, t in enumerate(tris) if all(int(k) in inner for k in t))
+        i, a, b = (int(k) for k in tris[e])
+        n = nodes.copy()
+        n[i] = 0.5 * (n[a] + n[b])  # zero area
+        path = self.bad_msh("zero_area", n, tris)
+        p, out, report = self.run_cli("optimize", self.box, path, "-o", "{msh}", "--report",
+                                      "{report}")
+        self.assertEqual(p.returncode, 0, (p.stdout + p.stderr)[-2000:])
+        import json
+
+        with open(report) as f:
+            rep = json.load(f)
+        self.assertGreaterEqual(rep["before"]["tangled"], 1)
+        self.assertEqual(rep["after"]["tangled"], 0)
+
+    def test_catalogue_non_manifold_edge(self):
+        nodes, tris = box_grid()
+        i = interior_node(nodes)
+        e = int(np.nonzero((tris == i).any(axis=1))[0][0])
+        a, b, c = (int(k) for k in tris[e])
+        axis = next(d for d in range(3) if nodes[i][d] in (0.0, 10.0))
+        far = next(k for k in range(len(nodes)) if nodes[k][axis] == nodes[i][axis]
+                   and np.linalg.norm(nodes[k] - nodes[i]) > 4.0 and k != c)
+        path = self.bad_msh("non_manifold", nodes, [list(t) for t in tris] + [[a, b, far]])
+        lo, hi = min(a, b) + 1, max(a, b) + 1
+        self.expect_both_fail(path, ["non-manifold", f"nodes {lo} and {hi}"])
+
+    def test_catalogue_unsupported_element_type(self):
+        pts = [(0, 0, 0), (10, 0, 0), (10, 10, 0), (0, 10, 0), (5, 0, 0), (10, 5, 0),
+               (5, 10, 0), (0, 5, 0)]
+        path = self.bad_msh("quad8", pts, [list(range(8))])
+        self.expect_both_fail(path, ["unsupported", "quad8"])
+
+    def test_catalogue_mixed_orders(self):
+        nodes, tris = box_grid()
+        nodes = [list(p) for p in nodes]
+        a, b, c = (int(k) for k in tris[0])
+        mids = []
+        for p, q in ((a, b), (b, c), (c, a)):
+            nodes.append([0.5 * (nodes[p][d] + nodes[q][d]) for d in range(3)])
+            mids.append(len(nodes) - 1)
+        elems = [[a, b, c] + mids] + [list(t) for t in tris[1:]]
+        path = self.bad_msh("mixed_orders", nodes, elems)
+        self.expect_both_fail(path, ["mixes element orders", "tri6"])
+
+    def test_catalogue_nodes_off_the_shape(self):
+        nodes, tris = box_grid()
+        i = interior_node(nodes)
+        n = nodes.copy()
+        d = next(d for d in range(3) if n[i][d] in (0.0, 10.0))
+        n[i][d] += 1.0 if n[i][d] == 10.0 else -1.0
+        path = self.bad_msh("off_shape", n, tris)
+        self.expect_both_fail(path, ["farther than the tolerance", f"node {i + 1}"])
+
+    def test_catalogue_shapes_with_free_faces_or_poles_work(self):
+        import MeshPart
+
+        for name, shape in (("face", Part.makePlane(10, 10)), ("sphere", Part.makeSphere(4))):
+            with self.subTest(shape=name):
+                brep = os.path.join(self.tmp.name, name + ".brep")
+                shape.exportBrep(brep)
+                stl = os.path.join(self.tmp.name, name + ".stl")
+                MeshPart.meshFromShape(Shape=shape, LinearDeflection=0.1,
+                                       AngularDeflection=0.4).write(stl)
+                p, out, report = self.run_cli("optimize", brep, stl, "-o", "{out}",
+                                              "--report", "{report}", "--max-sweeps", "5")
+                self.assertEqual(p.returncode, 0, (p.stdout + p.stderr)[-2000:])
+                import json
+
+                with open(report) as f:
+                    rep = json.load(f)
+                self.assertLessEqual(rep["after"]["tangled"], rep["before"]["tangled"])
+                if name == "sphere":
+                    self.assertGreater(rep["bridge"]["pole_nodes"], 0)
 
 
 if __name__ == "__main__":

@@ -195,8 +195,56 @@ def _msh_version(path):
     raise ValueError(f"{path} is not a Gmsh .msh file (no $MeshFormat header)")
 
 
+_SURFACE_CODES = set(GMSH_TYPES) | set(_GMSH_OTHER)
+_GMSH_ORDER = {2: 1, 3: 1, 9: 2, 10: 2, 16: 2, 20: 3, 21: 3, 22: 4, 23: 4, 25: 5}
+
+
+def _msh_surface_type_counts(path, version):
+    """{Gmsh type code: count} of the surface elements an ASCII .msh file declares (None for
+    a binary file or one this light scan cannot follow), to check what Gmsh returns against."""
+    counts = {}
+    try:
+        with open(path, "r", encoding="latin-1") as fh:
+            fmt = fh.read(256).split()
+            if len(fmt) < 3 or fmt[2] != "0":  # binary
+                return None
+            fh.seek(0)
+            for line in fh:
+                if line.startswith("$Elements"):
+                    break
+            else:
+                return None
+            header = fh.readline().split()
+            if version < 4:
+                for _ in range(int(header[0])):
+                    t = int(fh.readline().split()[1])
+                    if t in _SURFACE_CODES:
+                        counts[t] = counts.get(t, 0) + 1
+            else:
+                for _ in range(int(header[0])):
+                    dim, _tag, t, n = (int(x) for x in fh.readline().split()[:4])
+                    for _ in range(n):
+                        fh.readline()
+                    if dim == 2:
+                        counts[t] = counts.get(t, 0) + n
+    except (ValueError, IndexError, OSError):
+        return None
+    return counts
+
+
 def _read_gmsh(path) -> MeshFile:
     version = _msh_version(path)
+    declared = _msh_surface_type_counts(path, version)
+    if declared and len({_GMSH_ORDER.get(t, t) for t in declared}) > 1:
+        # Gmsh itself keeps one order per entity and silently drops the others: refuse here.
+        parts = ", ".join(
+            f"{GMSH_TYPES.get(t, _GMSH_OTHER.get(t, t))} ({n} elements)"
+            for t, n in sorted(declared.items())
+        )
+        raise ValueError(
+            f"{path} mixes element orders: {parts}; a mesh must have one order "
+            "(tri3 and quad4 may be mixed)"
+        )
     gmsh = _gmsh()
     gmsh.clear()
     try:
@@ -226,6 +274,11 @@ def _read_gmsh(path) -> MeshFile:
     if not el_types:
         raise ValueError(f"{path} holds no surface (2D) elements")
     el_types = np.concatenate(el_types).astype(np.int64)
+    if declared is not None and sum(declared.values()) != len(el_types):
+        raise ValueError(
+            f"{path} declares {sum(declared.values())} surface elements but Gmsh read "
+            f"{len(el_types)}: the file is inconsistent"
+        )
     el_ids = np.concatenate(el_ids)
     flat = np.concatenate(flat)
     sizes = np.array(

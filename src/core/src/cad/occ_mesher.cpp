@@ -12,8 +12,12 @@
 #include <TopTools_IndexedMapOfShape.hxx>
 #include <TopoDS.hxx>
 
+#include <algorithm>
+#include <array>
+#include <map>
 #include <numeric>
 #include <stdexcept>
+#include <string>
 #include <unordered_map>
 
 namespace surfmesh {
@@ -192,7 +196,59 @@ OccMesh meshWithBRepMesh(const CadShape& shape, double linearDeflection, double 
     out.input.types.push_back(ElementType::Tri3);
     out.elemFace.push_back(triFace[t]);
   }
+  out.droppedCoincident = dropCoincidentTriangles(out.input, &out.elemFace);
   return out;
+}
+
+std::size_t dropCoincidentTriangles(MeshInput& mesh, std::vector<std::int32_t>* elemFace) {
+  const std::size_t E = mesh.types.size();
+  for (std::size_t e = 0; e < E; ++e)
+    if (mesh.types[e] != ElementType::Tri3)
+      throw std::invalid_argument("dropCoincidentTriangles: element " + std::to_string(e) +
+                                  " is not a tri3");
+  if (mesh.conn.size() != 3 * E || (elemFace && elemFace->size() != E))
+    throw std::invalid_argument("dropCoincidentTriangles: array sizes do not match");
+  // Group the triangles by their sorted nodes; the winding is the parity of the sort.
+  std::map<std::array<std::int32_t, 3>, std::vector<std::size_t>> groups;
+  std::vector<int> winding(E);
+  for (std::size_t e = 0; e < E; ++e) {
+    std::array<std::int32_t, 3> k = {mesh.conn[3 * e], mesh.conn[3 * e + 1], mesh.conn[3 * e + 2]};
+    const int inversions = (k[0] > k[1]) + (k[0] > k[2]) + (k[1] > k[2]);
+    winding[e] = inversions % 2 == 0 ? 1 : -1;
+    std::sort(k.begin(), k.end());
+    groups[k].push_back(e);
+  }
+  std::vector<char> keep(E, 1);
+  std::size_t removed = 0;
+  for (const auto& g : groups) {
+    const std::vector<std::size_t>& members = g.second;
+    if (members.size() < 2) continue;
+    int net = 0;
+    for (std::size_t e : members) net += winding[e];
+    bool kept = false;
+    for (std::size_t e : members) {
+      const bool stays = !kept && net != 0 && winding[e] == (net > 0 ? 1 : -1);
+      kept = kept || stays;
+      if (!stays) {
+        keep[e] = 0;
+        ++removed;
+      }
+    }
+  }
+  if (removed == 0) return 0;
+  std::vector<std::int32_t> conn, faces;
+  conn.reserve(3 * (E - removed));
+  for (std::size_t e = 0; e < E; ++e) {
+    if (!keep[e]) continue;
+    conn.insert(conn.end(), mesh.conn.begin() + static_cast<std::ptrdiff_t>(3 * e),
+                mesh.conn.begin() + static_cast<std::ptrdiff_t>(3 * e + 3));
+    if (elemFace) faces.push_back((*elemFace)[e]);
+  }
+  mesh.conn = std::move(conn);
+  mesh.types.assign(E - removed, ElementType::Tri3);
+  mesh.offsets.clear();
+  if (elemFace) *elemFace = std::move(faces);
+  return removed;
 }
 
 }  // namespace surfmesh

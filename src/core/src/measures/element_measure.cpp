@@ -32,7 +32,7 @@ ElementEval jacobianDistortion(const PlanarMeasure& m, const Jacobian32& J, cons
     return r;
   }
   const double orient = c.dot(n);
-  const bool regular = cn > 1e-14 * F && orient != 0.0;
+  const bool regular = cn > 1e-14 * F && orientationDefined(orient, cn * cn, n.squaredNorm());
   const double gamma = (regular && orient > 0.0) ? 1.0 : -1.0;
   // σ = γ‖c‖ det W⁻¹ ; a degenerate or perpendicular element has σ ≤ 0.
   const double sigma = regular ? gamma * cn * detWinv : 0.0;
@@ -192,8 +192,14 @@ Vec3 elementReferenceNormal(const SurfaceMesh& mesh, std::size_t e) {
   const int nc = cornerCount(mesh.elemType[e]);
   const Vec2* uv = mesh.elementUV(e);
   Vec3 n = Vec3::Zero();
-  for (int k = 0; k < nc; ++k) n += mesh.referenceNormal(f, uv[k]);
-  if (n.squaredNorm() == 0.0) {
+  bool anyCorner = false;
+  for (int k = 0; k < nc; ++k) {
+    const Vec3 nk = mesh.referenceNormal(f, uv[k]);
+    anyCorner = anyCorner || nk.squaredNorm() > 0.0;
+    n += nk;
+  }
+  if (anyCorner && n.squaredNorm() < kNormalCancelTol * kNormalCancelTol) return Vec3::Zero();
+  if (!anyCorner) {
     // Every corner degenerate (all at a pole): use the parametric centroid.
     Vec2 c = Vec2::Zero();
     for (int k = 0; k < nc; ++k) c += uv[k];

@@ -234,7 +234,7 @@ inline ElemOut triangleCore(const PlanarMeasure& m, const Vec3& x0, const Vec3& 
     return r;
   }
   const double orient = c.dot(n);
-  const bool regular = cn > 1e-14 * F && orient != 0.0;
+  const bool regular = cn > 1e-14 * F && orientationDefined(orient, cn * cn, n.squaredNorm());
   const double gamma = (regular && orient > 0.0) ? 1.0 : -1.0;
   const double sigma = regular ? gamma * cn * kDetWinv : 0.0;
   r.minSigma = 2.0 * sigma / F;
@@ -478,10 +478,12 @@ struct State {
   }
 
   /// Not normalized: the element measures only use its direction (the sign of c·n, and n/‖n‖
-  /// for degenerate elements). A zero sum (opposite corner normals) falls back to the
-  /// element's reference normal from its corners' (u,v).
+  /// for degenerate elements). Corner normals that cancel give no direction (zero, as in
+  /// elementReferenceNormal); all corners at a pole: the normal at the centroid.
   Vec3 usableNormal(std::size_t e, const Vec3& n) const {
-    if (n.squaredNorm() == 0.0) return elementReferenceNormal(mesh, e);
+    const double n2 = n.squaredNorm();
+    if (n2 == 0.0) return elementReferenceNormal(mesh, e);
+    if (n2 < kNormalCancelTol * kNormalCancelTol) return Vec3::Zero();
     return n;
   }
 

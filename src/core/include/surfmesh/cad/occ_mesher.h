@@ -22,6 +22,9 @@ struct OccMesh {
   std::vector<std::int32_t> nodeEntity;
   /// Triangles dropped because they collapsed when the nodes of a pole were merged.
   std::size_t droppedTriangles = 0;
+  /// Triangles dropped because merging the nodes of a pole made them coincide with another
+  /// one (see dropCoincidentTriangles()).
+  std::size_t droppedCoincident = 0;
   /// Faces BRepMesh left without a triangulation.
   std::vector<int> unmeshedFaces;
 };
@@ -31,5 +34,15 @@ struct OccMesh {
 /// the per-face triangulations through their shared edge polygons (and all nodes of a pole).
 OccMesh meshWithBRepMesh(const CadShape& shape, double linearDeflection,
                          double angularDeflection = 0.5, bool relative = false);
+
+/// Removes coincident triangles (the same three nodes) from an all-Tri3 `mesh`. BRepMesh
+/// leaves them where a degenerated edge (a pole) has one node per end and an interior edge
+/// of the face sees both ends: once the pole's nodes are merged, the triangles on either side
+/// of that edge are one triangle wound both ways, a fold of zero area that makes its edges
+/// non-manifold. Per group of coincident triangles, windings cancel in pairs: a group whose
+/// windings balance goes entirely, otherwise one triangle with the dominant winding stays
+/// (the first of them). `elemFace` (one entry per triangle, or null) follows the triangles.
+/// Returns the number removed. Throws std::invalid_argument for an element other than Tri3.
+std::size_t dropCoincidentTriangles(MeshInput& mesh, std::vector<std::int32_t>* elemFace);
 
 }  // namespace surfmesh

@@ -10,7 +10,9 @@
 // The reference normal n of an element is the normalized sum of the reference (outward) normals
 // of its face at its corners, skipping corners where the parameterization is degenerate
 // (poles). Elements store these corner normals so that the same n is used by the quality report
-// and by the optimizer.
+// and by the optimizer. Where that n is ill-defined (corner normals that cancel) or the element
+// stands across it (its plane contains n), the element is tangled: see kNormalCancelTol and
+// orientationDefined().
 //
 // The restricted measure (paper Remark 1, eq. 12–13) is the distortion as a function of one
 // free node; its gradient and Hessian with respect to that node's position are exact, and
@@ -23,6 +25,23 @@
 #include "surfmesh/mesh/surface_mesh.h"
 
 namespace surfmesh {
+
+/// An element's orientation against its reference normal n is decided only when it is clear:
+/// the element plane's normal c must not be perpendicular to n within kPerpendicularTol
+/// (|c·n| > kPerpendicularTol ‖c‖ ‖n‖); otherwise the element counts as degenerate (σ = 0,
+/// tangled). Without this margin the verdict on an element standing across its surface would
+/// hang on rounding, and the optimizer (which updates corner normals as nodes move) and the
+/// quality report could disagree on it — then a "valid" element could be flattened in
+/// monotone mode. `cDotN` = c·n, `cNorm2` = ‖c‖², `nNorm2` = ‖n‖².
+constexpr double kPerpendicularTol = 1e-9;
+inline bool orientationDefined(double cDotN, double cNorm2, double nNorm2) {
+  return cDotN * cDotN > (kPerpendicularTol * kPerpendicularTol) * cNorm2 * nNorm2;
+}
+
+/// The corner normals of an element (unit vectors, zero at poles) cancel when their sum is
+/// shorter than this: the element spans opposite sides of its surface and has no reference
+/// normal (zero, so it counts as tangled).
+constexpr double kNormalCancelTol = 1e-6;
 
 /// Result of one element evaluation.
 struct ElementEval {
@@ -83,8 +102,9 @@ void chainToSurface(const SurfaceD2& d, const Vec3& g, const Mat3& H, Vec2* gu, 
 void chainToCurve(const CurveD2& d, const Vec3& g, const Mat3& H, double* gt, double* Ht);
 
 /// Reference normal of element e of `mesh`: normalized sum over its corners of
-/// mesh.referenceNormal(face, cornerUV), skipping degenerate corners. Zero if every corner is
-/// degenerate.
+/// mesh.referenceNormal(face, cornerUV), skipping degenerate corners; the normal at the
+/// parametric centroid if every corner is degenerate. Zero when the corner normals cancel
+/// (their sum shorter than kNormalCancelTol) or the centroid is degenerate too.
 Vec3 elementReferenceNormal(const SurfaceMesh& mesh, std::size_t e);
 
 }  // namespace surfmesh
