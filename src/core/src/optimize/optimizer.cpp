@@ -1338,8 +1338,11 @@ void reportTangled(const SurfaceMesh& mesh, const MeshQuality& q, OptimizeResult
                             ids(res->tangledMovable) + ")");
 }
 
+/// One run. `before`, when given, is the quality the caller already measured on this mesh
+/// (the sliding phase starts from the held phase's result): it is not measured again.
 OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
-                            const ProgressCallback& progress) {
+                            const ProgressCallback& progress,
+                            const QualityStats* before = nullptr) {
   const auto t0 = std::chrono::steady_clock::now();
   if (opt.maxSweeps < 0) throw std::invalid_argument("maxSweeps must be >= 0");
   if (!(opt.relTol >= 0.0) || !(opt.moveTol >= 0.0))
@@ -1356,7 +1359,7 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
   mesh.validate();
 
   OptimizeResult res;
-  res.before = measureQuality(mesh, measure).stats;
+  res.before = before ? *before : measureQuality(mesh, measure).stats;
 
   auto state = std::make_unique<State>(mesh, measure, opt);
   State& s = *state;
@@ -1700,7 +1703,7 @@ OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
   offset = held.sweeps;
   OptimizeResult res;
   try {
-    res = optimizeOnce(mesh, opt, phased);
+    res = optimizeOnce(mesh, opt, phased, &held.after);
   } catch (...) {
     restoreInput();
     throw;
