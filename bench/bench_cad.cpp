@@ -6,9 +6,11 @@
 //   bench_cad optimize SHAPE MESH.bin OUT.bin THREADS
 //
 // MESH.bin: int64 N, int64 E, N×3 float64 node positions, E×3 int32 0-based triangles.
-// OUT.bin: the same layout with the optimized positions. Prints one JSON object.
+// OUT.bin: the same layout with the optimized positions. Prints one JSON object (optimize: also
+// the floor of the speed issue — one first-derivative evaluation per Face node — and the time of
+// sweep 1 and of the mean later sweep). Environment for experiments: BENCH_RELTOL,
+// BENCH_SWEEPS, BENCH_MEASURE override relTol, maxSweeps and the measure.
 #include "bench_common.h"
-
 #include "surfmesh/cad/cad_bridge.h"
 #include "surfmesh/cad/cad_shape.h"
 #include "surfmesh/mesh/quality.h"
@@ -16,9 +18,12 @@
 
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
+#include <memory>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 using namespace surfmesh;
 using namespace surfmesh::bench;
@@ -76,25 +81,62 @@ int main(int argc, char** argv) {
     const PlanarMeasure& shapeMeasure = measureByName("shape");
     const BridgeReport& rep = cm.report();
     if (mode == "measure") {
-      const QualityStats q = measureQuality(m, shapeMeasure).stats;
-      std::printf("{\"elements\": %zu, \"nodes\": %zu, \"min\": %.6f, \"mean\": %.6f, "
-                  "\"tangled\": %zu, \"max_distance\": %.3e, \"bridge_s\": %.3f, "
-                  "\"face_nodes\": %zu}\n",
-                  q.elements, m.nodeCount(), q.min, q.mean, q.tangled, rep.maxDistance, tBridge,
-                  rep.faceNodes);
+      const MeshQuality mq = measureQuality(m, shapeMeasure);
+      const QualityStats& q = mq.stats;
+      std::size_t poor = 0;  // valid elements of quality below 0.2 (tangled ones apart)
+      for (std::size_t e = 0; e < mq.quality.size(); ++e)
+        if (!mq.tangled[e] && mq.quality[e] < 0.2) ++poor;
+      std::printf(
+          "{\"elements\": %zu, \"nodes\": %zu, \"min\": %.6f, \"mean\": %.6f, "
+          "\"tangled\": %zu, \"below_0_2\": %zu, \"max_distance\": %.3e, "
+          "\"bridge_s\": %.3f, \"face_nodes\": %zu}\n",
+          q.elements, m.nodeCount(), q.min, q.mean, q.tangled, poor, rep.maxDistance, tBridge,
+          rep.faceNodes);
       return 0;
     }
     if (mode != "optimize" || argc < 6) throw std::runtime_error("bad arguments");
     OptimizeOptions opt;
     opt.threads = std::atoi(argv[5]);
-    const OptimizeResult r = optimizeMesh(m, opt);
+    if (const char* v = std::getenv("BENCH_RELTOL")) opt.relTol = std::atof(v);
+    if (const char* v = std::getenv("BENCH_SWEEPS")) opt.maxSweeps = std::atoi(v);
+    if (const char* v = std::getenv("BENCH_MEASURE")) opt.measure = v;
+    // Floor of the speed issue: one first-derivative evaluation per movable Face node, on a
+    // clone of its face's surface (min of 3 runs), in the mesh's node order.
+    double floorSec = 1e300;
+    {
+      std::vector<std::unique_ptr<Surface>> clones;
+      for (const auto& s : m.surfaces) clones.push_back(s ? s->clone() : nullptr);
+      double sink = 0.0;
+      for (int rep = 0; rep < 3; ++rep) {
+        const double ta = now();
+        for (std::size_t i = 0; i < m.nodeCount(); ++i) {
+          if (m.nodeKind[i] != NodeKind::Face) continue;
+          const SurfaceD1 dd =
+              clones[static_cast<std::size_t>(m.nodeFace[i])]->d1(m.uv[i].x(), m.uv[i].y());
+          sink += dd.du.x() + dd.dv.y();
+        }
+        floorSec = std::min(floorSec, now() - ta);
+      }
+      if (sink == 12345.678) std::printf("%g", sink);
+    }
+    std::vector<double> stamps;
+    const double tOpt = now();
+    const OptimizeResult r = optimizeMesh(
+        m, opt, [&](const OptimizeProgress&) { return stamps.push_back(now()), true; });
+    // Sweep 1 visits every movable node (its time includes the setup: an upper bound); the
+    // later sweeps only the nodes whose submesh changed.
+    const double sweep1 = stamps.empty() ? 0.0 : stamps.front() - tOpt;
+    const double meanSweep =
+        stamps.size() >= 2 ? (stamps.back() - stamps.front()) / (stamps.size() - 1) : sweep1;
     writeDump(argv[4], m, d);
-    std::printf("{\"seconds\": %.4f, \"sweeps\": %d, \"reason\": \"%s\", \"threads\": %d, "
-                "\"bridge_s\": %.3f, \"shape_s\": %.3f, \"min\": %.6f, \"mean\": %.6f, "
-                "\"tangled\": %zu, \"before_tangled\": %zu, \"peak_mb\": %.1f}\n",
-                r.seconds, r.sweeps, stopReasonName(r.reason), r.threadsUsed, tBridge, tShape,
-                r.after.min, r.after.mean, r.after.tangled, r.before.tangled,
-                peakRssBytes() / 1e6);
+    std::printf(
+        "{\"seconds\": %.4f, \"sweeps\": %d, \"reason\": \"%s\", \"threads\": %d, "
+        "\"bridge_s\": %.3f, \"shape_s\": %.3f, \"min\": %.6f, \"mean\": %.6f, "
+        "\"tangled\": %zu, \"before_tangled\": %zu, \"peak_mb\": %.1f, "
+        "\"floor_s\": %.6f, \"sweep1_s\": %.6f, \"mean_sweep_s\": %.6f}\n",
+        r.seconds, r.sweeps, stopReasonName(r.reason), r.threadsUsed, tBridge, tShape, r.after.min,
+        r.after.mean, r.after.tangled, r.before.tangled, peakRssBytes() / 1e6, floorSec, sweep1,
+        meanSweep);
   } catch (const std::exception& ex) {
     std::printf("{\"error\": \"%s\"}\n", ex.what());
     return 1;

@@ -21,6 +21,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <mutex>
 #include <sstream>
 #include <stdexcept>
 
@@ -141,6 +142,7 @@ OccFaceSurface::OccFaceSurface(const TopoDS_Face& face, int faceId)
   }
   uvTol_ = std::max({ures, vres, Precision::PConfusion()});
   if (!std::isfinite(uvTol_)) uvTol_ = Precision::PConfusion();
+  trim_ = std::make_shared<TrimShared>();
 }
 
 OccFaceSurface::~OccFaceSurface() = default;
@@ -173,13 +175,11 @@ struct OccFaceSurface::TrimGrid {
   static constexpr int kCells = 48, kSub = 16;
   enum : std::uint8_t { Unknown = 0, In = 1, Out = 2, Boundary = 3 };
   double u0 = 0.0, v0 = 0.0, du = 1.0, dv = 1.0, tol = 0.0;
+  /// Boundary where a pcurve comes near the cell, Unknown elsewhere (not classified yet).
   std::vector<std::uint8_t> state = std::vector<std::uint8_t>(kCells * kCells, Unknown);
   /// The pcurves as pieces (u0, v0, u1, v1) and the pieces near each cell (CSR).
   std::vector<std::array<double, 4>> pieces;
   std::vector<int> cellStart, cellPieces;
-  /// Sub-cell states of a Boundary cell (kSub² each, built on the cell's first query).
-  std::vector<int> subOf = std::vector<int>(kCells * kCells, -1);
-  std::vector<std::uint8_t> sub;
 
   /// Index range [i0, i1] × [j0, j1] of the cells (n per unit of du, dv) within `margin`
   /// cells of the piece's box, clamped to [0, n).
@@ -200,21 +200,29 @@ struct OccFaceSurface::TrimGrid {
   double subDv() const { return dv / kSub; }
 
   void buildBuckets() {
-    std::vector<std::vector<int>> lists(static_cast<std::size_t>(kCells * kCells));
+    // Two passes (count, then fill): no per-cell lists.
     const double mu = 0.25 * subDu() + tol, mv = 0.25 * subDv() + tol;
+    cellStart.assign(kCells * kCells + 1, 0);
+    for (const auto& q : pieces) {
+      int r[4];
+      span(q, u0, v0, du, dv, mu, mv, kCells, r);
+      for (int j = r[2]; j <= r[3]; ++j)
+        for (int i = r[0]; i <= r[1]; ++i)
+          ++cellStart[static_cast<std::size_t>(j * kCells + i) + 1];
+    }
+    for (std::size_t k = 0; k < static_cast<std::size_t>(kCells * kCells); ++k)
+      cellStart[k + 1] += cellStart[k];
+    cellPieces.resize(static_cast<std::size_t>(cellStart.back()));
+    std::vector<int> fill(cellStart.begin(), cellStart.end() - 1);
     for (std::size_t k = 0; k < pieces.size(); ++k) {
       int r[4];
       span(pieces[k], u0, v0, du, dv, mu, mv, kCells, r);
       for (int j = r[2]; j <= r[3]; ++j)
         for (int i = r[0]; i <= r[1]; ++i) {
-          lists[static_cast<std::size_t>(j * kCells + i)].push_back(static_cast<int>(k));
-          state[static_cast<std::size_t>(j * kCells + i)] = Boundary;
+          const std::size_t c = static_cast<std::size_t>(j * kCells + i);
+          cellPieces[static_cast<std::size_t>(fill[c]++)] = static_cast<int>(k);
+          state[c] = Boundary;
         }
-    }
-    cellStart.assign(1, 0);
-    for (const auto& l : lists) {
-      cellPieces.insert(cellPieces.end(), l.begin(), l.end());
-      cellStart.push_back(static_cast<int>(cellPieces.size()));
     }
   }
 
@@ -239,51 +247,74 @@ struct OccFaceSurface::TrimGrid {
       }
     }
   }
+};
+
+/// The states of one copy's cells, classified as queries reach them.
+struct OccFaceSurface::TrimCells {
+  using G = TrimGrid;
+  explicit TrimCells(const TrimGrid& g) : state(g.state) {}
+  std::vector<std::uint8_t> state;
+  /// Sub-cell states of a Boundary cell (kSub² each, built on the cell's first query).
+  std::vector<int> subOf = std::vector<int>(G::kCells * G::kCells, -1);
+  std::vector<std::uint8_t> sub;
   std::vector<int> scratch;
 
   /// The sub-cell states of Boundary cell k (built on first use). Sub-cells along a side
   /// shared with a classified cell that no pcurve comes near take its state (and pass it on
   /// to the sub-cells connected to them).
   template <class Classify>
-  std::uint8_t* subCells(int k, Classify classify) {
+  std::uint8_t* subCells(const TrimGrid& g, int k, Classify classify) {
+    constexpr int kCells = G::kCells, kSub = G::kSub;
     if (subOf[static_cast<std::size_t>(k)] < 0) {
       const int ci = k % kCells, cj = k / kCells;
       // Neighbour states first (classifying them may flood the top level).
-      std::uint8_t nbState[4] = {Boundary, Boundary, Boundary, Boundary};
+      std::uint8_t nbState[4] = {G::Boundary, G::Boundary, G::Boundary, G::Boundary};
       const int nb[4][2] = {{ci - 1, cj}, {ci + 1, cj}, {ci, cj - 1}, {ci, cj + 1}};
       for (int s = 0; s < 4; ++s) {
         const int ni = nb[s][0], nj = nb[s][1];
         if (ni < 0 || ni >= kCells || nj < 0 || nj >= kCells) continue;
         std::uint8_t& t = state[static_cast<std::size_t>(nj * kCells + ni)];
-        if (t == Unknown)
-          flood(state.data(), kCells, ni, nj,
-                classify(u0 + (ni + 0.5) * du, v0 + (nj + 0.5) * dv) ? In : Out, scratch);
+        if (t == G::Unknown)
+          G::flood(state.data(), kCells, ni, nj,
+                   classify(g.u0 + (ni + 0.5) * g.du, g.v0 + (nj + 0.5) * g.dv) ? G::In : G::Out,
+                   scratch);
         nbState[s] = t;
       }
       subOf[static_cast<std::size_t>(k)] = static_cast<int>(sub.size());
-      sub.resize(sub.size() + kSub * kSub, Unknown);
+      sub.resize(sub.size() + kSub * kSub, G::Unknown);
       std::uint8_t* st = sub.data() + subOf[static_cast<std::size_t>(k)];
       {
-        const double x0 = u0 + ci * du, y0 = v0 + cj * dv;
-        const double mu = 0.25 * subDu() + tol, mv = 0.25 * subDv() + tol;
-        for (int p = cellStart[static_cast<std::size_t>(k)];
-             p < cellStart[static_cast<std::size_t>(k) + 1]; ++p) {
-          const auto& q = pieces[static_cast<std::size_t>(cellPieces[static_cast<std::size_t>(p)])];
-          int r[4];
-          span(q, x0, y0, subDu(), subDv(), mu, mv, kSub, r);
-          // span() clamps to the cell: pieces only near the cell must not mark its border.
-          if (std::max(q[0], q[2]) + mu < x0 || std::min(q[0], q[2]) - mu > x0 + du ||
-              std::max(q[1], q[3]) + mv < y0 || std::min(q[1], q[3]) - mv > y0 + dv)
-            continue;
-          for (int j = r[2]; j <= r[3]; ++j)
-            for (int i = r[0]; i <= r[1]; ++i) st[j * kSub + i] = Boundary;
+        const double x0 = g.u0 + ci * g.du, y0 = g.v0 + cj * g.dv;
+        const double mu = 0.25 * g.subDu() + g.tol, mv = 0.25 * g.subDv() + g.tol;
+        for (int p = g.cellStart[static_cast<std::size_t>(k)];
+             p < g.cellStart[static_cast<std::size_t>(k) + 1]; ++p) {
+          const auto& pc =
+              g.pieces[static_cast<std::size_t>(g.cellPieces[static_cast<std::size_t>(p)])];
+          // The piece's chord in steps of at most one sub-cell, each marking its box.
+          const double lx = (pc[2] - pc[0]) / g.subDu(), ly = (pc[3] - pc[1]) / g.subDv();
+          const int steps = std::max(1, static_cast<int>(std::ceil(std::sqrt(lx * lx + ly * ly))));
+          for (int k2 = 0; k2 < steps; ++k2) {
+            const double a = static_cast<double>(k2) / steps,
+                         b = static_cast<double>(k2 + 1) / steps;
+            const std::array<double, 4> q = {
+                pc[0] + a * (pc[2] - pc[0]), pc[1] + a * (pc[3] - pc[1]),
+                pc[0] + b * (pc[2] - pc[0]), pc[1] + b * (pc[3] - pc[1])};
+            // span() clamps to the cell: steps only near the cell must not mark its border.
+            if (std::max(q[0], q[2]) + mu < x0 || std::min(q[0], q[2]) - mu > x0 + g.du ||
+                std::max(q[1], q[3]) + mv < y0 || std::min(q[1], q[3]) - mv > y0 + g.dv)
+              continue;
+            int r[4];
+            G::span(q, x0, y0, g.subDu(), g.subDv(), mu, mv, kSub, r);
+            for (int j = r[2]; j <= r[3]; ++j)
+              for (int i = r[0]; i <= r[1]; ++i) st[j * kSub + i] = G::Boundary;
+          }
         }
         for (int s = 0; s < 4; ++s) {
-          if (nbState[s] != In && nbState[s] != Out) continue;
+          if (nbState[s] != G::In && nbState[s] != G::Out) continue;
           for (int m = 0; m < kSub; ++m) {
             const int i = s == 0 ? 0 : s == 1 ? kSub - 1 : m;
             const int j = s == 2 ? 0 : s == 3 ? kSub - 1 : m;
-            flood(st, kSub, i, j, nbState[s], scratch);
+            G::flood(st, kSub, i, j, nbState[s], scratch);
           }
         }
       }
@@ -292,11 +323,22 @@ struct OccFaceSurface::TrimGrid {
   }
 };
 
+/// What the copies of one face share: its classifier and its grid's pcurve index, built
+/// once by the first contains() of any copy.
+struct OccFaceSurface::TrimShared {
+  std::once_flag once;
+  std::unique_ptr<BRepTopAdaptor_FClass2d> classifier;
+  std::unique_ptr<TrimGrid> grid;  // null: not usable (a missing or pathological pcurve)
+};
+
 namespace {
 
 /// The grid of OccFaceSurface::contains: every pcurve of the face is cut into pieces at most
-/// four sub-cells long whose chord midpoints are within 1/20 sub-cell of the curve (a piece
-/// marks every (sub-)cell its box comes near). Null when a pcurve is missing or infinite.
+/// one cell (16 sub-cells) long whose chords pass within 1/20 sub-cell of the curve at a
+/// quarter, half and three quarters of the piece, kept as their two half-chords through the
+/// curve's midpoint. A piece marks every cell its box comes near; in a cell, the steps of at
+/// most one sub-cell along its chords mark the sub-cells their boxes come near. Null when a
+/// pcurve is missing or infinite.
 std::unique_ptr<OccFaceSurface::TrimGrid> buildTrimGrid(const TopoDS_Face& face,
                                                         const ParamBounds& b, double tol) {
   using Grid = OccFaceSurface::TrimGrid;
@@ -309,9 +351,13 @@ std::unique_ptr<OccFaceSurface::TrimGrid> buildTrimGrid(const TopoDS_Face& face,
   g->du = (W + 2.0 * tol) / Grid::kCells;
   g->dv = (H + 2.0 * tol) / Grid::kCells;
   const double su = g->subDu(), sv = g->subDv();
-  auto subCells = [&](const gp_Pnt2d& p, const gp_Pnt2d& q) {
-    return std::hypot((p.X() - q.X()) / su, (p.Y() - q.Y()) / sv);
+  auto subCells2 = [&](const gp_Pnt2d& p, const gp_Pnt2d& q) {  // squared, in sub-cells
+    const double x = (p.X() - q.X()) / su, y = (p.Y() - q.Y()) / sv;
+    return x * x + y * y;
   };
+  // Scratch reused from face to face (one build allocates its pieces once, at their size).
+  thread_local std::vector<std::array<double, 4>> pieces;
+  pieces.clear();
   for (TopExp_Explorer ex(face, TopAbs_EDGE); ex.More(); ex.Next()) {
     const TopoDS_Edge& e = TopoDS::Edge(ex.Current());
     double f = 0.0, l = 0.0;
@@ -322,7 +368,8 @@ std::unique_ptr<OccFaceSurface::TrimGrid> buildTrimGrid(const TopoDS_Face& face,
       gp_Pnt2d p0, p1;
       int depth;
     };
-    std::vector<Piece> stack;
+    thread_local std::vector<Piece> stack;
+    stack.clear();
     constexpr int kStart = 8;
     gp_Pnt2d prev = c->Value(f);
     for (int k = 1; k <= kStart; ++k) {
@@ -337,25 +384,53 @@ std::unique_ptr<OccFaceSurface::TrimGrid> buildTrimGrid(const TopoDS_Face& face,
       const double tm = 0.5 * (pc.t0 + pc.t1);
       const gp_Pnt2d pm = c->Value(tm);
       const gp_Pnt2d mid(0.5 * (pc.p0.X() + pc.p1.X()), 0.5 * (pc.p0.Y() + pc.p1.Y()));
-      const bool fine = subCells(pc.p0, pc.p1) <= 4.0 && subCells(pm, mid) <= 0.05;
+      bool fine = subCells2(pc.p0, pc.p1) <= 256.0 && subCells2(pm, mid) <= 0.0025;
+      if (fine) {
+        // The curve at a quarter and three quarters against the half-chords (in sub-cells):
+        // a piece whose midpoint sits on the chord may still bend away between.
+        auto offChord = [&](const gp_Pnt2d& a, const gp_Pnt2d& b, const gp_Pnt2d& x) {
+          const double ax = (b.X() - a.X()) / su, ay = (b.Y() - a.Y()) / sv;
+          const double px = (x.X() - a.X()) / su, py = (x.Y() - a.Y()) / sv;
+          const double l2 = ax * ax + ay * ay;
+          const double t = l2 > 0.0 ? std::min(1.0, std::max(0.0, (px * ax + py * ay) / l2)) : 0.0;
+          const double dx = px - t * ax, dy = py - t * ay;
+          return dx * dx + dy * dy;
+        };
+        fine = offChord(pc.p0, pm, c->Value(0.5 * (pc.t0 + tm))) <= 0.0025 &&
+               offChord(pm, pc.p1, c->Value(0.5 * (tm + pc.t1))) <= 0.0025;
+      }
       if (!fine && pc.depth < 24) {
         stack.push_back({pc.t0, tm, pc.p0, pm, pc.depth + 1});
         stack.push_back({tm, pc.t1, pm, pc.p1, pc.depth + 1});
         continue;
       }
-      if (!fine || g->pieces.size() > 4000000) return nullptr;  // a pathological pcurve
-      g->pieces.push_back({pc.p0.X(), pc.p0.Y(), pm.X(), pm.Y()});
-      g->pieces.push_back({pm.X(), pm.Y(), pc.p1.X(), pc.p1.Y()});
+      if (!fine || pieces.size() > 4000000) return nullptr;  // a pathological pcurve
+      pieces.push_back({pc.p0.X(), pc.p0.Y(), pm.X(), pm.Y()});
+      pieces.push_back({pm.X(), pm.Y(), pc.p1.X(), pc.p1.Y()});
     }
   }
+  g->pieces.assign(pieces.begin(), pieces.end());
   g->buildBuckets();
   return g;
 }
 
 }  // namespace
 
+const OccFaceSurface::TrimShared& OccFaceSurface::trimShared() const {
+  TrimShared& t = *trim_;
+  std::call_once(t.once, [&]() {
+    t.classifier = std::make_unique<BRepTopAdaptor_FClass2d>(face_, uvTol_);
+    try {
+      t.grid = buildTrimGrid(face_, faceBounds_, uvTol_);
+    } catch (const Standard_Failure&) {
+      t.grid.reset();
+    }
+  });
+  return t;
+}
+
 bool OccFaceSurface::classifyWithClassifier(double u, double v) const {
-  const TopAbs_State st = classifier_->Perform(
+  const TopAbs_State st = trim_->classifier->Perform(
       gp_Pnt2d(u, v), uTurn_ == 0.0 && vTurn_ == 0.0 ? Standard_True : Standard_False);
   return st == TopAbs_IN || st == TopAbs_ON;
 }
@@ -369,42 +444,37 @@ bool OccFaceSurface::contains(double u, double v) const {
     return false;
   if (!vPeriodic_ && (w.y() < faceBounds_.vmin - tol || w.y() > faceBounds_.vmax + tol))
     return false;
-  if (!classifier_) {
-    classifier_ = std::make_unique<BRepTopAdaptor_FClass2d>(face_, tol);
-    try {
-      grid_ = buildTrimGrid(face_, faceBounds_, tol);
-    } catch (const Standard_Failure&) {
-      grid_.reset();
-    }
-  }
-  if (grid_) {
-    TrimGrid& g = *grid_;
+  const TrimShared& t = trimShared();
+  if (t.grid) {
+    const TrimGrid& g = *t.grid;
+    if (!cells_) cells_ = std::make_unique<TrimCells>(g);
+    TrimCells& c = *cells_;
     const double x = (w.x() - g.u0) / g.du, y = (w.y() - g.v0) / g.dv;
     if (x >= 0.0 && x < TrimGrid::kCells && y >= 0.0 && y < TrimGrid::kCells) {
       const int ci = static_cast<int>(x), cj = static_cast<int>(y);
       const int k = cj * TrimGrid::kCells + ci;
       auto classify = [this](double cu, double cv) { return classifyWithClassifier(cu, cv); };
-      std::uint8_t st = g.state[static_cast<std::size_t>(k)];
+      std::uint8_t st = c.state[static_cast<std::size_t>(k)];
       if (st == TrimGrid::Unknown) {
         // No pcurve comes near this cell (nor the cells connected to it through such cells):
         // all of them are where its centre is.
-        TrimGrid::flood(g.state.data(), TrimGrid::kCells, ci, cj,
+        TrimGrid::flood(c.state.data(), TrimGrid::kCells, ci, cj,
                         classify(g.u0 + (ci + 0.5) * g.du, g.v0 + (cj + 0.5) * g.dv)
                             ? TrimGrid::In
                             : TrimGrid::Out,
-                        g.scratch);
-        st = g.state[static_cast<std::size_t>(k)];
+                        c.scratch);
+        st = c.state[static_cast<std::size_t>(k)];
       } else if (st == TrimGrid::Boundary) {
         const int si = std::min(TrimGrid::kSub - 1, static_cast<int>((x - ci) * TrimGrid::kSub));
         const int sj = std::min(TrimGrid::kSub - 1, static_cast<int>((y - cj) * TrimGrid::kSub));
-        std::uint8_t* sc = g.subCells(k, classify);
+        std::uint8_t* sc = c.subCells(g, k, classify);
         if (sc[sj * TrimGrid::kSub + si] == TrimGrid::Unknown)
           TrimGrid::flood(sc, TrimGrid::kSub, si, sj,
                           classify(g.u0 + ci * g.du + (si + 0.5) * g.subDu(),
                                    g.v0 + cj * g.dv + (sj + 0.5) * g.subDv())
                               ? TrimGrid::In
                               : TrimGrid::Out,
-                          g.scratch);
+                          c.scratch);
         st = sc[sj * TrimGrid::kSub + si];
       }
       if (st != TrimGrid::Boundary) return st == TrimGrid::In;
@@ -413,8 +483,26 @@ bool OccFaceSurface::contains(double u, double v) const {
   return classifyWithClassifier(w.x(), w.y());
 }
 
+OccFaceSurface::OccFaceSurface(const OccFaceSurface& o)
+    : Surface(),
+      face_(o.face_),
+      faceId_(o.faceId_),
+      adaptor_(o.face_, Standard_True),  // its own evaluation caches (not shared)
+      bounds_(o.bounds_),
+      faceBounds_(o.faceBounds_),
+      uPeriodic_(o.uPeriodic_),
+      vPeriodic_(o.vPeriodic_),
+      uPeriod_(o.uPeriod_),
+      vPeriod_(o.vPeriod_),
+      uTurn_(o.uTurn_),
+      vTurn_(o.vTurn_),
+      normalSign_(o.normalSign_),
+      uvTol_(o.uvTol_),
+      trim_(o.trim_),
+      cells_(o.cells_ ? std::make_unique<TrimCells>(*o.cells_) : nullptr) {}
+
 std::unique_ptr<Surface> OccFaceSurface::clone() const {
-  return std::make_unique<OccFaceSurface>(face_, faceId_);
+  return std::unique_ptr<Surface>(new OccFaceSurface(*this));
 }
 
 std::string OccFaceSurface::describe() const {

@@ -19,8 +19,11 @@
 //     the sub-cells a pcurve passes through go to the classifier. The optimizer asks
 //     contains() at every line-search trial.
 //
-// Neither class is thread-safe (OCC adaptors and the lazily built classifier are not): use
-// clone() to get an independent copy per thread.
+// Neither class is thread-safe (OCC adaptors and the lazily classified cells are not): use
+// clone() to get an independent copy per thread. A face's classifier and the pcurve index of
+// its grid are built once, on the first contains() of any copy, and shared by all copies
+// (BRepTopAdaptor_FClass2d::Perform only reads the classifier); each copy keeps its own cell
+// states, starting from those of the surface it was cloned from.
 #pragma once
 
 #include "surfmesh/geometry/curve.h"
@@ -81,8 +84,12 @@ class OccFaceSurface final : public Surface {
   int faceId() const { return faceId_; }
 
   /// Cells of the face's (u,v) box that no trimming loop crosses answer contains() at once
-  /// (defined in occ_surface.cpp).
+  /// (defined in occ_surface.cpp): the pcurve index (TrimGrid, shared by the copies of a
+  /// face with its classifier in TrimShared) and the cell states classified so far
+  /// (TrimCells, one per copy).
   struct TrimGrid;
+  struct TrimCells;
+  struct TrimShared;
 
  private:
   TopoDS_Face face_;
@@ -94,8 +101,10 @@ class OccFaceSurface final : public Surface {
   double uTurn_ = 0.0, vTurn_ = 0.0;
   int normalSign_ = 1;
   double uvTol_ = 1e-9;
-  mutable std::unique_ptr<BRepTopAdaptor_FClass2d> classifier_;  // built on first contains()
-  mutable std::unique_ptr<TrimGrid> grid_;  // built with the classifier (null: not usable)
+  std::shared_ptr<TrimShared> trim_;            // classifier + grid, built on first contains()
+  mutable std::unique_ptr<TrimCells> cells_;    // this copy's cell states (with the grid)
+  OccFaceSurface(const OccFaceSurface& other);  // clone(): shares trim_, copies cells_
+  const TrimShared& trimShared() const;         // trim_, built on first use (thread-safe)
   bool classifyWithClassifier(double u, double v) const;
 };
 
