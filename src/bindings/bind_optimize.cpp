@@ -8,6 +8,7 @@
 #include <pybind11/stl.h>
 
 #include <stdexcept>
+#include <string>
 
 namespace surfmesh::bindings {
 
@@ -18,7 +19,8 @@ void bind_optimize(MeshClass& cls) {
       "optimize",
       [](MeshHandle& h, const std::string& measure, int max_sweeps, double rel_tol, double move_tol,
          int inner_iterations, int max_line_search, const std::string& delta_policy,
-         double delta_epsilon, double delta, bool monotone, int threads, py::object progress) {
+         double delta_epsilon, double delta, bool monotone, int threads, py::object progress,
+         py::object before) {
         OptimizeOptions o;
         o.measure = measure;
         o.maxSweeps = max_sweeps;
@@ -57,10 +59,27 @@ void bind_optimize(MeshClass& cls) {
           };
         }
         SurfaceMesh& mesh = h.get();
+        // The caller's measure of the mesh as it is (the "stats" of measure(measure)): not
+        // measured again.
+        QualityStats given;
+        const bool haveBefore = !before.is_none();
+        if (haveBefore) {
+          const py::dict b = py::cast<py::dict>(before);
+          given.min = b["min"].cast<double>();
+          given.max = b["max"].cast<double>();
+          given.mean = b["mean"].cast<double>();
+          given.stddev = b["std"].cast<double>();
+          given.tangled = b["tangled"].cast<std::size_t>();
+          given.elements = b["elements"].cast<std::size_t>();
+          if (given.elements != mesh.elementCount())
+            throw std::invalid_argument("before: stats of " + std::to_string(given.elements) +
+                                        " elements for a mesh of " +
+                                        std::to_string(mesh.elementCount()));
+        }
         OptimizeResult r;
         {
           py::gil_scoped_release release;
-          r = optimizeMesh(mesh, o, cb);
+          r = optimizeMesh(mesh, o, cb, haveBefore ? &given : nullptr);
         }
         if (pyError) throw std::move(*pyError);
         py::dict d;
@@ -82,11 +101,13 @@ void bind_optimize(MeshClass& cls) {
       py::arg("move_tol") = 1e-4, py::arg("inner_iterations") = 1, py::arg("max_line_search") = 30,
       py::arg("delta_policy") = "auto", py::arg("delta_epsilon") = 1e-2, py::arg("delta") = 1e-2,
       py::arg("monotone") = true, py::arg("threads") = 0, py::arg("progress") = py::none(),
+      py::arg("before") = py::none(),
       "Optimizes the mesh in place (nodes stay on their surfaces). progress(dict) is called "
       "after every sweep; returning False cancels (reason 'cancelled', mesh unchanged). "
       "Returns a dict: before, after (stats), sweeps, seconds, reason, moved_nodes, threads, "
       "tangled_unmovable / tangled_movable (ids of the elements left tangled without / with a "
-      "movable node) and warnings (a line for each non-empty list).");
+      "movable node) and warnings (a line for each non-empty list). before: the stats dict of "
+      "measure(measure) on the mesh as it is, when the caller has it (not measured again).");
 }
 
 }  // namespace surfmesh::bindings

@@ -111,6 +111,10 @@ class OptimizeResult:
     tangled_unmovable: list = dataclasses.field(default_factory=list)
     tangled_movable: list = dataclasses.field(default_factory=list)
     warnings: list = dataclasses.field(default_factory=list)
+    # Wall seconds of the parts of the call: read (the mesh into arrays), recovery (the CAD
+    # bridge: nodes put on the shape), before / after (the quality reports), optimize (the
+    # whole core call, ``seconds`` included), rebuild (the new mesh), total.
+    timings: dict = dataclasses.field(default_factory=dict)
 
     def __repr__(self):
         b, a = self.before.stats, self.after.stats
@@ -179,12 +183,23 @@ def prepare(mesh, shape, boundary="fixed", tolerance=None, hints="auto", collaps
     bridge warnings; their nodes stay where they are); "error" raises ValueError naming the
     first collapsed element (flat boundary elements are then measured as tangled).
     """
+    data, handle, _ = _prepare(mesh, shape, boundary, tolerance, hints, collapsed)
+    return data, handle
+
+
+def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, timings=None):
+    """:func:`prepare`, and the "shape" measure of the returned handle when it was taken on
+    the way (else None): measuring it again would give the same result. ``timings`` (a dict),
+    when given, receives the seconds of reading the mesh ("read") and of the rest ("recovery").
+    """
+    t0 = time.perf_counter()
     _check_boundary(boundary)
     if tolerance is not None and not (tolerance > 0 and np.isfinite(tolerance)):
         raise ValueError(f"tolerance must be a positive number, got {tolerance!r}")
     if collapsed not in ("skip", "error"):
         raise ValueError(f"collapsed must be 'skip' or 'error', got {collapsed!r}")
     data = conversion.read_mesh(mesh)
+    t_read = time.perf_counter()
     part_shape = shapes.shape_of(shape) if not _is_core_shape(shape) else None
     if data.element_count == 0:
         raise ValueError("the mesh has no elements")
@@ -223,6 +238,7 @@ def prepare(mesh, shape, boundary="fixed", tolerance=None, hints="auto", collaps
             raise ValueError(_name_by_ids(str(err), w)) from None
 
     handle = build(work)
+    shape_measure = None
     reasons = []
     if bad.any():
         n_dup = int(dup.sum()) if collapsed == "skip" else 0
@@ -234,7 +250,7 @@ def prepare(mesh, shape, boundary="fixed", tolerance=None, hints="auto", collaps
         # Slivers whose nodes all lie on one CAD edge and its vertices (Gmsh leaves such
         # "invalid" elements along some edges): no node can leave the edge, so no optimizer can
         # make them valid. They are left out like collapsed elements.
-        flat = _flat_boundary_elements(work, handle)
+        flat, shape_measure = _flat_boundary_elements(work, handle)
         if flat.any():
             keep = ~bad if bad.any() else np.ones(data.element_count, dtype=bool)
             idx = np.nonzero(keep)[0]
@@ -243,6 +259,7 @@ def prepare(mesh, shape, boundary="fixed", tolerance=None, hints="auto", collaps
             work = data.subset(keep)
             data.kept = keep
             handle = build(work)
+            shape_measure = None  # measured on the handle replaced here
             reasons.append(
                 f"{int(flat.sum())} flat element(s) on one CAD edge or with two nodes on one "
                 "CAD vertex"
@@ -256,7 +273,10 @@ def prepare(mesh, shape, boundary="fixed", tolerance=None, hints="auto", collaps
             f"left out {' and '.join(reasons)}: ids {shown}"
         ]
         report["skipped_elements"] = [int(i) for i in ids]
-    return data, handle
+    if timings is not None:
+        timings["read"] = t_read - t0
+        timings["recovery"] = time.perf_counter() - t_read
+    return data, handle, shape_measure
 
 
 _NODE_REF = re.compile(r"\b(nodes?|row) (\d+)((?:,| and) (\d+))?")
@@ -294,7 +314,8 @@ def _flat_boundary_elements(work, handle):
     repair: (nearly) zero-area ones (scaled det S within 1e-2 of 0) whose corners all lie on
     CAD edges or vertices, the edge nodes all on one edge (slivers along a CAD edge), and ones
     with two corners on the same CAD vertex (two mesh nodes within that vertex's tolerance: a
-    collapsed edge, like a repeated node)."""
+    collapsed edge, like a repeated node). Returns ``(mask, measured)``: ``measured`` is the
+    handle's "shape" measure this took (``handle.measure("shape")``)."""
     cls = np.asarray(handle.report["node_class"])
     ent = np.asarray(handle.report["node_entity"])
     q = handle.measure("shape")
@@ -311,7 +332,7 @@ def _flat_boundary_elements(work, handle):
             edges = set(ent[nodes][c == 1].tolist())
             if len(edges) <= 1:
                 out[e] = True
-    return out
+    return out, q
 
 
 def _bridge_report(handle):
@@ -325,8 +346,8 @@ def _is_core_shape(obj):
         return False
 
 
-def _report(data, handle, name, bridge=None) -> QualityReport:
-    r = handle.measure(name)
+def _report(data, handle, name, bridge=None, measured=None) -> QualityReport:
+    r = measured if measured is not None else handle.measure(name)
     stats = dict(r["stats"])
     quality = np.asarray(r["quality"], dtype=np.float64)
     tangled = np.asarray(r["tangled"], dtype=bool)
@@ -378,8 +399,8 @@ def measure(mesh, shape, measure="shape", *, tolerance=None, hints="auto",
         QualityReport with ``quality`` (1/η, 0 tangled), ``tangled``, ``stats``.
     """
     _check_measure(measure)
-    data, handle = prepare(mesh, shape, "fixed", tolerance, hints, collapsed)
-    return _report(data, handle, measure)
+    data, handle, measured = _prepare(mesh, shape, "fixed", tolerance, hints, collapsed)
+    return _report(data, handle, measure, measured=measured if measure == "shape" else None)
 
 
 def optimize(
@@ -419,17 +440,29 @@ def optimize(
     _check_options(opts)
     if progress is not None and not callable(progress):
         raise ValueError("progress must be callable (or None)")
-    data, handle = prepare(mesh, shape, boundary, tolerance, hints, collapsed)
+    t_start = time.perf_counter()
+    timings = {}
+    data, handle, measured = _prepare(
+        mesh, shape, boundary, tolerance, hints, collapsed, timings=timings
+    )
     bridge = _bridge_report(handle)
-    before = _report(data, handle, measure, bridge)
     t0 = time.perf_counter()
-    r = handle.optimize(measure=measure, progress=progress, **opts)
+    before = _report(data, handle, measure, bridge,
+                     measured=measured if measure == "shape" else None)
+    t1 = time.perf_counter()
+    stats = {k: before.stats[k] for k in ("min", "max", "mean", "std", "tangled", "elements")}
+    r = handle.optimize(measure=measure, progress=progress, before=stats, **opts)
     if r["reason"] == "cancelled":
         raise Cancelled(f"optimization cancelled after {r['sweeps']} sweep(s); nothing changed")
-    seconds = float(r.get("seconds", time.perf_counter() - t0))
+    t2 = time.perf_counter()
+    seconds = float(r.get("seconds", t2 - t1))
     new_nodes = handle.positions()
     after = _report(data, handle, measure, bridge)
+    t3 = time.perf_counter()
     new_mesh = conversion.rebuild(data, new_nodes) if data.kind in ("mesh", "fem") else None
+    t4 = time.perf_counter()
+    timings.update(before=t1 - t0, optimize=t2 - t1, after=t3 - t2, rebuild=t4 - t3,
+                   total=t4 - t_start)
     unmovable = _user_element_ids(data, r.get("tangled_unmovable", []))
     movable = _user_element_ids(data, r.get("tangled_movable", []))
     warnings = []
@@ -459,6 +492,7 @@ def optimize(
         tangled_unmovable=unmovable,
         tangled_movable=movable,
         warnings=warnings,
+        timings=timings,
     )
 
 

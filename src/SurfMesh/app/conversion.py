@@ -30,6 +30,8 @@ This module is headless: it never imports FreeCADGui.
 from __future__ import annotations
 
 import dataclasses
+import itertools
+import operator
 from typing import Optional
 
 import numpy as np
@@ -92,17 +94,21 @@ class MeshData:
     def duplicate_elements(self):
         """Bool mask of the elements whose corner nodes are those of another element (a pair
         folded onto itself: one of the two is always inverted)."""
-        seen = {}
         out = np.zeros(self.element_count, dtype=bool)
-        quad4 = ELEMENT_TYPES["quad4"]
-        for e in range(self.element_count):
-            k = 4 if int(self.types[e]) == quad4 else 3
-            key = tuple(sorted(self.conn[self.offsets[e] : self.offsets[e] + k].tolist()))
-            if key in seen:
-                out[e] = True
-                out[seen[key]] = True
-            else:
-                seen[key] = e
+        corners = np.where(self.types == ELEMENT_TYPES["quad4"], 4, 3)
+        for k in (3, 4):
+            sel = np.nonzero(corners == k)[0]
+            if sel.size < 2:
+                continue
+            idx = self.offsets[sel][:, None] + np.arange(k)[None, :]
+            keys = np.sort(self.conn[idx], axis=1)
+            order = np.lexsort(keys.T[::-1])
+            keys = keys[order]
+            same = np.all(keys[1:] == keys[:-1], axis=1)  # row i+1 repeats row i
+            hit = np.zeros(sel.size, dtype=bool)
+            hit[1:] |= same
+            hit[:-1] |= same
+            out[sel[order[hit]]] = True
         return out
 
     def subset(self, keep):
@@ -209,13 +215,17 @@ def read_mesh(obj) -> MeshData:
 
 
 def _vectors_to_array(vectors) -> np.ndarray:
-    return np.array([(v.x, v.y, v.z) for v in vectors], dtype=np.float64).reshape(-1, 3)
+    vectors = list(vectors)
+    xyz = itertools.chain.from_iterable(map(operator.attrgetter("x", "y", "z"), vectors))
+    return np.fromiter(xyz, dtype=np.float64, count=3 * len(vectors)).reshape(-1, 3)
 
 
 def _read_mesh_kernel(mesh) -> MeshData:
     points, facets = mesh.Topology  # global coordinates
     nodes = _vectors_to_array(points)
-    tris = np.array(facets, dtype=np.int64).reshape(-1, 3)
+    tris = np.fromiter(
+        itertools.chain.from_iterable(facets), dtype=np.int64, count=3 * len(facets)
+    ).reshape(-1, 3)
     data = from_arrays(nodes, tris, "tri3")
     data.kind = "mesh"
     data.source = mesh
@@ -347,9 +357,9 @@ def _rebuild_mesh_kernel(data: MeshData, new_nodes: np.ndarray):
     mesh = data.source.copy()  # keeps facets, segments and placement
     vec = FreeCAD.Vector
     changed = np.nonzero(np.any(new_nodes != data.nodes, axis=1))[0]
-    for i in changed:
-        x, y, z = new_nodes[i]
-        mesh.setPoint(int(i), vec(float(x), float(y), float(z)))  # global coordinates
+    set_point = mesh.setPoint
+    for i, (x, y, z) in zip(changed.tolist(), new_nodes[changed].tolist()):
+        set_point(i, vec(x, y, z))  # global coordinates
     return mesh
 
 

@@ -27,7 +27,6 @@
 #include <sstream>
 #include <stdexcept>
 #include <thread>
-#include <unordered_map>
 
 namespace surfmesh {
 
@@ -875,22 +874,26 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   std::vector<double> hmin(N, kInf);
   std::vector<unsigned char> onMeshBoundary(N, 0);
   {
-    std::unordered_map<std::uint64_t, int> edgeCount;
-    edgeCount.reserve(E * 3);
-    auto key = [](std::int32_t a, std::int32_t b) {
-      if (a > b) std::swap(a, b);
-      return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(a)) << 32) |
-             static_cast<std::uint32_t>(b);
+    // Mesh edges (corner to corner) counted through buckets by their smaller node: an edge
+    // used by one element only is on the mesh's boundary.
+    struct EdgeRef {
+      std::int32_t other;  // the larger node
+      std::int32_t elem;
+      std::int32_t side;  // k: the edge from corner k to corner k + 1
     };
+    std::vector<std::size_t> start(N + 1, 0);
     for (std::size_t e = 0; e < E; ++e) {
       const std::int32_t* nd = input.conn.data() + offsets[e];
       const int nn = static_cast<int>(offsets[e + 1] - offsets[e]);
-      for (int k = 0; k < nn; ++k)
-        elemFacesOfNode[static_cast<std::size_t>(nd[k])].push_back(elemFace[e]);
+      for (int k = 0; k < nn; ++k) {
+        // Each face once per node (consecutive elements mostly share their face).
+        auto& l = elemFacesOfNode[static_cast<std::size_t>(nd[k])];
+        if (l.empty() || l.back() != elemFace[e]) l.push_back(elemFace[e]);
+      }
       const ElementEdges ee = elementEdges(input.types[e]);
       for (int k = 0; k < ee.corners; ++k) {
         const std::int32_t a = nd[k], b = nd[(k + 1) % ee.corners];
-        ++edgeCount[key(a, b)];
+        ++start[static_cast<std::size_t>(std::min(a, b)) + 1];
         const double len =
             (input.nodes[static_cast<std::size_t>(a)] - input.nodes[static_cast<std::size_t>(b)])
                 .norm() /
@@ -903,16 +906,38 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
         }
       }
     }
-    for (std::size_t e = 0; e < E; ++e) {
-      const std::int32_t* nd = input.conn.data() + offsets[e];
-      const ElementEdges ee = elementEdges(input.types[e]);
-      for (int k = 0; k < ee.corners; ++k) {
-        const std::int32_t a = nd[k], b = nd[(k + 1) % ee.corners];
-        if (edgeCount[key(a, b)] != 1) continue;
-        onMeshBoundary[static_cast<std::size_t>(a)] = 1;
-        onMeshBoundary[static_cast<std::size_t>(b)] = 1;
-        for (int j = 0; j < ee.perEdge; ++j)
-          onMeshBoundary[static_cast<std::size_t>(nd[ee.corners + k * ee.perEdge + j])] = 1;
+    for (std::size_t i = 0; i < N; ++i) start[i + 1] += start[i];
+    std::vector<EdgeRef> refs(start[N]);
+    {
+      std::vector<std::size_t> fill(start.begin(), start.end() - 1);
+      for (std::size_t e = 0; e < E; ++e) {
+        const std::int32_t* nd = input.conn.data() + offsets[e];
+        const int nc = elementEdges(input.types[e]).corners;
+        for (int k = 0; k < nc; ++k) {
+          const std::int32_t a = nd[k], b = nd[(k + 1) % nc];
+          refs[fill[static_cast<std::size_t>(std::min(a, b))]++] = {
+              std::max(a, b), static_cast<std::int32_t>(e), k};
+        }
+      }
+    }
+    for (std::size_t a = 0; a < N; ++a) {
+      const auto first = refs.begin() + static_cast<std::ptrdiff_t>(start[a]);
+      const auto last = refs.begin() + static_cast<std::ptrdiff_t>(start[a + 1]);
+      std::sort(first, last, [](const EdgeRef& x, const EdgeRef& y) { return x.other < y.other; });
+      for (auto it = first; it != last;) {
+        auto run = it + 1;
+        while (run != last && run->other == it->other) ++run;
+        if (run - it == 1) {  // used once: a boundary edge
+          const std::size_t e = static_cast<std::size_t>(it->elem);
+          const std::int32_t* nd = input.conn.data() + offsets[e];
+          const ElementEdges ee = elementEdges(input.types[e]);
+          onMeshBoundary[a] = 1;
+          onMeshBoundary[static_cast<std::size_t>(it->other)] = 1;
+          for (int j = 0; j < ee.perEdge; ++j)
+            onMeshBoundary[static_cast<std::size_t>(nd[ee.corners + it->side * ee.perEdge + j])] =
+                1;
+        }
+        it = run;
       }
     }
     for (auto& l : elemFacesOfNode) {
@@ -1130,15 +1155,22 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
                                " nodes belong to no element; they are kept fixed");
 
   // Corner (u,v) of every element node on the element's face.
+  // The orientation tallies (section 5) are taken in the same pass, from the same first
+  // derivatives at the corners.
   std::vector<Vec2> corner;
   std::vector<Vec2> allCornerUV(input.conn.size());
+  std::vector<unsigned char> known;
+  std::vector<SurfaceD1> cornerD1;
+  std::vector<std::int64_t> agree(static_cast<std::size_t>(NF), 0),
+      disagree(static_cast<std::size_t>(NF), 0);
+  report_.faceElements.assign(static_cast<std::size_t>(NF), 0);
   for (std::size_t e = 0; e < E; ++e) {
     const int f = elemFace[e];
     const Surface& surf = *surfaces_[static_cast<std::size_t>(f)];
     const std::int32_t* nd = input.conn.data() + offsets[e];
     const int nn = static_cast<int>(offsets[e + 1] - offsets[e]);
     corner.assign(static_cast<std::size_t>(nn), Vec2::Zero());
-    std::vector<unsigned char> known(static_cast<std::size_t>(nn), 0);
+    known.assign(static_cast<std::size_t>(nn), 0);
     Vec2 ref = Vec2::Zero();
     bool haveRef = false;
     for (int k = 0; k < nn; ++k) {
@@ -1188,10 +1220,15 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
       }
       corner[static_cast<std::size_t>(k)] = uv;
     }
-    // Corners on a pole: the free coordinate follows the element's other corners.
+    // Corners on a pole: the free coordinate follows the element's other corners. The first
+    // derivatives at the corners are kept (cornerD1[k] is at the current corner[k]).
+    cornerD1.resize(static_cast<std::size_t>(nn));
     for (int k = 0; k < nn; ++k) {
       const Vec2& c = corner[static_cast<std::size_t>(k)];
-      const SurfaceD1 d = surf.d1(c.x(), c.y());
+      cornerD1[static_cast<std::size_t>(k)] = surf.d1(c.x(), c.y());
+    }
+    for (int k = 0; k < nn; ++k) {
+      const SurfaceD1& d = cornerD1[static_cast<std::size_t>(k)];
       if (!isDegenerate(d)) continue;
       const bool uFree = d.du.norm() <= d.dv.norm();
       double sum = 0.0;
@@ -1199,43 +1236,36 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
       for (int j = 0; j < nn; ++j) {
         if (j == k) continue;
         const Vec2& o = corner[static_cast<std::size_t>(j)];
-        if (isDegenerate(surf.d1(o.x(), o.y()))) continue;
+        if (isDegenerate(cornerD1[static_cast<std::size_t>(j)])) continue;
         sum += uFree ? o.x() : o.y();
         ++cnt;
       }
       if (cnt == 0) continue;
+      Vec2& c = corner[static_cast<std::size_t>(k)];
       if (uFree)
-        corner[static_cast<std::size_t>(k)].x() = sum / cnt;
+        c.x() = sum / cnt;
       else
-        corner[static_cast<std::size_t>(k)].y() = sum / cnt;
+        c.y() = sum / cnt;
+      cornerD1[static_cast<std::size_t>(k)] = surf.d1(c.x(), c.y());
     }
     std::copy(corner.begin(), corner.end(), allCornerUV.begin() + offsets[e]);
-  }
 
-  // ---- 5. orientation -------------------------------------------------------------------------
-  std::vector<std::int64_t> agree(static_cast<std::size_t>(NF), 0),
-      disagree(static_cast<std::size_t>(NF), 0);
-  report_.faceElements.assign(static_cast<std::size_t>(NF), 0);
-  for (std::size_t e = 0; e < E; ++e) {
-    const int f = elemFace[e];
+    // ---- 5. orientation (tallies): the element's winding against the surface normal ----
     ++report_.faceElements[static_cast<std::size_t>(f)];
-    const Surface& surf = *surfaces_[static_cast<std::size_t>(f)];
-    const std::int32_t* nd = input.conn.data() + offsets[e];
     const int nc = cornerCount(input.types[e]);
     auto X = [&](int k) { return input.nodes[static_cast<std::size_t>(nd[k])]; };
     const Vec3 g =
         nc == 4 ? Vec3((X(2) - X(0)).cross(X(3) - X(1))) : Vec3((X(1) - X(0)).cross(X(2) - X(0)));
-    Vec3 ref = Vec3::Zero();
-    for (int k = 0; k < nc; ++k) {
-      const Vec2& c = allCornerUV[static_cast<std::size_t>(offsets[e] + k)];
-      ref += surf.normal(c.x(), c.y());
-    }
-    const double s = g.dot(ref);
+    Vec3 nsum = Vec3::Zero();
+    for (int k = 0; k < nc; ++k) nsum += surf.normalOf(cornerD1[static_cast<std::size_t>(k)]);
+    const double s = g.dot(nsum);
     if (s > 0)
       ++agree[static_cast<std::size_t>(f)];
     else if (s < 0)
       ++disagree[static_cast<std::size_t>(f)];
   }
+
+  // ---- 5. orientation: faces meshed with the opposite winding ---------------------------------
   report_.faceFlipped.assign(static_cast<std::size_t>(NF), 0);
   for (int f = 0; f < NF; ++f) {
     const std::size_t fi = static_cast<std::size_t>(f);

@@ -13,8 +13,9 @@ bool Surface::contains(double u, double v) const {
   return std::isfinite(u) && std::isfinite(v);
 }
 
-Vec3 Surface::normal(double u, double v) const {
-  const SurfaceD1 d = d1(u, v);
+Vec3 Surface::normal(double u, double v) const { return normalOf(d1(u, v)); }
+
+Vec3 Surface::normalOf(const SurfaceD1& d) const {
   if (isDegenerate(d)) return Vec3::Zero();
   const Vec3 n = d.du.cross(d.dv);
   return (normalSign() * n.normalized()).eval();

@@ -188,13 +188,23 @@ void chainToCurve(const CurveD2& d, const Vec3& g, const Mat3& H, double* gt, do
 }
 
 Vec3 elementReferenceNormal(const SurfaceMesh& mesh, std::size_t e) {
+  return elementReferenceNormal(mesh, e, mesh.surfaces);
+}
+
+Vec3 elementReferenceNormal(const SurfaceMesh& mesh, std::size_t e,
+                            const std::vector<const Surface*>& surfaces) {
   const int f = mesh.elemFace[e];
   const int nc = cornerCount(mesh.elemType[e]);
   const Vec2* uv = mesh.elementUV(e);
+  const Surface& s = *surfaces[static_cast<std::size_t>(f)];
+  const int o =
+      mesh.faceOrientation.empty() ? 1 : mesh.faceOrientation[static_cast<std::size_t>(f)];
+  // mesh.referenceNormal(f, c) on `surfaces`.
+  auto referenceNormal = [&](const Vec2& c) { return Vec3((o * s.normal(c.x(), c.y())).eval()); };
   Vec3 n = Vec3::Zero();
   bool anyCorner = false;
   for (int k = 0; k < nc; ++k) {
-    const Vec3 nk = mesh.referenceNormal(f, uv[k]);
+    const Vec3 nk = referenceNormal(uv[k]);
     anyCorner = anyCorner || nk.squaredNorm() > 0.0;
     n += nk;
   }
@@ -203,7 +213,7 @@ Vec3 elementReferenceNormal(const SurfaceMesh& mesh, std::size_t e) {
     // Every corner degenerate (all at a pole): use the parametric centroid.
     Vec2 c = Vec2::Zero();
     for (int k = 0; k < nc; ++k) c += uv[k];
-    n = mesh.referenceNormal(f, c / nc);
+    n = referenceNormal(c / nc);
   }
   const double len = n.norm();
   return len > 0.0 ? Vec3(n / len) : Vec3::Zero();

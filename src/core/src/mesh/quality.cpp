@@ -4,6 +4,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <exception>
+#include <limits>
+#include <memory>
+#include <thread>
 
 namespace surfmesh {
 
@@ -35,19 +39,57 @@ MeshQuality measureQuality(const SurfaceMesh& mesh, const PlanarMeasure& m) {
   r.distortion.resize(E);
   r.tangled.resize(E);
   r.minSigma.resize(E);
-  std::vector<Vec3> x;
-  for (std::size_t e = 0; e < E; ++e) {
-    const int n = mesh.elementSize(e);
-    const std::int32_t* nd = mesh.elementNodes(e);
-    x.resize(static_cast<std::size_t>(n));
-    for (int k = 0; k < n; ++k) x[static_cast<std::size_t>(k)] = mesh.xyz[nd[k]];
-    const Vec3 normal = elementReferenceNormal(mesh, e);
-    const ElementEval ev = elementDistortion(m, mesh.elemType[e], x.data(), normal, 0.0);
-    const bool bad = ev.tangled || !std::isfinite(ev.eta) || !(ev.eta > 0.0);
-    r.tangled[e] = bad ? 1 : 0;
-    r.distortion[e] = bad ? std::numeric_limits<double>::infinity() : ev.eta;
-    r.quality[e] = bad ? 0.0 : std::min(1.0, 1.0 / ev.eta);
-    r.minSigma[e] = ev.minSigma;
+  // Elements [begin, end) with the surfaces `surfaces` (mesh.surfaces or a thread's clones).
+  auto range = [&](std::size_t begin, std::size_t end,
+                   const std::vector<const Surface*>& surfaces) {
+    std::vector<Vec3> x;
+    for (std::size_t e = begin; e < end; ++e) {
+      const int n = mesh.elementSize(e);
+      const std::int32_t* nd = mesh.elementNodes(e);
+      x.resize(static_cast<std::size_t>(n));
+      for (int k = 0; k < n; ++k) x[static_cast<std::size_t>(k)] = mesh.xyz[nd[k]];
+      const Vec3 normal = elementReferenceNormal(mesh, e, surfaces);
+      const ElementEval ev = elementDistortion(m, mesh.elemType[e], x.data(), normal, 0.0);
+      const bool bad = ev.tangled || !std::isfinite(ev.eta) || !(ev.eta > 0.0);
+      r.tangled[e] = bad ? 1 : 0;
+      r.distortion[e] = bad ? std::numeric_limits<double>::infinity() : ev.eta;
+      r.quality[e] = bad ? 0.0 : std::min(1.0, 1.0 / ev.eta);
+      r.minSigma[e] = ev.minSigma;
+    }
+  };
+  // Elements are independent: big meshes are cut into one contiguous block per hardware
+  // thread; the threads after the first evaluate clones of the surfaces (not thread-safe).
+  constexpr std::size_t kPerThread = 20000;
+  const std::size_t hc = std::max(1u, std::thread::hardware_concurrency());
+  const std::size_t T = std::min<std::size_t>({hc, 16, std::max<std::size_t>(1, E / kPerThread)});
+  if (T <= 1) {
+    range(0, E, mesh.surfaces);
+  } else {
+    std::vector<std::vector<std::unique_ptr<Surface>>> owned(T - 1);
+    std::vector<std::vector<const Surface*>> views(T - 1);
+    for (std::size_t t = 0; t + 1 < T; ++t)
+      for (const Surface* sf : mesh.surfaces) {
+        owned[t].push_back(sf ? sf->clone() : nullptr);
+        views[t].push_back(owned[t].back().get());
+      }
+    std::vector<std::exception_ptr> errors(T);
+    std::vector<std::thread> pool;
+    for (std::size_t t = 1; t < T; ++t)
+      pool.emplace_back([&, t]() {
+        try {
+          range(E * t / T, E * (t + 1) / T, views[t - 1]);
+        } catch (...) {
+          errors[t] = std::current_exception();
+        }
+      });
+    try {
+      range(0, E / T, mesh.surfaces);
+    } catch (...) {
+      errors[0] = std::current_exception();
+    }
+    for (auto& th : pool) th.join();
+    for (const auto& err : errors)
+      if (err) std::rethrow_exception(err);
   }
   r.stats = computeStats(r.quality, r.tangled);
   return r;

@@ -137,15 +137,25 @@ void checkDuplicateNodes(const SurfaceMesh& m) {
     for (std::size_t i = 0; i < isUsed.size(); ++i)
       if (isUsed[i]) used.push_back(static_cast<std::int32_t>(i));
   }
-  auto less = [&](std::int32_t a, std::int32_t b) {
-    const Vec3& p = m.xyz[static_cast<std::size_t>(a)];
-    const Vec3& q = m.xyz[static_cast<std::size_t>(b)];
-    if (p.x() != q.x()) return p.x() < q.x();
-    if (p.y() != q.y()) return p.y() < q.y();
-    if (p.z() != q.z()) return p.z() < q.z();
-    return a < b;
+  // Sorted by position, then index (a total order: any sort gives the same sequence); the
+  // positions are copied next to the indices so that the sort reads contiguous memory.
+  struct Key {
+    double x, y, z;
+    std::int32_t i;
   };
-  std::sort(used.begin(), used.end(), less);
+  std::vector<Key> keys(used.size());
+  for (std::size_t k = 0; k < used.size(); ++k) {
+    const Vec3& p = m.xyz[static_cast<std::size_t>(used[k])];
+    keys[k] = {p.x(), p.y(), p.z(), used[k]};
+  }
+  std::sort(keys.begin(), keys.end(), [](const Key& p, const Key& q) {
+    if (p.x != q.x) return p.x < q.x;
+    if (p.y != q.y) return p.y < q.y;
+    if (p.z != q.z) return p.z < q.z;
+    return p.i < q.i;
+  });
+  for (std::size_t k = 0; k < used.size(); ++k) used[k] = keys[k].i;
+  keys = std::vector<Key>();
   std::size_t count = 0;
   std::int32_t a0 = -1, b0 = -1;
   for (std::size_t k = 1; k < used.size(); ++k)
@@ -169,15 +179,34 @@ void checkDuplicateNodes(const SurfaceMesh& m) {
 void checkDuplicateElements(const SurfaceMesh& m) {
   const std::size_t E = m.elementCount();
   // Duplicate elements.
-  std::vector<std::array<std::int32_t, 5>> keys(E);  // sorted corners (−1 padded), element
+  // Sorted corners (−1 padded) and the element, in lexicographic order: counted into buckets
+  // by their first two entries (−1 and the smallest corner for triangles, which come first; the
+  // smallest corner for quads), each bucket then sorted on its own.
+  const std::size_t N = m.nodeCount();
+  std::vector<std::array<std::int32_t, 5>> unsorted(E);
+  std::vector<std::size_t> start(2 * N + 1, 0);
+  auto bucket = [N](const std::array<std::int32_t, 5>& k) {
+    return k[0] < 0 ? static_cast<std::size_t>(k[1]) : N + static_cast<std::size_t>(k[0]);
+  };
   for (std::size_t e = 0; e < E; ++e) {
     const int nc = cornerCount(m.elemType[e]);
     std::array<std::int32_t, 5> k = {-1, -1, -1, -1, static_cast<std::int32_t>(e)};
     std::copy(m.elementNodes(e), m.elementNodes(e) + nc, k.begin());
     std::sort(k.begin(), k.begin() + 4);
-    keys[e] = k;
+    unsorted[e] = k;
+    ++start[bucket(k) + 1];
   }
-  std::sort(keys.begin(), keys.end());
+  for (std::size_t i = 0; i + 1 < start.size(); ++i) start[i + 1] += start[i];
+  std::vector<std::array<std::int32_t, 5>> keys(E);
+  {
+    std::vector<std::size_t> fill(start.begin(), start.end() - 1);
+    for (const auto& k : unsorted) keys[fill[bucket(k)]++] = k;
+  }
+  unsorted = std::vector<std::array<std::int32_t, 5>>();
+  for (std::size_t b = 0; b + 1 < start.size(); ++b)
+    if (start[b + 1] - start[b] > 1)
+      std::sort(keys.begin() + static_cast<std::ptrdiff_t>(start[b]),
+                keys.begin() + static_cast<std::ptrdiff_t>(start[b + 1]));
   std::size_t dup = 0;
   std::int32_t e0 = -1, e1 = -1;
   for (std::size_t k = 1; k < E; ++k)
@@ -205,20 +234,36 @@ void checkTopology(const SurfaceMesh& m) {
       return std::tie(a, b, face, elem) < std::tie(o.a, o.b, o.face, o.elem);
     }
   };
-  std::vector<EdgeUse> uses;
+  // Sorted by (a, b, face, elem): counted into buckets by a (node ids are < N), each bucket
+  // (the few edges at one node) then sorted on its own.
+  const std::size_t N = m.nodeCount();
+  std::vector<std::size_t> start(N + 1, 0);
   std::size_t corners = 0;
-  for (std::size_t e = 0; e < E; ++e)
-    corners += static_cast<std::size_t>(cornerCount(m.elemType[e]));
-  uses.reserve(corners);
   for (std::size_t e = 0; e < E; ++e) {
     const int nc = cornerCount(m.elemType[e]);
     const std::int32_t* nd = m.elementNodes(e);
-    for (int k = 0; k < nc; ++k) {
-      const std::int32_t a = nd[k], b = nd[(k + 1) % nc];
-      uses.push_back({std::min(a, b), std::max(a, b), m.elemFace[e], static_cast<std::int32_t>(e)});
+    for (int k = 0; k < nc; ++k)
+      ++start[static_cast<std::size_t>(std::min(nd[k], nd[(k + 1) % nc])) + 1];
+    corners += static_cast<std::size_t>(nc);
+  }
+  for (std::size_t i = 0; i < N; ++i) start[i + 1] += start[i];
+  std::vector<EdgeUse> uses(corners);
+  {
+    std::vector<std::size_t> fill(start.begin(), start.end() - 1);
+    for (std::size_t e = 0; e < E; ++e) {
+      const int nc = cornerCount(m.elemType[e]);
+      const std::int32_t* nd = m.elementNodes(e);
+      for (int k = 0; k < nc; ++k) {
+        const std::int32_t a = nd[k], b = nd[(k + 1) % nc];
+        uses[fill[static_cast<std::size_t>(std::min(a, b))]++] = {
+            std::min(a, b), std::max(a, b), m.elemFace[e], static_cast<std::int32_t>(e)};
+      }
     }
   }
-  std::sort(uses.begin(), uses.end());
+  for (std::size_t i = 0; i < N; ++i)
+    if (start[i + 1] - start[i] > 1)
+      std::sort(uses.begin() + static_cast<std::ptrdiff_t>(start[i]),
+                uses.begin() + static_cast<std::ptrdiff_t>(start[i + 1]));
   std::size_t bad = 0, firstBegin = 0, firstEnd = 0;
   for (std::size_t i = 0; i < uses.size();) {
     std::size_t j = i + 1;

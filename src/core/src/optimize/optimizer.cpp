@@ -1660,10 +1660,10 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
 }  // namespace
 
 OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
-                            const ProgressCallback& progress) {
+                            const ProgressCallback& progress, const QualityStats* before) {
   const bool sliding =
       std::find(mesh.nodeKind.begin(), mesh.nodeKind.end(), NodeKind::Edge) != mesh.nodeKind.end();
-  if (!sliding || opt.maxSweeps == 0) return optimizeOnce(mesh, opt, progress);
+  if (!sliding || opt.maxSweeps == 0) return optimizeOnce(mesh, opt, progress, before);
   // Sliding edge nodes: first the run with them held (the fixed boundary), then the run that
   // lets them slide from there. The second run never increases the number of tangled elements
   // and (monotone) never lowers the minimum quality of a valid mesh, so sliding never ends
@@ -1693,7 +1693,7 @@ OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
   for (NodeKind& k : mesh.nodeKind)
     if (k == NodeKind::Edge) k = NodeKind::Fixed;
   try {
-    held = optimizeOnce(mesh, opt, phased);
+    held = optimizeOnce(mesh, opt, phased, before);
   } catch (...) {
     mesh.nodeKind = kinds;
     throw;

@@ -84,6 +84,8 @@ class Surface {
 
   /// Unit outward normal at (u,v) (normalSign applied); zero vector where φ_u × φ_v = 0.
   Vec3 normal(double u, double v) const;
+  /// The same from the first derivatives `d` at (u,v): normal(u,v) == normalOf(d1(u,v)).
+  Vec3 normalOf(const SurfaceD1& d) const;
 
   /// Wraps the periodic coordinates of `uv` into [min, min + period).
   Vec2 wrap(const Vec2& uv) const;

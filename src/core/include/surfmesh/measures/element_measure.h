@@ -106,5 +106,9 @@ void chainToCurve(const CurveD2& d, const Vec3& g, const Mat3& H, double* gt, do
 /// parametric centroid if every corner is degenerate. Zero when the corner normals cancel
 /// (their sum shorter than kNormalCancelTol) or the centroid is degenerate too.
 Vec3 elementReferenceNormal(const SurfaceMesh& mesh, std::size_t e);
+/// The same with the surfaces taken from `surfaces` (face id → surface) instead of
+/// mesh.surfaces: per-thread clones (surfaces are not thread-safe).
+Vec3 elementReferenceNormal(const SurfaceMesh& mesh, std::size_t e,
+                            const std::vector<const Surface*>& surfaces);
 
 }  // namespace surfmesh

@@ -127,8 +127,13 @@ struct OptimizeResult {
 /// On cancellation
 /// (callback returned false) or on an exception the mesh is left exactly as it was.
 /// Throws std::invalid_argument for an invalid mesh or options.
+///
+/// `before`, when given, is the quality of the mesh as it is, with options.measure, that the
+/// caller already measured (measureQuality(mesh, measure).stats): it becomes result.before
+/// instead of being measured again.
 OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& options = {},
-                            const ProgressCallback& progress = {});
+                            const ProgressCallback& progress = {},
+                            const QualityStats* before = nullptr);
 
 /// Greedy coloring of the movable nodes such that no two nodes of one color share an element.
 /// Returns colors[c] = list of node ids.
