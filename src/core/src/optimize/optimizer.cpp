@@ -705,7 +705,7 @@ class NodeUpdater {
           return t;
         };
         const std::size_t t0 = countTangled();
-        if (t0 == 0) break;  // untangled meanwhile (the cache is from the last sweep)
+        if (t0 == 0) continue;  // nothing to gain here (the cache is from the last sweep)
         // Neighbour lists of the patch nodes (corners of their elements).
         nbrOffset.assign(1, 0);
         nbrIndex.clear();
@@ -786,7 +786,7 @@ class NodeUpdater {
         // that may pass through tangled states, from the input positions and from the
         // harmonic layout when it was placeable.
         std::size_t t2 = t0;
-        if (!relax) {
+        if (!relax || patch.size() > kMaxRelaxPatchNodes) {
           restore(patch, uvSave, xyzSave, nSave);
           continue;
         }
@@ -815,8 +815,10 @@ class NodeUpdater {
     return gained;
   }
 
-  /// Patch untangling budget of one escape (per element and ring at most two attempts).
+  /// Patch untangling budget of one escape (per element and ring at most two attempts), and
+  /// the largest patch it untangles (at most 60 sweeps over its nodes per attempt).
   static constexpr int kMaxRelaxPatches = 48;
+  static constexpr std::size_t kMaxRelaxPatchNodes = 96;
 
  private:
   int relaxTries_ = 0;
