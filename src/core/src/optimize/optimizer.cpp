@@ -220,7 +220,8 @@ struct TriPieces {
 /// the closed form of jacobianDistortion for b = (−1, −1), W⁻¹ = [[1, −1/√3], [0, 2/√3]].
 /// With `pieces` non-null, fills what the gradient and Hessian with respect to x0 are made of.
 inline ElemOut triangleCore(const PlanarMeasure& m, const Vec3& x0, const Vec3& x1, const Vec3& x2,
-                            const Vec3& n, double delta, bool wantEta0, TriPieces* pieces) {
+                            const Vec3& n, double delta, bool wantEta0, TriPieces* pieces,
+                            bool projected = false) {
   ElemOut r;
   const Vec3 J0 = x1 - x0, J1 = x2 - x0;
   const Vec3 K1 = (2.0 * J1 - J0) * kInvSqrt3;  // K = J W⁻¹ = [J0, K1]
@@ -234,6 +235,33 @@ inline ElemOut triangleCore(const PlanarMeasure& m, const Vec3& x0, const Vec3& 
     return r;
   }
   const double orient = c.dot(n);
+  const double nlen = n.norm();
+  if (projected && nlen > 0.0) {
+    // σ of the triangle projected on the plane normal to n: continuous through a triangle
+    // standing across the surface (where ±‖c‖ jumps), linear in x0.
+    const Vec3 nu = n / nlen;
+    const double sigma = kDetWinv * orient / nlen;
+    r.minSigma = 2.0 * sigma / F;
+    r.tangled = !(sigma > 0.0);
+    const double sigmaStar = regularizedSigmaValue(sigma, delta);
+    if (!pieces) {
+      r.eta = m.invariantValue(F, sigma, sigmaStar);
+      if (r.tangled && delta == 0.0) r.eta = kInf;
+      r.eta0 = r.tangled ? kInf : m.invariantValue(F, sigma, sigma);
+      return r;
+    }
+    const InvariantDerivs d = m.invariants(F, sigma, regularizedSigma(sigma, delta));
+    r.eta = d.h;
+    r.eta0 = r.tangled ? kInf : m.invariants(F, sigma, regularizedSigma(sigma, 0.0)).h;
+    TriPieces& P = *pieces;
+    P.d = d;
+    P.gF = -2.0 * (J0 + K1 * kInvSqrt3);
+    P.w = x2 - x1;
+    P.mw = nu.cross(P.w);
+    P.gs = kDetWinv * P.mw;
+    P.pcoef = 0.0;
+    return r;
+  }
   const bool regular = cn > 1e-14 * F && orientationDefined(orient, cn * cn, n.squaredNorm());
   const double gamma = (regular && orient > 0.0) ? 1.0 : -1.0;
   const double sigma = regular ? gamma * cn * kDetWinv : 0.0;
@@ -272,9 +300,9 @@ inline ElemOut triangleCore(const PlanarMeasure& m, const Vec3& x0, const Vec3& 
 /// triangleCore with the gradient and the 3×3 Hessian with respect to x0.
 inline ElemOut triangleKernel(const PlanarMeasure& m, const Vec3& x0, const Vec3& x1,
                               const Vec3& x2, const Vec3& n, double delta, bool wantEta0,
-                              Vec3* grad, Mat3* hess) {
+                              Vec3* grad, Mat3* hess, bool projected = false) {
   TriPieces P;
-  const ElemOut r = triangleCore(m, x0, x1, x2, n, delta, wantEta0, grad ? &P : nullptr);
+  const ElemOut r = triangleCore(m, x0, x1, x2, n, delta, wantEta0, grad ? &P : nullptr, projected);
   if (grad && std::isfinite(r.eta)) {
     const InvariantDerivs& d = P.d;
     *grad = d.hF * P.gF + d.hs * P.gs;
@@ -304,9 +332,10 @@ inline Vec3 sym2(double a, double b, double c, const Vec2& x, const Vec2& y) {
 /// assembled from projected vectors (2×2 arithmetic instead of 3×3).
 inline ElemOut triangleKernelUV(const PlanarMeasure& m, const Vec3& x0, const Vec3& x1,
                                 const Vec3& x2, const Vec3& n, double delta, bool wantEta0,
-                                const Tangent& T, Vec3* grad, Vec3* hessUV) {
+                                const Tangent& T, Vec3* grad, Vec3* hessUV,
+                                bool projected = false) {
   TriPieces P;
-  const ElemOut r = triangleCore(m, x0, x1, x2, n, delta, wantEta0, &P);
+  const ElemOut r = triangleCore(m, x0, x1, x2, n, delta, wantEta0, &P, projected);
   if (std::isfinite(r.eta)) {
     const InvariantDerivs& d = P.d;
     *grad = d.hF * P.gF + d.hs * P.gs;
@@ -397,8 +426,12 @@ struct State {
   std::vector<std::int64_t> edgeSlot;  // N (or empty): first index in edgeNormal, −1
   std::vector<Vec3> edgeNormal;        // corner normal of an Edge node in each incident element
   // ---- sweep -----------------------------------------------------------------------------
-  double deltaHat = 0.0;       // dimensionless δ of the current sweep
-  bool trackCache = true;      // δ = 0 sweep: keep eta0/minSigma current at every accepted move
+  double deltaHat = 0.0;   // dimensionless δ of the current sweep
+  bool trackCache = true;  // δ = 0 sweep: keep eta0/minSigma current at every accepted move
+  // Patch untangling (escapeTangledElements → relaxPatch): a node's move may tangle more
+  // elements of its submesh than it had (only f̂ must decrease), linear triangles use their
+  // projected σ; the patch as a whole is kept only when it ends with fewer tangled elements.
+  bool relaxTangled = false;
   std::int32_t clock = 0;      // advanced once per color
   std::int32_t validFrom = 1;  // a node last visited before this clock is revisited
 
@@ -511,7 +544,8 @@ struct State {
     if (mesh.elemType[e] == ElementType::Tri3) {
       const int k1 = local == 2 ? 0 : local + 1, k2 = local == 0 ? 2 : local - 1;
       return triangleKernel(measure, x, xyz[static_cast<std::size_t>(nd[k1])],
-                            xyz[static_cast<std::size_t>(nd[k2])], n, delta, wantEta0, grad, hess);
+                            xyz[static_cast<std::size_t>(nd[k2])], n, delta, wantEta0, grad, hess,
+                            relaxTangled);
     }
     Vec3 xs[kMaxElementNodes];
     const int cnt = mesh.elementSize(e);
@@ -542,7 +576,7 @@ struct State {
       const int k1 = local == 2 ? 0 : local + 1, k2 = local == 0 ? 2 : local - 1;
       return triangleKernelUV(measure, x, xyz[static_cast<std::size_t>(nd[k1])],
                               xyz[static_cast<std::size_t>(nd[k2])], n, delta, wantEta0, T, grad,
-                              hessUV);
+                              hessUV, relaxTangled);
     }
     Mat3 H;
     const ElemOut r = evalElement(e, local, x, n, delta, wantEta0, grad, &H);
@@ -606,11 +640,16 @@ class NodeUpdater {
   /// others stay). For each tangled element (in the element cache) with a movable Face node,
   /// the Face nodes of its face within 0, 1, 2, 3 rings of it are relocated together to the
   /// harmonic (uniform Tutte) embedding in (u,v) of that patch with the nodes around it held —
-  /// a valid embedding whenever the patch's outline is convex in (u,v). The smallest patch
-  /// that leaves fewer tangled elements among all elements of the moved nodes is kept —
-  /// strict progress, so it cannot cycle. Runs on one thread between sweeps; returns the
-  /// number of elements untangled.
-  std::size_t escapeTangledElements(const std::vector<unsigned char>& frozen) {
+  /// a valid embedding whenever the patch's outline is convex in (u,v). When that does not
+  /// help (a non-convex outline; or thin elements valid in (u,v) but standing across a curved
+  /// surface — a stacked fan of a coarse mesh between two CAD-edge nodes over 70° of a torus
+  /// fillet), the patch is untangled jointly by relaxPatch, from the harmonic layout and from
+  /// its current positions (with `relax`: the sweeps have left the number of tangled elements
+  /// unchanged a few times in a row — a short stall usually ends by itself). The smallest
+  /// patch that leaves fewer tangled elements among all elements of the moved nodes is kept —
+  /// strict progress, so it cannot cycle. Runs on one thread between sweeps, only while
+  /// tangled elements stall; returns the number of elements untangled.
+  std::size_t escapeTangledElements(const std::vector<unsigned char>& frozen, bool relax) {
     std::size_t gained = 0;
     std::vector<std::size_t> patch, elems;
     std::vector<Vec2> uvSave, iter;
@@ -666,6 +705,7 @@ class NodeUpdater {
           return t;
         };
         const std::size_t t0 = countTangled();
+        if (t0 == 0) continue;  // nothing to gain here (the cache is from the last sweep)
         // Neighbour lists of the patch nodes (corners of their elements).
         nbrOffset.assign(1, 0);
         nbrIndex.clear();
@@ -735,22 +775,116 @@ class NodeUpdater {
           s_.nodeNormal[j] = (orient / c.norm()) * c;
         }
         const std::size_t t1 = ok ? countTangled() : t0;
+        for (std::size_t j : patch) s_.d2Valid[j] = 0;
         if (ok && t1 < t0) {
           kept = true;
           gained += t0 - t1;
-          for (std::size_t j : patch) s_.d2Valid[j] = 0;
-        } else {
-          for (std::size_t q = 0; q < patch.size(); ++q) {
-            s_.uv[patch[q]] = uvSave[q];
-            s_.xyz[patch[q]] = xyzSave[q];
-            s_.nodeNormal[patch[q]] = nSave[q];
+          continue;
+        }
+        // The harmonic layout did not help (a non-convex outline in (u,v), or elements valid
+        // in (u,v) but not on the surface): untangle the patch by local Newton steps on f̂
+        // that may pass through tangled states, from the input positions and from the
+        // harmonic layout when it was placeable.
+        std::size_t t2 = t0;
+        if (!relax || patch.size() > kMaxRelaxPatchNodes) {
+          restore(patch, uvSave, xyzSave, nSave);
+          continue;
+        }
+        if (ok && relaxTries_ < kMaxRelaxPatches) {
+          ++relaxTries_;
+          t2 = relaxPatch(patch, countTangled, t0);
+          if (t2 < t0) {
+            kept = true;
+            gained += t0 - t2;
+            continue;
           }
+        }
+        restore(patch, uvSave, xyzSave, nSave);
+        if (relaxTries_ < kMaxRelaxPatches) {
+          ++relaxTries_;
+          t2 = relaxPatch(patch, countTangled, t0);
+          if (t2 < t0) {
+            kept = true;
+            gained += t0 - t2;
+            continue;
+          }
+          restore(patch, uvSave, xyzSave, nSave);
         }
       }
     }
     return gained;
   }
 
+  /// Patch untangling budget of one escape (per element and ring at most two attempts), and
+  /// the largest patch it untangles (at most 60 sweeps over its nodes per attempt).
+  static constexpr int kMaxRelaxPatches = 48;
+  static constexpr std::size_t kMaxRelaxPatchNodes = 96;
+
+ private:
+  int relaxTries_ = 0;
+
+  void restore(const std::vector<std::size_t>& patch, const std::vector<Vec2>& uvSave,
+               const std::vector<Vec3>& xyzSave, const std::vector<Vec3>& nSave) {
+    for (std::size_t q = 0; q < patch.size(); ++q) {
+      s_.uv[patch[q]] = uvSave[q];
+      s_.xyz[patch[q]] = xyzSave[q];
+      s_.nodeNormal[patch[q]] = nSave[q];
+      s_.d2Valid[patch[q]] = 0;
+    }
+  }
+
+  /// Untangles a stuck patch of Face nodes (the rest of the mesh held) by Gauss–Seidel sweeps
+  /// of the local Newton steps over its nodes, with a node's move allowed to tangle elements
+  /// of its submesh as long as f̂ decreases — as the paper's untangling, which the sweep's
+  /// safeguard (never more tangled elements around a node) forbids. Linear triangles use the
+  /// σ of their projection on the reference normal meanwhile: continuous across a triangle
+  /// standing on its edge across a curved surface (where ±‖c‖ jumps, so that the barrier is
+  /// invisible to the Newton steps). δ̂ follows a continuation 4, 1, 1/4, 1/16 × the sweep's,
+  /// 15 sweeps each. Leaves the patch at the stage with the fewest tangled elements among
+  /// `countTangled`'s (by the sweep's rule) and returns that count (`t0`, positions left as
+  /// they are, when no stage beats it).
+  template <class Count>
+  std::size_t relaxPatch(const std::vector<std::size_t>& patch, Count& countTangled,
+                         std::size_t t0) {
+    const double deltaHat = s_.deltaHat;
+    const bool track = s_.trackCache;
+    s_.trackCache = false;
+    s_.relaxTangled = true;
+    std::size_t best = t0;
+    std::vector<Vec2> uvBest;
+    std::vector<Vec3> xyzBest, nBest;
+    const double dMin = std::max(deltaHat, 1e-4);
+    for (double dh = 4.0 * dMin; dh >= dMin / 20.0; dh *= 0.25) {  // 4, 1, 1/4, 1/16 × δ̂
+      s_.deltaHat = dh;
+      for (int sweep = 0; sweep < 15; ++sweep) {
+        double mv = 0.0;
+        for (std::size_t j : patch) mv += update(j);
+        if (mv == 0.0) break;
+      }
+      s_.relaxTangled = false;  // count with the sweep's rule
+      const std::size_t t = countTangled();
+      s_.relaxTangled = true;
+      if (t < best) {
+        best = t;
+        uvBest.clear();
+        xyzBest.clear();
+        nBest.clear();
+        for (std::size_t j : patch) {
+          uvBest.push_back(s_.uv[j]);
+          xyzBest.push_back(s_.xyz[j]);
+          nBest.push_back(s_.nodeNormal[j]);
+        }
+        if (t == 0) break;
+      }
+    }
+    s_.relaxTangled = false;
+    s_.deltaHat = deltaHat;
+    s_.trackCache = track;
+    if (best < t0) restore(patch, uvBest, xyzBest, nBest);
+    return best;
+  }
+
+ public:
  private:
   State& s_;
   Worker& w_;
@@ -796,7 +930,7 @@ class NodeUpdater {
       }
       if (ev.tangled) {
         ++r.tangled;
-        if (cur && r.tangled > cur->tangled) return reject();
+        if (cur && r.tangled > cur->tangled && !s_.relaxTangled) return reject();
       }
       if (!std::isfinite(ev.eta)) {
         r.finite = false;
@@ -833,7 +967,7 @@ class NodeUpdater {
   /// Acceptance test of a complete trial against the current state.
   bool acceptable(const LocalEval& cur, const LocalEval& trial) const {
     if (!trial.finite) return false;
-    if (trial.tangled > cur.tangled) return false;
+    if (trial.tangled > cur.tangled && !s_.relaxTangled) return false;
     if (!(trial.f < cur.f)) return false;
     if (s_.opt.monotone && cur.tangled == 0 && trial.minQuality < cur.minQuality) return false;
     return true;
@@ -894,7 +1028,7 @@ class NodeUpdater {
       // Cap the step so that its first-order 3D length is at most the local size.
       const double len3 = (d.du * dir.x() + d.dv * dir.y()).norm();
       if (len3 > L) dir *= L / len3;
-      const bool wantQ = monotone && cur.tangled == 0;
+      const bool wantQ = monotone && cur.tangled == 0 && !s_.relaxTangled;
       Vec2 uvNew;
       SurfaceD2 dn;
       Vec3 nn;
@@ -1472,7 +1606,7 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
 
   double prevDelta = -1.0;
   std::size_t bestTangled = g.tangled;
-  int stalled = 0, zeroMoves = 0;
+  int stalled = 0, zeroMoves = 0, stuckSweeps = 0;
   for (int sweep = 1; movable > 0 && sweep <= opt.maxSweeps; ++sweep) {
     freezeScales();
     s.deltaHat = chooseDelta(g);
@@ -1558,8 +1692,10 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
         return res;  // the mesh was never touched
       }
     }
-    if (g.tangled > 0 && g.tangled >= bestTangled &&
-        NodeUpdater(s, *workers[0]).escapeTangledElements(frozen) > 0)
+    // Sweeps in a row that left more tangled elements than the best so far.
+    stuckSweeps = (g.tangled > 0 && g.tangled >= bestTangled) ? stuckSweeps + 1 : 0;
+    if (stuckSweeps > 0 &&
+        NodeUpdater(s, *workers[0]).escapeTangledElements(frozen, stuckSweeps >= 3) > 0)
       g = fullEval(s.deltaHat);  // a stuck element untangled by moving its nodes together
     if (g.tangled > 0 && opt.deltaPolicy == "auto") {
       // Untangling stalls: cycle ε through ε, ε/3, ε/9 (see OptimizeOptions::deltaEpsilon).
