@@ -25,8 +25,12 @@
 // node whose Newton step fails or only creeps tries the centre of its kernel in (u,v) and the
 // centroid of its neighbours; a sliding node scans its interval on the edge; between sweeps
 // without progress, the Face nodes of a stuck element and of up to three rings around it are
-// moved together to the harmonic embedding of that patch. Tangled elements without a movable
-// node cannot change: they do not keep δ > 0 and are reported (OptimizeResult::warnings).
+// moved together to the harmonic embedding of that patch, and after three such sweeps in a
+// row the patch is also untangled jointly (Newton steps on its nodes alone that may tangle
+// more elements while the objective drops, δ stepped down from 4× to 1/16 of the sweep's,
+// projected areas in place of signed ones so that thin elements standing across a curved
+// surface can turn over). Tangled elements without a movable node cannot change: they do
+// not keep δ > 0 and are reported (OptimizeResult::warnings).
 //
 // Guarantees: the number of tangled elements of a node's submesh never increases (so the
 // mesh's never does); in monotone mode the minimum quality of a valid submesh never
