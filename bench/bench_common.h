@@ -17,8 +17,7 @@
 namespace surfmesh::bench {
 
 inline double now() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
-      .count();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
 /// Peak resident set size of this process in bytes (VmHWM from /proc/self/status).

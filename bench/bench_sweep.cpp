@@ -8,7 +8,6 @@
 //
 // Prints one '|'-separated table row (see --header for the columns).
 #include "bench_common.h"
-
 #include "surfmesh/cad/occ_surface.h"
 #include "surfmesh/geometry/analytic_surfaces.h"
 #include "surfmesh/mesh/quality.h"
@@ -78,25 +77,35 @@ int main(int argc, char** argv) {
   for (int a = 1; a < argc; ++a) {
     const std::string k = argv[a];
     auto next = [&]() { return a + 1 < argc ? std::string(argv[++a]) : std::string(); };
-    if (k == "--surface") kind = next();
-    else if (k == "--elements") elements = std::atof(next().c_str());
-    else if (k == "--threads") threads = std::atoi(next().c_str());
-    else if (k == "--tangled-fraction") tangledFraction = std::atof(next().c_str());
-    else if (k == "--max-sweeps") maxSweeps = std::atoi(next().c_str());
-    else if (k == "--header") header = true;
-    else if (k == "--trace") trace = true;
-    else if (k == "--measure") measureName = next();
+    if (k == "--surface")
+      kind = next();
+    else if (k == "--elements")
+      elements = std::atof(next().c_str());
+    else if (k == "--threads")
+      threads = std::atoi(next().c_str());
+    else if (k == "--tangled-fraction")
+      tangledFraction = std::atof(next().c_str());
+    else if (k == "--max-sweeps")
+      maxSweeps = std::atoi(next().c_str());
+    else if (k == "--header")
+      header = true;
+    else if (k == "--trace")
+      trace = true;
+    else if (k == "--measure")
+      measureName = next();
     else {
       std::fprintf(stderr, "unknown argument %s\n", k.c_str());
       return 2;
     }
   }
   if (header) {
-    std::printf("| surface | elements | threads | tangled in→out | min q in→out | mean q out | "
-                "sweeps | stop | optimize s | setup s | sweep 2 s | mean sweep s | floor s | "
-                "sweep2/floor | mean/floor | peak MB | bytes/elem |\n");
-    std::printf("|---|---:|---:|---|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|"
-                "---:|\n");
+    std::printf(
+        "| surface | elements | threads | tangled in→out | min q in→out | mean q out | "
+        "sweeps | stop | optimize s | setup s | sweep 2 s | mean sweep s | floor s | "
+        "sweep2/floor | mean/floor | peak MB | bytes/elem |\n");
+    std::printf(
+        "|---|---:|---:|---|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|"
+        "---:|\n");
     return 0;
   }
   const std::unique_ptr<Surface> surf = makeSurface(kind);
@@ -154,9 +163,8 @@ int main(int argc, char** argv) {
   // Setup ≈ optimize time − time of the sweeps measured between callbacks (sweep 1 included
   // in the setup estimate, so "setup" is an upper bound).
   const double sweep2 = stamps.size() >= 2 ? stamps[1] - stamps[0] : tEnd - tStart;
-  const double meanSweep = stamps.size() >= 2
-                               ? (stamps.back() - stamps.front()) / (stamps.size() - 1)
-                               : tEnd - tStart;
+  const double meanSweep =
+      stamps.size() >= 2 ? (stamps.back() - stamps.front()) / (stamps.size() - 1) : tEnd - tStart;
   const double setup = (stamps.empty() ? tEnd : stamps.front()) - tStart - meanSweep;
   if (trace) {
     const MeshQuality mq = measureQuality(mesh, measureByName("shape"));
@@ -172,11 +180,12 @@ int main(int argc, char** argv) {
     }
   }
   const double peak = peakRssBytes();
-  std::printf("| %s | %zu | %d | %zu→%zu | %.3f→%.3f | %.4f | %d | %s | %.3f | %.3f | %.4f | "
-              "%.4f | %.5f | %.2f | %.2f | %.0f | %.0f |\n",
-              kind.c_str(), mesh.elementCount(), r.threadsUsed, r.before.tangled, r.after.tangled,
-              r.before.min, r.after.min, r.after.mean, r.sweeps, stopReasonName(r.reason),
-              r.seconds, setup, sweep2, meanSweep, floorSec, sweep2 / floorSec,
-              meanSweep / floorSec, peak / 1e6, peak / mesh.elementCount());
+  std::printf(
+      "| %s | %zu | %d | %zu→%zu | %.3f→%.3f | %.4f | %d | %s | %.3f | %.3f | %.4f | "
+      "%.4f | %.5f | %.2f | %.2f | %.0f | %.0f |\n",
+      kind.c_str(), mesh.elementCount(), r.threadsUsed, r.before.tangled, r.after.tangled,
+      r.before.min, r.after.min, r.after.mean, r.sweeps, stopReasonName(r.reason), r.seconds, setup,
+      sweep2, meanSweep, floorSec, sweep2 / floorSec, meanSweep / floorSec, peak / 1e6,
+      peak / mesh.elementCount());
   return 0;
 }
