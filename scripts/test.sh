@@ -91,8 +91,8 @@ fi
 # ---- a. clang-format ---------------------------------------------------------------------
 say "clang-format"
 mapfile -t FORMAT_FILES < <(
-  { find src/core -type f \( -name '*.h' -o -name '*.cpp' \) 2>/dev/null
-    find src/bindings -maxdepth 1 -type f -name '*.cpp' 2>/dev/null; } | sort)
+  { find src/core bench tests/cpp fuzz -type f \( -name '*.h' -o -name '*.cpp' \) 2>/dev/null
+    find src/bindings -maxdepth 1 -type f \( -name '*.h' -o -name '*.cpp' \) 2>/dev/null; } | sort)
 if [ "${#FORMAT_FILES[@]}" -eq 0 ]; then
   record "clang-format" 0 0 "(no files)"
 else
