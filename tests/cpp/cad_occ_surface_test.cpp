@@ -27,6 +27,8 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <thread>
+#include <vector>
 
 using namespace surfmesh;
 
@@ -234,6 +236,73 @@ TEST(OccFaceSurface, ContainsAgreesWithTheOccClassifierEverywhere) {
     EXPECT_GT(inside, checked / 5);
     EXPECT_LT(inside, checked);
   }
+}
+
+// The copies of a face share its classifier and grid; two threads asking contains() of their
+// own copies at once, next to the trimming loops (where the classifier is asked), get the
+// answers of OCC's classifier. Faces with several wires (holes) matter most: OCC's classifier
+// walks its wires through sequences that cache the last item asked for (not thread-safe).
+TEST(OccFaceSurface, CopiesOnTwoThreadsAgreeWithTheClassifierNextToHoles) {
+  auto shape = load("occt_housing_bottom.brep");
+  std::size_t faces = 0, checked = 0;
+  for (int f = 0; f < shape->faceCount(); ++f) {
+    const TopoDS_Face& face = shape->face(f);
+    int wires = 0;
+    for (TopExp_Explorer ex(face, TopAbs_WIRE); ex.More(); ex.Next()) ++wires;
+    if (wires < 2) continue;
+    ++faces;
+    const OccFaceSurface original(face, f);
+    const bool recadre = original.uTurnPeriod() == 0.0 && original.vTurnPeriod() == 0.0;
+    const ParamBounds b = original.faceUVBounds();
+    const double W = b.umax - b.umin, H = b.vmax - b.vmin;
+    // Points within a sub-cell of the pcurves.
+    std::mt19937 rng(static_cast<unsigned>(f) + 1);
+    std::uniform_real_distribution<double> U(0.0, 1.0);
+    std::vector<Vec2> pts;
+    for (TopExp_Explorer ex(face, TopAbs_EDGE); ex.More(); ex.Next()) {
+      double a = 0, c = 0;
+      const auto pc = BRep_Tool::CurveOnSurface(TopoDS::Edge(ex.Current()), face, a, c);
+      if (pc.IsNull()) continue;
+      for (int k = 0; k < 250; ++k) {
+        const gp_Pnt2d q = pc->Value(a + (c - a) * U(rng));
+        const double r = U(rng) / (48.0 * 16.0), t = 6.283185307179586 * U(rng);
+        pts.emplace_back(q.X() + r * W * std::cos(t), q.Y() + r * H * std::sin(t));
+      }
+    }
+    BRepTopAdaptor_FClass2d ref(face, original.uvTolerance());
+    std::vector<char> expected(pts.size());
+    for (std::size_t k = 0; k < pts.size(); ++k) {
+      const Vec2 w = original.wrap(pts[k]);
+      const bool inBox = (original.isUPeriodic() || (w.x() >= b.umin - original.uvTolerance() &&
+                                                     w.x() <= b.umax + original.uvTolerance())) &&
+                         (original.isVPeriodic() || (w.y() >= b.vmin - original.uvTolerance() &&
+                                                     w.y() <= b.vmax + original.uvTolerance()));
+      const TopAbs_State st = ref.Perform(gp_Pnt2d(w.x(), w.y()), recadre);
+      expected[k] = inBox && (st == TopAbs_IN || st == TopAbs_ON);
+    }
+    std::vector<char> got[2];
+    std::vector<std::unique_ptr<Surface>> copies;
+    for (int t = 0; t < 2; ++t) copies.push_back(original.clone());
+    std::vector<std::thread> threads;
+    for (int t = 0; t < 2; ++t)
+      threads.emplace_back([&, t]() {
+        got[t].resize(pts.size());
+        for (int rep = 0; rep < 3; ++rep)
+          for (std::size_t k = 0; k < pts.size(); ++k) {
+            const std::size_t q = t == 0 ? k : pts.size() - 1 - k;
+            got[t][q] = copies[static_cast<std::size_t>(t)]->contains(pts[q].x(), pts[q].y());
+          }
+      });
+    for (auto& th : threads) th.join();
+    for (int t = 0; t < 2; ++t)
+      for (std::size_t k = 0; k < pts.size(); ++k)
+        if (got[t][k] != expected[k])
+          ADD_FAILURE() << "face " << f << " thread " << t << " at " << pts[k].transpose()
+                        << ": contains " << int(got[t][k]) << ", classifier " << int(expected[k]);
+    checked += pts.size();
+  }
+  std::cout << faces << " faces with holes, " << checked << " points\n";
+  EXPECT_GE(faces, 3u);
 }
 
 TEST(OccFaceSurface, PeriodicFacesWrapAroundTheirOwnRange) {

@@ -329,6 +329,9 @@ struct OccFaceSurface::TrimShared {
   std::once_flag once;
   std::unique_ptr<BRepTopAdaptor_FClass2d> classifier;
   std::unique_ptr<TrimGrid> grid;  // null: not usable (a missing or pathological pcurve)
+  /// Serializes the classifier's queries: BRepTopAdaptor_FClass2d::Perform is const but not
+  /// thread-safe (its sequences of wires cache the last item they were asked for).
+  std::mutex classifierMutex;
 };
 
 namespace {
@@ -430,6 +433,7 @@ const OccFaceSurface::TrimShared& OccFaceSurface::trimShared() const {
 }
 
 bool OccFaceSurface::classifyWithClassifier(double u, double v) const {
+  std::lock_guard<std::mutex> lock(trim_->classifierMutex);
   const TopAbs_State st = trim_->classifier->Perform(
       gp_Pnt2d(u, v), uTurn_ == 0.0 && vTurn_ == 0.0 ? Standard_True : Standard_False);
   return st == TopAbs_IN || st == TopAbs_ON;

@@ -22,8 +22,8 @@
 // Neither class is thread-safe (OCC adaptors and the lazily classified cells are not): use
 // clone() to get an independent copy per thread. A face's classifier and the pcurve index of
 // its grid are built once, on the first contains() of any copy, and shared by all copies
-// (BRepTopAdaptor_FClass2d::Perform only reads the classifier); each copy keeps its own cell
-// states, starting from those of the surface it was cloned from.
+// (the classifier's queries, rare once the grid answers, are serialized by a mutex); each
+// copy keeps its own cell states, starting from those of the surface it was cloned from.
 #pragma once
 
 #include "surfmesh/geometry/curve.h"
