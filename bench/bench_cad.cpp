@@ -9,7 +9,8 @@
 // OUT.bin: the same layout with the optimized positions. Prints one JSON object (optimize: also
 // the floor of the speed issue — one first-derivative evaluation per Face node — and the time of
 // sweep 1 and of the mean later sweep). Environment for experiments: BENCH_RELTOL,
-// BENCH_SWEEPS, BENCH_MEASURE override relTol, maxSweeps and the measure.
+// BENCH_SWEEPS, BENCH_MEASURE override relTol, maxSweeps and the measure; BENCH_BOUNDARY
+// ("fixed" or "slide") the boundary mode of the CAD recovery.
 #include "bench_common.h"
 #include "surfmesh/cad/cad_bridge.h"
 #include "surfmesh/cad/cad_shape.h"
@@ -75,7 +76,9 @@ int main(int argc, char** argv) {
     const double tShape = now() - t0;
     Dump d = readDump(argv[3]);
     const double t1 = now();
-    CadMesh cm(shape, triangleMeshInput(d.xyz, d.tris));
+    BridgeOptions bopt;
+    if (const char* v = std::getenv("BENCH_BOUNDARY")) bopt.boundary = v;
+    CadMesh cm(shape, triangleMeshInput(d.xyz, d.tris), bopt);
     const double tBridge = now() - t1;
     SurfaceMesh& m = cm.mesh();
     const PlanarMeasure& shapeMeasure = measureByName("shape");
@@ -132,11 +135,12 @@ int main(int argc, char** argv) {
     std::printf(
         "{\"seconds\": %.4f, \"sweeps\": %d, \"reason\": \"%s\", \"threads\": %d, "
         "\"bridge_s\": %.3f, \"shape_s\": %.3f, \"min\": %.6f, \"mean\": %.6f, "
-        "\"tangled\": %zu, \"before_tangled\": %zu, \"peak_mb\": %.1f, "
+        "\"tangled\": %zu, \"tangled_unmovable\": %zu, \"before_tangled\": %zu, "
+        "\"peak_mb\": %.1f, "
         "\"floor_s\": %.6f, \"sweep1_s\": %.6f, \"mean_sweep_s\": %.6f}\n",
         r.seconds, r.sweeps, stopReasonName(r.reason), r.threadsUsed, tBridge, tShape, r.after.min,
-        r.after.mean, r.after.tangled, r.before.tangled, peakRssBytes() / 1e6, floorSec, sweep1,
-        meanSweep);
+        r.after.mean, r.after.tangled, r.tangledUnmovable.size(), r.before.tangled,
+        peakRssBytes() / 1e6, floorSec, sweep1, meanSweep);
   } catch (const std::exception& ex) {
     std::printf("{\"error\": \"%s\"}\n", ex.what());
     return 1;

@@ -2,6 +2,7 @@
 """SurfMesh vs Gmsh 4.8.4 (Laplace2D niter=10, Relocate2D) on the same perturbed meshes.
 
     /usr/bin/python3 bench/gmsh_compare.py --bench-dir BUILD/bench [--cases torus,part,part10,part100]
+        [--part FILE.step|.brep] [--size H] [--seed S] [--amp A] [--tangle-fraction F]
 
 For every case: the shape is built or read by Gmsh (OCC kernel) and meshed by Gmsh; interior
 surface nodes are moved in (u,v) and put back ON the surface (x = φ(u,v) with
@@ -12,8 +13,11 @@ elements are tangled; the shape (BREP) and the perturbed mesh are written once, 
 Every output is measured by the same code (bench_cad measure: SurfMesh's shape quality, the
 tangled count, the largest node distance to the shape).
 
-The CAD part is the engine block of Gmsh's own benchmarks (../shared/data/cad, GPL: read
-from there, never copied into this repository).
+The CAD part is by default the engine block of Gmsh's own benchmarks (../shared/data/cad, GPL:
+read from there, never copied into this repository); --part takes any STEP or BREP file, meshed
+with the size --size (default: the bounding-box diagonal / 21, which is 4.0 on the engine block)
+and h/√10, h/10 for part10 and part100. The perturbation is random (--seed) with amplitude
+--amp × h and stops once --tangle-fraction of the triangles (at least 20) are tangled.
 """
 import argparse
 import json
@@ -158,7 +162,7 @@ def run_bench_cad(bench_dir, *args):
         return {"error": (out.stdout + out.stderr)[-300:]}
 
 
-def build_case(name):
+def build_case(name, part, size):
     global H_LOCAL
     gmsh.clear()
     gmsh.option.setNumber("General.Terminal", 0)
@@ -168,11 +172,13 @@ def build_case(name):
         h = 1.07  # ~1600 nodes, ~3200 triangles: the paper's torus
         target, amp = 73, 1.2
     else:
-        path = os.path.join(SHARED, "gmsh_engine_block.step")
-        gmsh.model.occ.importShapes(path)
+        gmsh.model.occ.importShapes(part)
         gmsh.model.occ.synchronize()
         factor = {"part": 1.0, "part10": 10 ** -0.5, "part100": 0.1}[name]
-        h = 4.0 * factor  # engine block: bbox diagonal 84
+        if size is None:
+            box = gmsh.model.getBoundingBox(-1, -1)
+            size = float(np.linalg.norm(np.subtract(box[3:], box[:3]))) / 21.0
+        h = size * factor  # engine block: bbox diagonal 84, h = 4.0
         target, amp = None, 1.2
     gmsh.option.setNumber("Mesh.MeshSizeMin", 0.0)
     gmsh.option.setNumber("Mesh.MeshSizeMax", h)
@@ -191,16 +197,28 @@ def main():
     ap.add_argument("--cases", default="torus,part,part10,part100")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--work", default=None)
+    ap.add_argument("--part", default=os.path.join(SHARED, "gmsh_engine_block.step"),
+                    help="STEP or BREP file of the part cases (default: the engine block)")
+    ap.add_argument("--size", type=float, default=None,
+                    help="mesh size of the part case (default: bounding-box diagonal / 21)")
+    ap.add_argument("--seed", type=int, default=5)
+    ap.add_argument("--amp", type=float, default=1.2,
+                    help="perturbation amplitude in mesh sizes")
+    ap.add_argument("--tangle-fraction", type=float, default=1e-3,
+                    help="perturb until this fraction of the triangles is tangled (part cases)")
     a = ap.parse_args()
+    os.makedirs(a.work, exist_ok=True) if a.work else None
     work = a.work or tempfile.mkdtemp(prefix="surfmesh_bench_")
     gmsh.initialize()
     rows = []
     for case in a.cases.split(","):
-        target, amp, t_mesh = build_case(case)
+        target, amp, t_mesh = build_case(case, a.part, a.size)
+        if case != "torus":
+            amp = a.amp
         _, xyz0, tris = mesh_arrays()
         if target is None:
-            target = max(20, tris.shape[0] // 1000)  # ~0.1 % of the elements tangled
-        tangled_in = perturb(target, amp, seed=5)
+            target = max(20, int(a.tangle_fraction * tris.shape[0]))
+        tangled_in = perturb(target, amp, seed=a.seed)
         snap = snapshot_nodes()
         brep = os.path.join(work, f"{case}.brep")
         gmsh.write(brep)
@@ -232,6 +250,7 @@ def main():
             m["bridge_s"] = r.get("bridge_s")
             m["floor_s"] = r.get("floor_s")
             m["mean_sweep_s"] = r.get("mean_sweep_s")
+            m["tangled_unmovable"] = r.get("tangled_unmovable")
             rows.append((case, f"SurfMesh {threads} thread(s)", r.get("seconds"), m,
                          tris.shape[0]))
             print(f"  SurfMesh threads={threads}: {r}", flush=True)
@@ -253,6 +272,9 @@ def main():
         if tool.startswith("SurfMesh"):
             notes = (f"{m.get('sweeps')} sweeps, {m.get('reason')}; CAD recovery "
                      f"{m.get('bridge_s')} s (not included)")
+            if m.get("tangled_unmovable"):
+                notes += (f"; {m['tangled_unmovable']} tangled without a movable node "
+                          "(all nodes on CAD edges, boundary fixed)")
             if m.get("floor_s") and m.get("mean_sweep_s") and (m.get("sweeps") or 0) > 1:
                 notes += f"; later sweeps {m['mean_sweep_s'] / m['floor_s']:.0f}× the floor"
         ts = f"{t:.3f}" if t is not None else "-"

@@ -244,6 +244,70 @@ TEST(Optimizer, NodesCrossThePeriodicSeamAndStayWrapped) {
   expectOnSurfaceAndInDomain(m);
 }
 
+// A tangle no node motion can repair beside one that can be repaired: one free node inside a
+// fixed C-shaped polygon (its kernel is empty: wherever the node is, the fan from it to the
+// polygon holds a tangled triangle), next to a perturbed square. The run untangles the square,
+// gives the fan up once untangling has made no progress for a while (instead of sweeping on to
+// maxSweeps), smooths the rest with δ = 0 and converges; the fan's tangled triangle is reported
+// as tangled with a movable node.
+TEST(Optimizer, GivesUpAnUnrepairableTangleAndSmoothsTheRest) {
+  const PlaneSurface plane({0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0.0, 5.0, 0.0, 3.0});
+  const GridMesh sq = squareMesh(12);
+  SurfaceMesh square = makeSingleSurfaceMesh(plane, sq.uv, ElementType::Tri3, sq.conn, sq.fixed);
+  perturbUntilTangled(square, plane, 12, 1.5 / 12, 1.5 / 12, 3);
+  ASSERT_GE(measureQuality(square, measureByName("shape")).stats.tangled, 12u);
+  GridMesh g;
+  g.uv = square.uv;
+  g.conn = sq.conn;
+  g.fixed = sq.fixed;
+  const std::size_t squareElements = sq.conn.size() / 3;
+  const Vec2 poly[8] = {{2, 0}, {5, 0}, {5, 1}, {3, 1}, {3, 2}, {5, 2}, {5, 3}, {2, 3}};
+  const std::int32_t base = static_cast<std::int32_t>(g.uv.size());
+  for (const Vec2& p : poly) {
+    g.fixed.push_back(static_cast<std::int32_t>(g.uv.size()));
+    g.uv.push_back(p);
+  }
+  const std::int32_t centre = static_cast<std::int32_t>(g.uv.size());
+  g.uv.emplace_back(2.5, 1.5);
+  for (std::int32_t k = 0; k < 8; ++k)
+    g.conn.insert(g.conn.end(), {centre, base + k, base + (k + 1) % 8});
+  SurfaceMesh m = makeSingleSurfaceMesh(plane, g.uv, ElementType::Tri3, g.conn, g.fixed);
+
+  OptimizeOptions opt;
+  opt.maxSweeps = 200;
+  std::vector<std::size_t> tangledPerSweep;
+  const OptimizeResult r = optimizeMesh(m, opt, [&](const OptimizeProgress& p) {
+    tangledPerSweep.push_back(p.tangled);
+    return true;
+  });
+  std::printf("square + C fan: %d sweeps, %s, tangled %zu -> %zu\n", r.sweeps,
+              stopReasonName(r.reason), r.before.tangled, r.after.tangled);
+  EXPECT_EQ(r.reason, StopReason::Converged);
+  EXPECT_LT(r.sweeps, 120);
+  for (std::size_t k = 1; k < tangledPerSweep.size(); ++k)
+    EXPECT_LE(tangledPerSweep[k], tangledPerSweep[k - 1]);
+  ASSERT_FALSE(r.tangledMovable.empty());
+  EXPECT_TRUE(r.tangledUnmovable.empty());
+  for (std::int32_t e : r.tangledMovable) EXPECT_GE(static_cast<std::size_t>(e), squareElements);
+  ASSERT_EQ(r.warnings.size(), 1u);
+  EXPECT_NE(r.warnings[0].find("some of their nodes may move"), std::string::npos);
+  // The square ends untangled and smoothed as it is when optimized alone.
+  const OptimizeResult alone = optimizeMesh(square, opt);
+  ASSERT_EQ(alone.after.tangled, 0u);
+  const MeshQuality q = measureQuality(m, measureByName("shape"));
+  double minQ = 1.0, meanQ = 0.0;
+  for (std::size_t e = 0; e < squareElements; ++e) {
+    EXPECT_FALSE(q.tangled[e]) << "element " << e;
+    minQ = std::min(minQ, q.quality[e]);
+    meanQ += q.quality[e] / static_cast<double>(squareElements);
+  }
+  std::printf("square: min %.4f mean %.4f; alone: min %.4f mean %.4f\n", minQ, meanQ,
+              alone.after.min, alone.after.mean);
+  EXPECT_GE(minQ, alone.after.min - 0.02);
+  EXPECT_NEAR(meanQ, alone.after.mean, 2e-3);
+  expectOnSurfaceAndInDomain(m);
+}
+
 TEST(Optimizer, RejectsBadOptions) {
   const TorusSurface torus(10, 4);
   const GridMesh g = periodicGridMesh(10, 8, 0, 2 * kPi, 0, 2 * kPi, true);

@@ -30,7 +30,10 @@
 // more elements while the objective drops, δ stepped down from 4× to 1/16 of the sweep's,
 // projected areas in place of signed ones so that thin elements standing across a curved
 // surface can turn over). Tangled elements without a movable node cannot change: they do
-// not keep δ > 0 and are reported (OptimizeResult::warnings).
+// not keep δ > 0 and are reported (OptimizeResult::warnings). Neither do, after
+// 6 × deltaStallSweeps sweeps without fewer tangled elements than ever before (every escape
+// tried with each ε twice), the elements still tangled: their nodes are held from then on,
+// the rest of the mesh is smoothed with δ = 0, and they are reported in tangledMovable.
 //
 // Guarantees: the number of tangled elements of a node's submesh never increases (so the
 // mesh's never does); in monotone mode the minimum quality of a valid submesh never
