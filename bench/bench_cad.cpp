@@ -90,11 +90,11 @@ int main(int argc, char** argv) {
       for (std::size_t e = 0; e < mq.quality.size(); ++e)
         if (!mq.tangled[e] && mq.quality[e] < 0.2) ++poor;
       std::printf(
-          "{\"elements\": %zu, \"nodes\": %zu, \"min\": %.6f, \"mean\": %.6f, "
-          "\"tangled\": %zu, \"below_0_2\": %zu, \"max_distance\": %.3e, "
-          "\"bridge_s\": %.3f, \"face_nodes\": %zu}\n",
-          q.elements, m.nodeCount(), q.min, q.mean, q.tangled, poor, rep.maxDistance, tBridge,
-          rep.faceNodes);
+          "{\"elements\": %zu, \"nodes\": %zu, \"min\": %.6f, \"max\": %.6f, "
+          "\"mean\": %.6f, \"std\": %.6f, \"tangled\": %zu, \"below_0_2\": %zu, "
+          "\"max_distance\": %.3e, \"bridge_s\": %.3f, \"face_nodes\": %zu}\n",
+          q.elements, m.nodeCount(), q.min, q.max, q.mean, q.stddev, q.tangled, poor,
+          rep.maxDistance, tBridge, rep.faceNodes);
       return 0;
     }
     if (mode != "optimize" || argc < 6) throw std::runtime_error("bad arguments");

@@ -191,6 +191,54 @@ def build_case(name, part, size):
     return target, amp, t_mesh
 
 
+def run_case(case, part, size, seed, amp_part, tangle_fraction, bench_dir, thread_counts, work,
+             verbose=True):
+    """Meshes and perturbs one case, runs Gmsh's two smoothers and SurfMesh with each thread
+    count on it; returns rows (case, tool, seconds, measures, elements). Needs gmsh initialized."""
+    rows = []
+    target, amp, t_mesh = build_case(case, part, size)
+    if case != "torus":
+        amp = amp_part
+    _, xyz0, tris = mesh_arrays()
+    if target is None:
+        target = max(20, int(tangle_fraction * tris.shape[0]))
+    perturb(target, amp, seed=seed)
+    snap = snapshot_nodes()
+    brep = os.path.join(work, f"{case}.brep")
+    gmsh.write(brep)
+    tags, xyz, tris = mesh_arrays()
+    inp = os.path.join(work, f"{case}_in.bin")
+    write_dump(inp, xyz, tris)
+    m_in = run_bench_cad(bench_dir, "measure", brep, inp)
+    if verbose:
+        print(f"\n## {case}: {tris.shape[0]} triangles, {xyz.shape[0]} nodes "
+              f"(gmsh meshing {t_mesh:.1f} s); perturbed: {m_in}", flush=True)
+    rows.append((case, "input", None, m_in, tris.shape[0]))
+    for method, niter in (("Laplace2D", 10), ("Relocate2D", 1)):
+        restore(snap)
+        t0 = time.perf_counter()
+        gmsh.model.mesh.optimize(method, niter=niter)
+        t = time.perf_counter() - t0
+        _, xyzg, _ = mesh_arrays()
+        out = os.path.join(work, f"{case}_{method}.bin")
+        write_dump(out, xyzg, tris)
+        m = run_bench_cad(bench_dir, "measure", brep, out)
+        rows.append((case, f"Gmsh {method}" + (f" niter={niter}" if niter > 1 else ""), t, m,
+                     tris.shape[0]))
+        if verbose:
+            print(f"  {method}: {t:.3f} s {m}", flush=True)
+    for threads in thread_counts:
+        out = os.path.join(work, f"{case}_surfmesh{threads}.bin")
+        r = run_bench_cad(bench_dir, "optimize", brep, inp, out, threads)
+        m = run_bench_cad(bench_dir, "measure", brep, out)
+        for k in ("sweeps", "reason", "bridge_s", "floor_s", "mean_sweep_s", "tangled_unmovable"):
+            m[k] = r.get(k)
+        rows.append((case, f"SurfMesh {threads} thread(s)", r.get("seconds"), m, tris.shape[0]))
+        if verbose:
+            print(f"  SurfMesh threads={threads}: {r}", flush=True)
+    return rows
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--bench-dir", required=True)
@@ -212,48 +260,8 @@ def main():
     gmsh.initialize()
     rows = []
     for case in a.cases.split(","):
-        target, amp, t_mesh = build_case(case, a.part, a.size)
-        if case != "torus":
-            amp = a.amp
-        _, xyz0, tris = mesh_arrays()
-        if target is None:
-            target = max(20, int(a.tangle_fraction * tris.shape[0]))
-        tangled_in = perturb(target, amp, seed=a.seed)
-        snap = snapshot_nodes()
-        brep = os.path.join(work, f"{case}.brep")
-        gmsh.write(brep)
-        tags, xyz, tris = mesh_arrays()
-        inp = os.path.join(work, f"{case}_in.bin")
-        write_dump(inp, xyz, tris)
-        m_in = run_bench_cad(a.bench_dir, "measure", brep, inp)
-        print(f"\n## {case}: {tris.shape[0]} triangles, {xyz.shape[0]} nodes "
-              f"(gmsh meshing {t_mesh:.1f} s); perturbed: {m_in}", flush=True)
-        rows.append((case, "input", None, m_in, tris.shape[0]))
-        for method, niter in (("Laplace2D", 10), ("Relocate2D", 1)):
-            restore(snap)
-            t0 = time.perf_counter()
-            gmsh.model.mesh.optimize(method, niter=niter)
-            t = time.perf_counter() - t0
-            _, xyzg, _ = mesh_arrays()
-            out = os.path.join(work, f"{case}_{method}.bin")
-            write_dump(out, xyzg, tris)
-            m = run_bench_cad(a.bench_dir, "measure", brep, out)
-            rows.append((case, f"Gmsh {method}" + (f" niter={niter}" if niter > 1 else ""), t, m,
-                         tris.shape[0]))
-            print(f"  {method}: {t:.3f} s {m}", flush=True)
-        for threads in sorted({1, a.threads}):
-            out = os.path.join(work, f"{case}_surfmesh{threads}.bin")
-            r = run_bench_cad(a.bench_dir, "optimize", brep, inp, out, threads)
-            m = run_bench_cad(a.bench_dir, "measure", brep, out)
-            m["sweeps"] = r.get("sweeps")
-            m["reason"] = r.get("reason")
-            m["bridge_s"] = r.get("bridge_s")
-            m["floor_s"] = r.get("floor_s")
-            m["mean_sweep_s"] = r.get("mean_sweep_s")
-            m["tangled_unmovable"] = r.get("tangled_unmovable")
-            rows.append((case, f"SurfMesh {threads} thread(s)", r.get("seconds"), m,
-                         tris.shape[0]))
-            print(f"  SurfMesh threads={threads}: {r}", flush=True)
+        rows += run_case(case, a.part, a.size, a.seed, a.amp, a.tangle_fraction, a.bench_dir,
+                         sorted({1, a.threads}), work)
     gmsh.finalize()
 
     print("\n| case | elements | tool | time s | ratio to Laplace2D | min q | mean q | tangled "

@@ -308,6 +308,46 @@ TEST(Optimizer, GivesUpAnUnrepairableTangleAndSmoothsTheRest) {
   expectOnSurfaceAndInDomain(m);
 }
 
+// The stopping rule weighs only the elements a move can change: a sliver between fixed nodes
+// (η ≈ 100, so ½(η − 1)² dwarfs the rest of f) beside a perturbed valid square changes nothing
+// in the square's run — same sweeps, same positions as the square optimized alone.
+TEST(Optimizer, AnElementBetweenFixedNodesDoesNotStopTheRunEarly) {
+  const PlaneSurface plane({0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0.0, 4.0, 0.0, 1.0});
+  const GridMesh sq = squareMesh(12);
+  SurfaceMesh square = makeSingleSurfaceMesh(plane, sq.uv, ElementType::Tri3, sq.conn, sq.fixed);
+  // Every interior node moved by up to a tenth of the spacing: valid (the half cells along
+  // the sides are half as wide), not optimal.
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> unif(-0.1 / 12, 0.1 / 12);
+  for (std::size_t i = 0; i < square.nodeCount(); ++i)
+    if (square.nodeKind[i] == NodeKind::Face) square.uv[i] += Vec2(unif(rng), unif(rng));
+  syncFaceNodes(square);
+  GridMesh g;
+  g.uv = square.uv;
+  g.conn = sq.conn;
+  g.fixed = sq.fixed;
+  const std::int32_t a = static_cast<std::int32_t>(g.uv.size());
+  g.uv.insert(g.uv.end(), {{2.0, 0.0}, {3.0, 0.0}, {2.5, 0.005}});
+  g.fixed.insert(g.fixed.end(), {a, a + 1, a + 2});
+  g.conn.insert(g.conn.end(), {a, a + 1, a + 2});
+  SurfaceMesh both = makeSingleSurfaceMesh(plane, g.uv, ElementType::Tri3, g.conn, g.fixed);
+  const MeshQuality q0 = measureQuality(both, measureByName("shape"));
+  const double sliverEta = q0.distortion.back();
+  ASSERT_GT(sliverEta, 50.0);
+  ASSERT_EQ(q0.stats.tangled, 0u);
+  OptimizeOptions opt;
+  opt.threads = 1;
+  const OptimizeResult rAlone = optimizeMesh(square, opt);
+  const OptimizeResult rBoth = optimizeMesh(both, opt);
+  std::printf("square alone: %d sweeps, mean %.5f; with the sliver: %d sweeps\n", rAlone.sweeps,
+              rAlone.after.mean, rBoth.sweeps);
+  EXPECT_GT(rAlone.sweeps, 2);
+  EXPECT_EQ(rBoth.sweeps, rAlone.sweeps);
+  EXPECT_EQ(rBoth.reason, rAlone.reason);
+  for (std::size_t i = 0; i < square.nodeCount(); ++i)
+    ASSERT_NEAR((both.xyz[i] - square.xyz[i]).norm(), 0.0, 1e-12) << "node " << i;
+}
+
 TEST(Optimizer, RejectsBadOptions) {
   const TorusSurface torus(10, 4);
   const GridMesh g = periodicGridMesh(10, 8, 0, 2 * kPi, 0, 2 * kPi, true);

@@ -39,7 +39,8 @@ BOUNDARY_MODES = ("fixed", "slide")
 OPTIMIZE_DEFAULTS = {
     "max_sweeps": 100,  # maximum number of Gauss-Seidel sweeps over the movable nodes
     "rel_tol": 1e-3,  # once untangled, stop when the objective's relative decrease over a sweep
-    "move_tol": 1e-3,  # is below rel_tol, or no node moved more than move_tol × its local size
+    # (over the elements with a movable node) is below rel_tol,
+    "move_tol": 1e-3,  # or when no node moved more than move_tol × its local size
     "inner_iterations": 1,  # Newton iterations per node and sweep (the paper uses 1)
     "max_line_search": 30,  # maximum halvings of the backtracking line search
     "delta_policy": "auto",  # "auto": δ from the smallest det S each sweep; "fixed": `delta`

@@ -1395,6 +1395,7 @@ namespace {
 struct GlobalEval {
   double objective = 0.0;         // ½ Σ (η − 1)² with the sweep's δ
   double objective0 = 0.0;        // the same with δ = 0 (+∞ while tangled)
+  double movable0 = 0.0;          // objective0 without the elements no move can change
   std::size_t tangled = 0;        // tangled elements with a movable node
   std::size_t frozenTangled = 0;  // tangled elements without one (no move can change them)
   double minSigma = kInf;
@@ -1544,10 +1545,11 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
       if (s.minSigma[e] <= 0.0 || !std::isfinite(et)) {
         ++g.tangled;
         g.minQuality = 0.0;
-        g.objective0 = kInf;
+        g.objective0 = g.movable0 = kInf;
       } else {
         g.minQuality = std::min(g.minQuality, 1.0 / et);
         g.objective0 += 0.5 * (et - 1.0) * (et - 1.0);
+        if (!frozen[e]) g.movable0 += 0.5 * (et - 1.0) * (et - 1.0);
       }
       g.minSigma = std::min(g.minSigma, s.minSigma[e]);
     }
@@ -1624,7 +1626,9 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
     // moved by more than moveTol × its local size since its last update.
     if (s.deltaHat > 0.0 || s.deltaHat != prevDelta) s.validFrom = s.clock + 1;
     prevDelta = s.deltaHat;
-    const double fStart = g.objective0;
+    // The stopping rule's f leaves out the elements no move can change: a poor element between
+    // fixed nodes would otherwise dwarf the decrease over the rest of the mesh.
+    const double fStartMovable = g.movable0;
     for (auto& w : workers) {
       w->maxRelMove = 0.0;
       w->updated = w->moved = 0;
@@ -1747,8 +1751,10 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
       break;
     }
     if (g.tangled == 0 && s.deltaHat == 0.0) {
+      const double fEndMovable = g.movable0;
       const bool decreaseSmall =
-          !(fStart > 0.0) || (fStart - fEnd) <= opt.relTol * std::max(fStart, 1e-300);
+          !(fStartMovable > 0.0) ||
+          (fStartMovable - fEndMovable) <= opt.relTol * std::max(fStartMovable, 1e-300);
       if (decreaseSmall || maxMove <= opt.moveTol) {
         res.reason = StopReason::Converged;
         break;
