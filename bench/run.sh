@@ -7,7 +7,9 @@
 #    10³…10⁶ triangles, 1 and 2 threads) and the floor ratio on OCC faces;
 # 2. SurfMesh vs Gmsh Laplace2D / Relocate2D on the same perturbed meshes (paper's torus, the
 #    engine block of ../shared/data/cad at 1×, 10×, 100× the elements);
-# 3. FreeCAD conversion cost vs optimization (bench/python/bench_conversion.py, freecadcmd).
+# 3. every CAD part of ../shared/data/cad, two perturbations each (bench/parts_compare.py) and
+#    the paper's Table 3 on a crank shaft and a gear-box housing (bench/paper_table3.py);
+# 4. FreeCAD conversion cost vs optimization (bench/python/bench_conversion.py, freecadcmd).
 set -e
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
 BUILD=${BUILD:-$ROOT/build-bench}
@@ -36,6 +38,14 @@ echo
 echo "## SurfMesh vs Gmsh"
 /usr/bin/python3 "$ROOT/bench/gmsh_compare.py" --bench-dir "$B" --cases "$CASES" --threads 2 \
   2>&1 | grep -v '^Info'
+echo
+if [ "$1" != "quick" ]; then
+  echo "## Every CAD part, two perturbations each"
+  /usr/bin/python3 "$ROOT/bench/parts_compare.py" --bench-dir "$B" 2>&1 | grep -v '^Info'
+  echo
+fi
+echo "## The paper's Table 3"
+/usr/bin/python3 "$ROOT/bench/paper_table3.py" --bench-dir "$B" 2>&1 | grep -v '^Info'
 echo
 echo "## FreeCAD conversion vs optimization"
 if [ -f "$ROOT/bench/python/bench_conversion.py" ]; then
