@@ -162,6 +162,20 @@ def run_bench_cad(bench_dir, *args):
         return {"error": (out.stdout + out.stderr)[-300:]}
 
 
+def bbox_diagonal():
+    """Diagonal of the current model's bounding box."""
+    box = gmsh.model.getBoundingBox(-1, -1)
+    return float(np.linalg.norm(np.subtract(box[3:], box[:3])))
+
+
+def set_mesh_size(h):
+    """Uniform size h (no curvature refinement), Frontal-Delaunay 2-D algorithm."""
+    gmsh.option.setNumber("Mesh.MeshSizeMin", 0.0)
+    gmsh.option.setNumber("Mesh.MeshSizeMax", h)
+    gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
+    gmsh.option.setNumber("Mesh.Algorithm", 6)
+
+
 def build_case(name, part, size):
     global H_LOCAL
     gmsh.clear()
@@ -176,14 +190,10 @@ def build_case(name, part, size):
         gmsh.model.occ.synchronize()
         factor = {"part": 1.0, "part10": 10 ** -0.5, "part100": 0.1}[name]
         if size is None:
-            box = gmsh.model.getBoundingBox(-1, -1)
-            size = float(np.linalg.norm(np.subtract(box[3:], box[:3]))) / 21.0
+            size = bbox_diagonal() / 21.0
         h = size * factor  # engine block: bbox diagonal 84, h = 4.0
-        target, amp = None, 1.2
-    gmsh.option.setNumber("Mesh.MeshSizeMin", 0.0)
-    gmsh.option.setNumber("Mesh.MeshSizeMax", h)
-    gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
-    gmsh.option.setNumber("Mesh.Algorithm", 6)
+        target, amp = None, None  # set by the caller
+    set_mesh_size(h)
     t0 = time.perf_counter()
     gmsh.model.mesh.generate(2)
     t_mesh = time.perf_counter() - t0
@@ -197,7 +207,7 @@ def run_case(case, part, size, seed, amp_part, tangle_fraction, bench_dir, threa
     count on it; returns rows (case, tool, seconds, measures, elements). Needs gmsh initialized."""
     rows = []
     target, amp, t_mesh = build_case(case, part, size)
-    if case != "torus":
+    if amp is None:
         amp = amp_part
     _, xyz0, tris = mesh_arrays()
     if target is None:
@@ -255,7 +265,8 @@ def main():
     ap.add_argument("--tangle-fraction", type=float, default=1e-3,
                     help="perturb until this fraction of the triangles is tangled (part cases)")
     a = ap.parse_args()
-    os.makedirs(a.work, exist_ok=True) if a.work else None
+    if a.work:
+        os.makedirs(a.work, exist_ok=True)
     work = a.work or tempfile.mkdtemp(prefix="surfmesh_bench_")
     gmsh.initialize()
     rows = []

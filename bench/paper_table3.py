@@ -19,7 +19,6 @@ import os
 import tempfile
 import time
 
-import numpy as np
 import gmsh
 
 import gmsh_compare as gc
@@ -38,15 +37,11 @@ def mesh_with_count(path, target):
     gmsh.option.setNumber("General.Terminal", 0)
     gmsh.model.occ.importShapes(path)
     gmsh.model.occ.synchronize()
-    box = gmsh.model.getBoundingBox(-1, -1)
-    h = float(np.linalg.norm(np.subtract(box[3:], box[:3]))) / 30.0
+    h = gc.bbox_diagonal() / 30.0
     best = None
     for _ in range(6):
         gmsh.model.mesh.clear()
-        gmsh.option.setNumber("Mesh.MeshSizeMin", 0.0)
-        gmsh.option.setNumber("Mesh.MeshSizeMax", h)
-        gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
-        gmsh.option.setNumber("Mesh.Algorithm", 6)
+        gc.set_mesh_size(h)
         gmsh.model.mesh.generate(2)
         n = gc.mesh_arrays()[2].shape[0]
         if best is None or abs(n - target) < abs(best[1] - target):
@@ -55,7 +50,7 @@ def mesh_with_count(path, target):
             return n
         h *= (n / target) ** 0.5
     gmsh.model.mesh.clear()
-    gmsh.option.setNumber("Mesh.MeshSizeMax", best[0])
+    gc.set_mesh_size(best[0])
     gmsh.model.mesh.generate(2)
     return gc.mesh_arrays()[2].shape[0]
 

@@ -1535,14 +1535,18 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
   // (δ > 0) sweeps going nor sets δ; it is counted apart.
   // Also set, during the run, for the elements whose untangling is given up (see giveUpSweeps).
   std::vector<unsigned char> frozen = frozenElements(mesh);
+  auto cachedTangled = [&](std::size_t e) {
+    return s.minSigma[e] <= 0.0 || !std::isfinite(s.eta0[e]);
+  };
   auto summarize = [&](GlobalEval& g) {
     for (std::size_t e = 0; e < E; ++e) {
       const double et = s.eta0[e];
-      if (frozen[e] && (s.minSigma[e] <= 0.0 || !std::isfinite(et))) {
+      const bool tangled = cachedTangled(e);
+      if (frozen[e] && tangled) {
         ++g.frozenTangled;
         continue;
       }
-      if (s.minSigma[e] <= 0.0 || !std::isfinite(et)) {
+      if (tangled) {
         ++g.tangled;
         g.minQuality = 0.0;
         g.objective0 = g.movable0 = kInf;
@@ -1719,7 +1723,7 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
       // reported in tangledMovable) and the rest of the mesh is smoothed with δ = 0. The cache
       // is current (δ > 0 sweeps end with a full evaluation).
       for (std::size_t e = 0; e < E; ++e)
-        if (!frozen[e] && (s.minSigma[e] <= 0.0 || !std::isfinite(s.eta0[e]))) frozen[e] = 1;
+        if (!frozen[e] && cachedTangled(e)) frozen[e] = 1;
       g = cachedEval();
       continue;
     }
