@@ -9,7 +9,8 @@
 // OUT.bin: the same layout with the optimized positions. Prints one JSON object (optimize: also
 // the floor of the speed issue — one first-derivative evaluation per Face node — and the time of
 // sweep 1 and of the mean later sweep). Environment for experiments: BENCH_RELTOL,
-// BENCH_SWEEPS, BENCH_MEASURE override relTol, maxSweeps and the measure; BENCH_BOUNDARY
+// BENCH_SWEEPS, BENCH_MEASURE, BENCH_MONOTONE (0/1) override relTol, maxSweeps, the measure and
+// the monotone option; BENCH_BOUNDARY
 // ("fixed" or "slide") the boundary mode of the CAD recovery.
 #include "bench_common.h"
 #include "surfmesh/cad/cad_bridge.h"
@@ -114,6 +115,7 @@ int main(int argc, char** argv) {
     if (const char* v = std::getenv("BENCH_RELTOL")) opt.relTol = std::atof(v);
     if (const char* v = std::getenv("BENCH_SWEEPS")) opt.maxSweeps = std::atoi(v);
     if (const char* v = std::getenv("BENCH_MEASURE")) opt.measure = v;
+    if (const char* v = std::getenv("BENCH_MONOTONE")) opt.monotone = std::atoi(v) != 0;
     // Floor of the speed issue: one first-derivative evaluation per movable Face node, on a
     // clone of its face's surface (min of 3 runs), in the mesh's node order.
     double floorSec = 1e300;

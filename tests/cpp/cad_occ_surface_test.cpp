@@ -23,6 +23,7 @@
 #include <cmath>
 #include <functional>
 #include <iostream>
+#include <memory>
 #include <random>
 #include <sstream>
 #include <stdexcept>
@@ -236,6 +237,47 @@ TEST(OccFaceSurface, ContainsAgreesWithTheOccClassifierEverywhere) {
     EXPECT_GT(inside, checked / 5);
     EXPECT_LT(inside, checked);
   }
+}
+
+// The CAD recovery hands its classifier of a face over to the face's surface (offerClassifier):
+// all copies then use it, it is taken once only, and contains() still agrees with a classifier
+// built on its own. A classifier offered after the copies built theirs is left to the caller.
+TEST(OccFaceSurface, AnOfferedClassifierIsTakenOnceAndSharedByTheCopies) {
+  auto shape = load("occt_housing_bottom.brep");
+  std::size_t checked = 0, faces = 0;
+  for (int f = 0; f < shape->faceCount() && faces < 6; ++f) {
+    const TopoDS_Face& face = shape->face(f);
+    const OccFaceSurface s(face, f);
+    if (s.uTurnPeriod() != 0.0 || s.vTurnPeriod() != 0.0) continue;
+    ++faces;
+    auto offered = std::make_unique<BRepTopAdaptor_FClass2d>(face, s.uvTolerance());
+    s.offerClassifier(offered);
+    EXPECT_EQ(offered, nullptr) << "face " << f << ": the first offer is taken";
+    auto second = std::make_unique<BRepTopAdaptor_FClass2d>(face, s.uvTolerance());
+    const std::unique_ptr<Surface> copy = s.clone();
+    static_cast<const OccFaceSurface&>(*copy).offerClassifier(second);
+    EXPECT_NE(second, nullptr) << "face " << f << ": a copy already has one";
+    BRepTopAdaptor_FClass2d ref(face, s.uvTolerance());
+    const ParamBounds b = s.faceUVBounds();
+    const int n = 29;
+    for (int i = 0; i <= n; ++i)
+      for (int j = 0; j <= n; ++j) {
+        const Vec2 p(b.umin + (b.umax - b.umin) * i / n, b.vmin + (b.vmax - b.vmin) * j / n);
+        const Vec2 w = s.wrap(p);
+        const TopAbs_State st = ref.Perform(gp_Pnt2d(w.x(), w.y()), Standard_True);
+        const bool expected = st == TopAbs_IN || st == TopAbs_ON;
+        EXPECT_EQ(copy->contains(p.x(), p.y()), expected)
+            << "face " << f << " at " << p.transpose();
+        EXPECT_EQ(s.contains(p.x(), p.y()), expected) << "face " << f << " at " << p.transpose();
+        ++checked;
+      }
+    // Once the copies have a classifier (built or taken), later offers are refused.
+    auto late = std::make_unique<BRepTopAdaptor_FClass2d>(face, s.uvTolerance());
+    s.offerClassifier(late);
+    EXPECT_NE(late, nullptr);
+  }
+  EXPECT_EQ(faces, 6u);
+  EXPECT_GT(checked, 0u);
 }
 
 // The copies of a face share its classifier and grid; two threads asking contains() of their

@@ -314,6 +314,12 @@ class Projector {
     }
   }
 
+  /// Gives the classifiers built so far to the faces' surfaces (OccFaceSurface::offerClassifier).
+  void offerClassifiers() {
+    for (std::size_t f = 0; f < cls_.size(); ++f)
+      s_.surface(static_cast<int>(f)).offerClassifier(cls_[f]);
+  }
+
   /// Whether (u,v) is inside (or on) face f's trimming loops.
   bool classify(int f, const Vec2& uv) {
     auto& c = cls_[static_cast<std::size_t>(f)];
@@ -460,17 +466,44 @@ class Projector {
   double preci_ = 1e-7;
 };
 
-/// Runs body(i, projector) for i in [0, n) on `threads` threads, each with its own Projector.
+/// The CAD recovery's projectors, one per thread slot, kept from one parallel pass to the next
+/// (each builds its OCC tools and classifiers once per face, on first use).
+struct ProjectorPool {
+  ProjectorPool(int threads, const CadShape& s, const std::vector<Box>& fb,
+                const std::vector<Box>& eb, const std::vector<double>& slack)
+      : s_(s), fb_(fb), eb_(eb), slack_(slack), slots_(static_cast<std::size_t>(threads)) {}
+  Projector& slot(std::size_t k) {
+    auto& p = slots_[k];
+    if (!p) p = std::make_unique<Projector>(s_, fb_, eb_, slack_);
+    return *p;
+  }
+  std::size_t size() const { return slots_.size(); }
+  /// Hands the classifiers built here over to the faces' surfaces (the optimizer's contains()
+  /// uses the same one).
+  void offerClassifiers() {
+    for (auto& p : slots_)
+      if (p) p->offerClassifiers();
+  }
+
+ private:
+  const CadShape& s_;
+  const std::vector<Box>& fb_;
+  const std::vector<Box>& eb_;
+  const std::vector<double>& slack_;
+  std::vector<std::unique_ptr<Projector>> slots_;
+};
+
+/// Runs body(i, projector) for i in [0, n) on up to pool.size() threads, each with its own
+/// Projector.
 template <class Body>
-void parallelFor(std::size_t n, int threads, const CadShape& s, const std::vector<Box>& fb,
-                 const std::vector<Box>& eb, const std::vector<double>& slack, Body body) {
+void parallelFor(std::size_t n, ProjectorPool& pool, Body body) {
   const std::size_t chunk = 256;
   std::atomic<std::size_t> next{0};
   std::exception_ptr error;
   std::mutex errorMutex;
-  auto worker = [&]() {
+  auto worker = [&](std::size_t k) {
     try {
-      Projector proj(s, fb, eb, slack);
+      Projector& proj = pool.slot(k);
       for (;;) {
         const std::size_t begin = next.fetch_add(chunk);
         if (begin >= n) break;
@@ -483,13 +516,14 @@ void parallelFor(std::size_t n, int threads, const CadShape& s, const std::vecto
       next = n;
     }
   };
+  const int threads = static_cast<int>(pool.size());
   const int t = std::max(1, std::min<int>(threads, static_cast<int>((n + chunk - 1) / chunk)));
   if (t == 1) {
-    worker();
+    worker(0);
   } else {
-    std::vector<std::thread> pool;
-    for (int k = 0; k < t; ++k) pool.emplace_back(worker);
-    for (auto& th : pool) th.join();
+    std::vector<std::thread> team;
+    for (int k = 0; k < t; ++k) team.emplace_back(worker, static_cast<std::size_t>(k));
+    for (auto& th : team) th.join();
   }
   if (error) std::rethrow_exception(error);
 }
@@ -654,6 +688,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
     }
     faceSlack[static_cast<std::size_t>(f)] = std::min(tol, std::max(1e-6 * diag, 2.0 * t));
   }
+  ProjectorPool projectors(threads, S, faceBoxes, edgeBoxes, faceSlack);
 
   // ---- fail fast on a mesh of another shape ---------------------------------------------------
   {
@@ -679,13 +714,12 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
     const std::size_t samples = std::min<std::size_t>(N, 64);
     std::vector<double> sd(samples);
     std::vector<int> sf(samples, -1);
-    parallelFor(samples, threads, S, faceBoxes, edgeBoxes, faceSlack,
-                [&](std::size_t k, Projector& pr) {
-                  const std::size_t n = k * N / samples;
-                  std::vector<FaceHit> hits;
-                  pr.facesNear(input.nodes[n], tol, &hits);
-                  sd[k] = hits.empty() ? pr.shapeDistance(input.nodes[n], nullptr) : 0.0;
-                });
+    parallelFor(samples, projectors, [&](std::size_t k, Projector& pr) {
+      const std::size_t n = k * N / samples;
+      std::vector<FaceHit> hits;
+      pr.facesNear(input.nodes[n], tol, &hits);
+      sd[k] = hits.empty() ? pr.shapeDistance(input.nodes[n], nullptr) : 0.0;
+    });
     std::size_t off = 0, worst = 0;
     for (std::size_t k = 0; k < samples; ++k)
       if (sd[k] > tol) {
@@ -711,7 +745,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   std::vector<unsigned char> hintRejected(N, 0);
   const bool anyHints =
       !input.hintFace.empty() || !input.hintEdge.empty() || !input.hintVertex.empty();
-  parallelFor(N, threads, S, faceBoxes, edgeBoxes, faceSlack, [&](std::size_t n, Projector& pr) {
+  parallelFor(N, projectors, [&](std::size_t n, Projector& pr) {
     const Vec3& p = input.nodes[n];
     auto& h = hits[n];
     if (anyHints) {
@@ -779,11 +813,10 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   }
   if (!offNodes.empty()) {
     const std::size_t checked = std::min<std::size_t>(offNodes.size(), 1000);
-    parallelFor(checked, threads, S, faceBoxes, edgeBoxes, faceSlack,
-                [&](std::size_t k, Projector& pr) {
-                  const std::size_t n = offNodes[k];
-                  report_.nodeDistance[n] = pr.shapeDistance(input.nodes[n], nullptr);
-                });
+    parallelFor(checked, projectors, [&](std::size_t k, Projector& pr) {
+      const std::size_t n = offNodes[k];
+      report_.nodeDistance[n] = pr.shapeDistance(input.nodes[n], nullptr);
+    });
     std::size_t worst = offNodes[0];
     for (std::size_t k = 0; k < checked; ++k)
       if (report_.nodeDistance[offNodes[k]] > report_.nodeDistance[worst]) worst = offNodes[k];
@@ -812,7 +845,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   }
 
   // Single-threaded tools for the rest.
-  Projector proj(S, faceBoxes, edgeBoxes, faceSlack);
+  Projector& proj = projectors.slot(0);
 
   // ---- 2. element faces ---------------------------------------------------------------------
   std::vector<std::vector<int>> nodeFaces(N);  // C(n), sorted
@@ -1114,6 +1147,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
         std::to_string(firstUnplaced) + ")");
 
   // ---- 4. the SurfaceMesh -------------------------------------------------------------------
+  projectors.offerClassifiers();
   surfaces_.reserve(static_cast<std::size_t>(NF));
   for (int f = 0; f < NF; ++f) surfaces_.push_back(S.surface(f).clone());
   curves_.reserve(static_cast<std::size_t>(NE));

@@ -186,7 +186,8 @@ struct OccFaceSurface::TrimGrid {
   static void span(const std::array<double, 4>& q, double x0, double y0, double hx, double hy,
                    double mx, double my, int n, int* r) {
     auto clampIdx = [n](double x) {
-      return static_cast<int>(std::min<double>(n - 1, std::max(0.0, std::floor(x))));
+      // max/min first: the truncation of a value in [0, n − 1] is its floor (and no libm call).
+      return static_cast<int>(std::min<double>(n - 1, std::max(0.0, x)));
     };
     r[0] = clampIdx((std::min(q[0], q[2]) - mx - x0) / hx);
     r[1] = clampIdx((std::max(q[0], q[2]) + mx - x0) / hx);
@@ -323,10 +324,11 @@ struct OccFaceSurface::TrimCells {
   }
 };
 
-/// What the copies of one face share: its classifier and its grid's pcurve index, built
-/// once by the first contains() of any copy.
+/// What the copies of one face share: its classifier and its grid's pcurve index, each built
+/// once, by the first contains() of any copy that needs it (or, for the classifier, handed
+/// over by the CAD recovery, which built the same one: offerClassifier).
 struct OccFaceSurface::TrimShared {
-  std::once_flag once;
+  std::once_flag classifierOnce, gridOnce;
   std::unique_ptr<BRepTopAdaptor_FClass2d> classifier;
   std::unique_ptr<TrimGrid> grid;  // null: not usable (a missing or pathological pcurve)
   /// Serializes the classifier's queries: BRepTopAdaptor_FClass2d::Perform is const but not
@@ -419,22 +421,30 @@ std::unique_ptr<OccFaceSurface::TrimGrid> buildTrimGrid(const TopoDS_Face& face,
 
 }  // namespace
 
-const OccFaceSurface::TrimShared& OccFaceSurface::trimShared() const {
+const OccFaceSurface::TrimGrid* OccFaceSurface::trimGrid() const {
   TrimShared& t = *trim_;
-  std::call_once(t.once, [&]() {
-    t.classifier = std::make_unique<BRepTopAdaptor_FClass2d>(face_, uvTol_);
+  std::call_once(t.gridOnce, [&]() {
     try {
       t.grid = buildTrimGrid(face_, faceBounds_, uvTol_);
     } catch (const Standard_Failure&) {
       t.grid.reset();
     }
   });
-  return t;
+  return t.grid.get();
+}
+
+void OccFaceSurface::offerClassifier(std::unique_ptr<BRepTopAdaptor_FClass2d>& c) const {
+  if (!c) return;
+  std::call_once(trim_->classifierOnce, [&]() { trim_->classifier = std::move(c); });
 }
 
 bool OccFaceSurface::classifyWithClassifier(double u, double v) const {
-  std::lock_guard<std::mutex> lock(trim_->classifierMutex);
-  const TopAbs_State st = trim_->classifier->Perform(
+  TrimShared& t = *trim_;
+  std::call_once(t.classifierOnce, [&]() {
+    t.classifier = std::make_unique<BRepTopAdaptor_FClass2d>(face_, uvTol_);
+  });
+  std::lock_guard<std::mutex> lock(t.classifierMutex);
+  const TopAbs_State st = t.classifier->Perform(
       gp_Pnt2d(u, v), uTurn_ == 0.0 && vTurn_ == 0.0 ? Standard_True : Standard_False);
   return st == TopAbs_IN || st == TopAbs_ON;
 }
@@ -448,9 +458,8 @@ bool OccFaceSurface::contains(double u, double v) const {
     return false;
   if (!vPeriodic_ && (w.y() < faceBounds_.vmin - tol || w.y() > faceBounds_.vmax + tol))
     return false;
-  const TrimShared& t = trimShared();
-  if (t.grid) {
-    const TrimGrid& g = *t.grid;
+  if (const TrimGrid* grid = trimGrid()) {
+    const TrimGrid& g = *grid;
     if (!cells_) cells_ = std::make_unique<TrimCells>(g);
     TrimCells& c = *cells_;
     const double x = (w.x() - g.u0) / g.du, y = (w.y() - g.v0) / g.dv;

@@ -82,6 +82,9 @@ class OccFaceSurface final : public Surface {
   const TopoDS_Face& face() const { return face_; }
   const BRepAdaptor_Surface& adaptor() const { return adaptor_; }
   int faceId() const { return faceId_; }
+  /// Hands over a classifier of this face built with uvTolerance() (the CAD recovery builds
+  /// the same one) to all copies of the face, unless they have one already; takes `c` then.
+  void offerClassifier(std::unique_ptr<BRepTopAdaptor_FClass2d>& c) const;
 
   /// Cells of the face's (u,v) box that no trimming loop crosses answer contains() at once
   /// (defined in occ_surface.cpp): the pcurve index (TrimGrid, shared by the copies of a
@@ -101,10 +104,10 @@ class OccFaceSurface final : public Surface {
   double uTurn_ = 0.0, vTurn_ = 0.0;
   int normalSign_ = 1;
   double uvTol_ = 1e-9;
-  std::shared_ptr<TrimShared> trim_;            // classifier + grid, built on first contains()
+  std::shared_ptr<TrimShared> trim_;            // classifier + grid, built when first needed
   mutable std::unique_ptr<TrimCells> cells_;    // this copy's cell states (with the grid)
   OccFaceSurface(const OccFaceSurface& other);  // clone(): shares trim_, copies cells_
-  const TrimShared& trimShared() const;         // trim_, built on first use (thread-safe)
+  const TrimGrid* trimGrid() const;             // trim_'s grid, built on first use (thread-safe)
   bool classifyWithClassifier(double u, double v) const;
 };
 
