@@ -4,6 +4,7 @@
 #include <BRepTools.hxx>
 #include <BRepTopAdaptor_FClass2d.hxx>
 #include <BRep_Tool.hxx>
+#include <Geom2dAdaptor_Curve.hxx>
 #include <Geom2d_Curve.hxx>
 #include <Precision.hxx>
 #include <Standard_Failure.hxx>
@@ -341,7 +342,8 @@ namespace {
 /// The grid of OccFaceSurface::contains: every pcurve of the face is cut into pieces at most
 /// one cell (16 sub-cells) long whose chords pass within 1/20 sub-cell of the curve at a
 /// quarter, half and three quarters of the piece, kept as their two half-chords through the
-/// curve's midpoint. A piece marks every cell its box comes near; in a cell, the steps of at
+/// curve's midpoint (a straight pcurve: equal chords, at once). A piece marks every cell its
+/// box comes near; in a cell, the steps of at
 /// most one sub-cell along its chords mark the sub-cells their boxes come near. Null when a
 /// pcurve is missing or infinite.
 std::unique_ptr<OccFaceSurface::TrimGrid> buildTrimGrid(const TopoDS_Face& face,
@@ -368,6 +370,24 @@ std::unique_ptr<OccFaceSurface::TrimGrid> buildTrimGrid(const TopoDS_Face& face,
     double f = 0.0, l = 0.0;
     const Handle(Geom2d_Curve) c = BRep_Tool::CurveOnSurface(e, face, f, l);
     if (c.IsNull() || !std::isfinite(f) || !std::isfinite(l)) return nullptr;
+    if (Geom2dAdaptor_Curve(c, f, l).GetType() == GeomAbs_Line) {
+      // A straight pcurve: equal chords at most one cell (16 sub-cells) long, exact.
+      const gp_Pnt2d a = c->Value(f), z = c->Value(l);
+      const double len = std::sqrt(subCells2(a, z));
+      if (!std::isfinite(len)) return nullptr;
+      const int n = std::max(1, static_cast<int>(std::ceil(len / 16.0)));
+      if (pieces.size() + 2 * static_cast<std::size_t>(n) > 4000000) return nullptr;
+      auto at = [&](double s) {
+        return std::array<double, 2>{a.X() + s * (z.X() - a.X()), a.Y() + s * (z.Y() - a.Y())};
+      };
+      for (int k = 0; k < n; ++k) {
+        const auto p0 = at(static_cast<double>(k) / n), pm = at((k + 0.5) / n),
+                   p1 = at(static_cast<double>(k + 1) / n);
+        pieces.push_back({p0[0], p0[1], pm[0], pm[1]});
+        pieces.push_back({pm[0], pm[1], p1[0], p1[1]});
+      }
+      continue;
+    }
     struct Piece {
       double t0, t1;
       gp_Pnt2d p0, p1;
