@@ -79,6 +79,8 @@ int main(int argc, char** argv) {
     const double t1 = now();
     BridgeOptions bopt;
     if (const char* v = std::getenv("BENCH_BOUNDARY")) bopt.boundary = v;
+    // The CAD recovery runs on as many threads as the optimization (measure: all cores).
+    if (mode == "optimize" && argc > 5) bopt.threads = std::atoi(argv[5]);
     CadMesh cm(shape, triangleMeshInput(d.xyz, d.tris), bopt);
     const double tBridge = now() - t1;
     SurfaceMesh& m = cm.mesh();
