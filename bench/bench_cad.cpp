@@ -10,8 +10,8 @@
 // the floor of the speed issue — one first-derivative evaluation per Face node — and the time of
 // sweep 1 and of the mean later sweep). Environment for experiments: BENCH_RELTOL,
 // BENCH_SWEEPS, BENCH_MEASURE, BENCH_MONOTONE (0/1) override relTol, maxSweeps, the measure and
-// the monotone option; BENCH_BOUNDARY
-// ("fixed" or "slide") the boundary mode of the CAD recovery.
+// the monotone option; BENCH_BOUNDARY ("fixed" or "slide") the boundary mode of the CAD
+// recovery.
 #include "bench_common.h"
 #include "surfmesh/cad/cad_bridge.h"
 #include "surfmesh/cad/cad_shape.h"

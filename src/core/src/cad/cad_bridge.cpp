@@ -324,7 +324,7 @@ class Projector {
   bool classify(int f, const Vec2& uv) {
     auto& c = cls_[static_cast<std::size_t>(f)];
     const OccFaceSurface& surf = s_.surface(f);
-    if (!c) c = std::make_unique<BRepTopAdaptor_FClass2d>(s_.face(f), surf.uvTolerance());
+    if (!c) c = surf.newClassifier();
     const Vec2 w = surf.wrap(uv);
     TopAbs_State st = TopAbs_UNKNOWN;
     try {

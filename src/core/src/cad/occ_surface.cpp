@@ -343,9 +343,8 @@ namespace {
 /// one cell (16 sub-cells) long whose chords pass within 1/20 sub-cell of the curve at a
 /// quarter, half and three quarters of the piece, kept as their two half-chords through the
 /// curve's midpoint (a straight pcurve: equal chords, at once). A piece marks every cell its
-/// box comes near; in a cell, the steps of at
-/// most one sub-cell along its chords mark the sub-cells their boxes come near. Null when a
-/// pcurve is missing or infinite.
+/// box comes near; in a cell, the steps of at most one sub-cell along its chords mark the
+/// sub-cells their boxes come near. Null when a pcurve is missing or infinite.
 std::unique_ptr<OccFaceSurface::TrimGrid> buildTrimGrid(const TopoDS_Face& face,
                                                         const ParamBounds& b, double tol) {
   using Grid = OccFaceSurface::TrimGrid;
@@ -365,6 +364,13 @@ std::unique_ptr<OccFaceSurface::TrimGrid> buildTrimGrid(const TopoDS_Face& face,
   // Scratch reused from face to face (one build allocates its pieces once, at their size).
   thread_local std::vector<std::array<double, 4>> pieces;
   pieces.clear();
+  // A piece p0 → p1 through pm, kept as its two half-chords; false past the size cap.
+  auto addPiece = [&](const gp_Pnt2d& p0, const gp_Pnt2d& pm, const gp_Pnt2d& p1) {
+    if (pieces.size() > 4000000) return false;
+    pieces.push_back({p0.X(), p0.Y(), pm.X(), pm.Y()});
+    pieces.push_back({pm.X(), pm.Y(), p1.X(), p1.Y()});
+    return true;
+  };
   for (TopExp_Explorer ex(face, TopAbs_EDGE); ex.More(); ex.Next()) {
     const TopoDS_Edge& e = TopoDS::Edge(ex.Current());
     double f = 0.0, l = 0.0;
@@ -376,16 +382,13 @@ std::unique_ptr<OccFaceSurface::TrimGrid> buildTrimGrid(const TopoDS_Face& face,
       const double len = std::sqrt(subCells2(a, z));
       if (!std::isfinite(len)) return nullptr;
       const int n = std::max(1, static_cast<int>(std::ceil(len / 16.0)));
-      if (pieces.size() + 2 * static_cast<std::size_t>(n) > 4000000) return nullptr;
       auto at = [&](double s) {
-        return std::array<double, 2>{a.X() + s * (z.X() - a.X()), a.Y() + s * (z.Y() - a.Y())};
+        return gp_Pnt2d(a.X() + s * (z.X() - a.X()), a.Y() + s * (z.Y() - a.Y()));
       };
-      for (int k = 0; k < n; ++k) {
-        const auto p0 = at(static_cast<double>(k) / n), pm = at((k + 0.5) / n),
-                   p1 = at(static_cast<double>(k + 1) / n);
-        pieces.push_back({p0[0], p0[1], pm[0], pm[1]});
-        pieces.push_back({pm[0], pm[1], p1[0], p1[1]});
-      }
+      for (int k = 0; k < n; ++k)
+        if (!addPiece(at(static_cast<double>(k) / n), at((k + 0.5) / n),
+                      at(static_cast<double>(k + 1) / n)))
+          return nullptr;
       continue;
     }
     struct Piece {
@@ -429,9 +432,7 @@ std::unique_ptr<OccFaceSurface::TrimGrid> buildTrimGrid(const TopoDS_Face& face,
         stack.push_back({tm, pc.t1, pm, pc.p1, pc.depth + 1});
         continue;
       }
-      if (!fine || pieces.size() > 4000000) return nullptr;  // a pathological pcurve
-      pieces.push_back({pc.p0.X(), pc.p0.Y(), pm.X(), pm.Y()});
-      pieces.push_back({pm.X(), pm.Y(), pc.p1.X(), pc.p1.Y()});
+      if (!fine || !addPiece(pc.p0, pm, pc.p1)) return nullptr;  // a pathological pcurve
     }
   }
   g->pieces.assign(pieces.begin(), pieces.end());
@@ -453,6 +454,10 @@ const OccFaceSurface::TrimGrid* OccFaceSurface::trimGrid() const {
   return t.grid.get();
 }
 
+std::unique_ptr<BRepTopAdaptor_FClass2d> OccFaceSurface::newClassifier() const {
+  return std::make_unique<BRepTopAdaptor_FClass2d>(face_, uvTol_);
+}
+
 void OccFaceSurface::offerClassifier(std::unique_ptr<BRepTopAdaptor_FClass2d>& c) const {
   if (!c) return;
   std::call_once(trim_->classifierOnce, [&]() { trim_->classifier = std::move(c); });
@@ -460,9 +465,7 @@ void OccFaceSurface::offerClassifier(std::unique_ptr<BRepTopAdaptor_FClass2d>& c
 
 bool OccFaceSurface::classifyWithClassifier(double u, double v) const {
   TrimShared& t = *trim_;
-  std::call_once(t.classifierOnce, [&]() {
-    t.classifier = std::make_unique<BRepTopAdaptor_FClass2d>(face_, uvTol_);
-  });
+  std::call_once(t.classifierOnce, [&]() { t.classifier = newClassifier(); });
   std::lock_guard<std::mutex> lock(t.classifierMutex);
   const TopAbs_State st = t.classifier->Perform(
       gp_Pnt2d(u, v), uTurn_ == 0.0 && vTurn_ == 0.0 ? Standard_True : Standard_False);

@@ -82,8 +82,11 @@ class OccFaceSurface final : public Surface {
   const TopoDS_Face& face() const { return face_; }
   const BRepAdaptor_Surface& adaptor() const { return adaptor_; }
   int faceId() const { return faceId_; }
-  /// Hands over a classifier of this face built with uvTolerance() (the CAD recovery builds
-  /// the same one) to all copies of the face, unless they have one already; takes `c` then.
+  /// A new OCC classifier of the face's trimming loops, with tolerance uvTolerance(): the one
+  /// contains() asks near the loops (built on first need, shared by the copies).
+  std::unique_ptr<BRepTopAdaptor_FClass2d> newClassifier() const;
+  /// Hands a classifier made by newClassifier() (e.g. by the CAD recovery) over to all copies
+  /// of the face, unless they have one already; takes `c` then.
   void offerClassifier(std::unique_ptr<BRepTopAdaptor_FClass2d>& c) const;
 
   /// Cells of the face's (u,v) box that no trimming loop crosses answer contains() at once
