@@ -7,11 +7,12 @@
 //
 // MESH.bin: int64 N, int64 E, N×3 float64 node positions, E×3 int32 0-based triangles.
 // OUT.bin: the same layout with the optimized positions. Prints one JSON object (optimize: also
-// the floor of the speed issue — one first-derivative evaluation per Face node — and the time of
+// the floor of the speed issue — one first-derivative evaluation per Face node —, the value
+// floor — that plus one shape value of each triangle around each Face node — and the time of
 // sweep 1 and of the mean later sweep). Environment for experiments: BENCH_RELTOL,
 // BENCH_SWEEPS, BENCH_MEASURE, BENCH_MONOTONE (0/1) override relTol, maxSweeps, the measure and
-// the monotone option; BENCH_BOUNDARY ("fixed" or "slide") the boundary mode of the CAD
-// recovery.
+// the monotone option; BENCH_REPEAT=n optimizes n − 1 copies of the mesh first (profiling);
+// BENCH_BOUNDARY ("fixed" or "slide") the boundary mode of the CAD recovery.
 #include "bench_common.h"
 #include "surfmesh/cad/cad_bridge.h"
 #include "surfmesh/cad/cad_shape.h"
@@ -118,25 +119,15 @@ int main(int argc, char** argv) {
     if (const char* v = std::getenv("BENCH_SWEEPS")) opt.maxSweeps = std::atoi(v);
     if (const char* v = std::getenv("BENCH_MEASURE")) opt.measure = v;
     if (const char* v = std::getenv("BENCH_MONOTONE")) opt.monotone = std::atoi(v) != 0;
-    // Floor of the speed issue: one first-derivative evaluation per movable Face node, on a
-    // clone of its face's surface (min of 3 runs), in the mesh's node order.
-    double floorSec = 1e300;
-    {
-      std::vector<std::unique_ptr<Surface>> clones;
-      for (const auto& s : m.surfaces) clones.push_back(s ? s->clone() : nullptr);
-      double sink = 0.0;
-      for (int rep = 0; rep < 3; ++rep) {
-        const double ta = now();
-        for (std::size_t i = 0; i < m.nodeCount(); ++i) {
-          if (m.nodeKind[i] != NodeKind::Face) continue;
-          const SurfaceD1 dd =
-              clones[static_cast<std::size_t>(m.nodeFace[i])]->d1(m.uv[i].x(), m.uv[i].y());
-          sink += dd.du.x() + dd.dv.y();
-        }
-        floorSec = std::min(floorSec, now() - ta);
+    // Floors of the speed issue (bench_common.h): one first-derivative evaluation per Face
+    // node, and that plus one value of each triangle around it.
+    const Floors floors = measureFloors(m);
+    // BENCH_REPEAT=n (profiling): n − 1 runs on copies of the mesh first.
+    if (const char* v = std::getenv("BENCH_REPEAT"))
+      for (int k = 1; k < std::atoi(v); ++k) {
+        SurfaceMesh copy = m;
+        optimizeMesh(copy, opt);
       }
-      if (sink == 12345.678) std::printf("%g", sink);
-    }
     std::vector<double> stamps;
     const double tOpt = now();
     const OptimizeResult r = optimizeMesh(
@@ -152,10 +143,11 @@ int main(int argc, char** argv) {
         "\"bridge_s\": %.3f, \"shape_s\": %.3f, \"min\": %.6f, \"mean\": %.6f, "
         "\"tangled\": %zu, \"tangled_unmovable\": %zu, \"before_tangled\": %zu, "
         "\"peak_mb\": %.1f, "
-        "\"floor_s\": %.6f, \"sweep1_s\": %.6f, \"mean_sweep_s\": %.6f}\n",
+        "\"floor_s\": %.6f, \"value_floor_s\": %.6f, \"sweep1_s\": %.6f, "
+        "\"mean_sweep_s\": %.6f}\n",
         r.seconds, r.sweeps, stopReasonName(r.reason), r.threadsUsed, tBridge, tShape, r.after.min,
         r.after.mean, r.after.tangled, r.tangledUnmovable.size(), r.before.tangled,
-        peakRssBytes() / 1e6, floorSec, sweep1, meanSweep);
+        peakRssBytes() / 1e6, floors.d1, floors.value, sweep1, meanSweep);
   } catch (const std::exception& ex) {
     std::printf("{\"error\": \"%s\"}\n", ex.what());
     return 1;

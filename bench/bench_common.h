@@ -3,13 +3,16 @@
 #pragma once
 
 #include "surfmesh/geometry/surface.h"
+#include "surfmesh/measures/measure.h"
 #include "surfmesh/mesh/surface_mesh.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <memory>
 #include <random>
 #include <string>
 #include <vector>
@@ -36,6 +39,70 @@ inline double rssBytes() {
   while (std::getline(in, line))
     if (line.rfind("VmRSS:", 0) == 0) return 1024.0 * std::atof(line.c_str() + 6);
   return 0.0;
+}
+
+/// The floors a sweep's time is compared with (seconds, min of 3 runs, on clones of the
+/// surfaces, in the mesh's node order, over its Face nodes):
+///   d1     one first-derivative evaluation per node (the speed issue's floor);
+///   value  that plus the shape measure's value of every triangle around the node with the
+///          node at φ(u,v): the least any method does that checks a move of each node
+///          against its elements (a Newton step with a line search does it at least once,
+///          plus the gradient and Hessian of the same elements).
+struct Floors {
+  double d1 = 0.0, value = 0.0;
+};
+
+inline Floors measureFloors(const SurfaceMesh& m) {
+  std::vector<std::unique_ptr<Surface>> clones;
+  for (const Surface* s : m.surfaces) clones.push_back(s ? s->clone() : nullptr);
+  const std::size_t N = m.nodeCount();
+  // Node → triangles (CSR), outside the timing.
+  std::vector<std::size_t> off(N + 1, 0), tri;
+  for (std::size_t e = 0; e < m.elementCount(); ++e)
+    if (m.elemType[e] == ElementType::Tri3)
+      for (int k = 0; k < 3; ++k) ++off[static_cast<std::size_t>(m.elementNodes(e)[k]) + 1];
+  for (std::size_t i = 0; i < N; ++i) off[i + 1] += off[i];
+  tri.resize(off[N]);
+  {
+    std::vector<std::size_t> fill(off.begin(), off.end() - 1);
+    for (std::size_t e = 0; e < m.elementCount(); ++e)
+      if (m.elemType[e] == ElementType::Tri3)
+        for (int k = 0; k < 3; ++k) tri[fill[static_cast<std::size_t>(m.elementNodes(e)[k])]++] = e;
+  }
+  const PlanarMeasure& shape = measureByName("shape");
+  const double s3 = 1.0 / std::sqrt(3.0);
+  Floors f{1e300, 1e300};
+  double sink = 0.0;
+  for (int pass = 0; pass < 2; ++pass)
+    for (int rep = 0; rep < 3; ++rep) {
+      const double t0 = now();
+      for (std::size_t i = 0; i < N; ++i) {
+        if (m.nodeKind[i] != NodeKind::Face) continue;
+        const Surface& sf = *clones[static_cast<std::size_t>(m.nodeFace[i])];
+        const SurfaceD1 d = sf.d1(m.uv[i].x(), m.uv[i].y());
+        if (pass == 0) {
+          sink += d.du.x() + d.dv.y();
+          continue;
+        }
+        const Vec3 n = d.du.cross(d.dv);
+        for (std::size_t p = off[i]; p < off[i + 1]; ++p) {
+          const std::int32_t* nd = m.elementNodes(tri[p]);
+          Vec3 x[3];
+          for (int k = 0; k < 3; ++k)
+            x[k] =
+                static_cast<std::size_t>(nd[k]) == i ? d.p : m.xyz[static_cast<std::size_t>(nd[k])];
+          const Vec3 J0 = x[1] - x[0], J1 = x[2] - x[0];
+          const Vec3 K1 = (2.0 * J1 - J0) * s3;
+          const Vec3 c = J0.cross(J1);
+          const double sigma = (c.dot(n) > 0.0 ? 2.0 : -2.0) * s3 * c.norm();
+          sink += shape.invariantValue(J0.squaredNorm() + K1.squaredNorm(), sigma, sigma);
+        }
+      }
+      double& best = pass == 0 ? f.d1 : f.value;
+      best = std::min(best, now() - t0);
+    }
+  if (sink == 12345.678) std::printf("%g", sink);
+  return f;
 }
 
 /// Structured triangulation of [u0,u1] × [v0,v1] with nu × nv cells (2 triangles each),

@@ -1,6 +1,7 @@
 // SurfMesh benchmark — one optimization run on a structured mesh of an analytic or OCC surface:
 // time per sweep, sweeps to convergence, the surface-evaluation floor (one first-derivative
-// evaluation per free node) and peak memory per element. One run per process, so that the
+// evaluation per free node), the value floor (that plus one shape value of each triangle around
+// each free node) and peak memory per element. One run per process, so that the
 // peak memory belongs to this mesh size only; bench/run.sh drives the sizes and thread counts.
 //
 //   bench_sweep --surface torus|occ-torus|occ-bspline --elements 100000 --threads 2
@@ -102,9 +103,9 @@ int main(int argc, char** argv) {
     std::printf(
         "| surface | elements | threads | tangled in→out | min q in→out | mean q out | "
         "sweeps | stop | optimize s | setup s | sweep 2 s | mean sweep s | floor s | "
-        "sweep2/floor | mean/floor | peak MB | bytes/elem |\n");
+        "sweep2/floor | mean/floor | value floor s | mean/value floor | peak MB | bytes/elem |\n");
     std::printf(
-        "|---|---:|---:|---|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|"
+        "|---|---:|---:|---|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
         "---:|\n");
     return 0;
   }
@@ -125,25 +126,10 @@ int main(int argc, char** argv) {
   const double cellV = ((vPer ? surf->vPeriod() : b.vmax - b.vmin)) / nv;
   perturb(mesh, *surf, cellU, cellV, 0.3, tangledFraction, 1.3, 7);
 
-  // Floor: one first-derivative evaluation per free node (min of 3 runs, on a clone).
-  std::vector<Vec2> freeUV;
-  for (std::size_t i = 0; i < mesh.nodeCount(); ++i)
-    if (mesh.nodeKind[i] == NodeKind::Face) freeUV.push_back(mesh.uv[i]);
-  double floorSec = 1e300;
-  {
-    const std::unique_ptr<Surface> c = surf->clone();
-    double sink = 0.0;
-    for (int rep = 0; rep < 3; ++rep) {
-      const double t0 = now();
-      for (const Vec2& p : freeUV) {
-        const SurfaceD1 d = c->d1(p.x(), p.y());
-        sink += d.du.x() + d.dv.y();
-      }
-      floorSec = std::min(floorSec, now() - t0);
-    }
-    if (sink == 12345.678) std::printf("%g", sink);
-  }
-  std::vector<Vec2>().swap(freeUV);
+  // Floors (bench_common.h): one first-derivative evaluation per free node, and that plus one
+  // shape value of each triangle around it.
+  const Floors floors = measureFloors(mesh);
+  const double floorSec = floors.d1;
 
   OptimizeOptions opt;
   opt.threads = threads;
@@ -182,10 +168,10 @@ int main(int argc, char** argv) {
   const double peak = peakRssBytes();
   std::printf(
       "| %s | %zu | %d | %zu→%zu | %.3f→%.3f | %.4f | %d | %s | %.3f | %.3f | %.4f | "
-      "%.4f | %.5f | %.2f | %.2f | %.0f | %.0f |\n",
+      "%.4f | %.5f | %.2f | %.2f | %.5f | %.2f | %.0f | %.0f |\n",
       kind.c_str(), mesh.elementCount(), r.threadsUsed, r.before.tangled, r.after.tangled,
       r.before.min, r.after.min, r.after.mean, r.sweeps, stopReasonName(r.reason), r.seconds, setup,
-      sweep2, meanSweep, floorSec, sweep2 / floorSec, meanSweep / floorSec, peak / 1e6,
-      peak / mesh.elementCount());
+      sweep2, meanSweep, floorSec, sweep2 / floorSec, meanSweep / floorSec, floors.value,
+      meanSweep / floors.value, peak / 1e6, peak / mesh.elementCount());
   return 0;
 }

@@ -241,7 +241,8 @@ def run_case(case, part, size, seed, amp_part, tangle_fraction, bench_dir, threa
         out = os.path.join(work, f"{case}_surfmesh{threads}.bin")
         r = run_bench_cad(bench_dir, "optimize", brep, inp, out, threads)
         m = run_bench_cad(bench_dir, "measure", brep, out)
-        for k in ("sweeps", "reason", "bridge_s", "floor_s", "mean_sweep_s", "tangled_unmovable"):
+        for k in ("sweeps", "reason", "bridge_s", "floor_s", "value_floor_s", "mean_sweep_s",
+                  "tangled_unmovable"):
             m[k] = r.get(k)
         rows.append((case, f"SurfMesh {threads} thread(s)", r.get("seconds"), m, tris.shape[0]))
         if verbose:
@@ -296,6 +297,8 @@ def main():
                           "(all nodes on CAD edges, boundary fixed)")
             if m.get("floor_s") and m.get("mean_sweep_s") and (m.get("sweeps") or 0) > 1:
                 notes += f"; later sweeps {m['mean_sweep_s'] / m['floor_s']:.0f}× the floor"
+                if m.get("value_floor_s"):
+                    notes += f" ({m['mean_sweep_s'] / m['value_floor_s']:.1f}× the value floor)"
         ts = f"{t:.3f}" if t is not None else "-"
         print(f"| {case} | {ne} | {tool} | {ts} | {ratio} | {m['min']:.3f} | {m['mean']:.3f} | "
               f"{m['tangled']} | {m.get('below_0_2', '-')} | {m['max_distance']:.1e} | {notes} |")

@@ -280,6 +280,46 @@ TEST(OccFaceSurface, AnOfferedClassifierIsTakenOnceAndSharedByTheCopies) {
   EXPECT_GT(checked, 0u);
 }
 
+// prepare() builds ahead, once for all copies, what contains() builds on first use: two
+// threads preparing their own copies of every face at once (as the optimizer does over the
+// faces), then contains() of a third copy agrees with OCC's classifier on a lattice.
+TEST(OccFaceSurface, PreparedCopiesOnTwoThreadsAgreeWithTheClassifier) {
+  auto shape = load("occt_housing_bottom.brep");
+  std::vector<std::unique_ptr<OccFaceSurface>> faces;
+  for (int f = 0; f < shape->faceCount(); ++f) {
+    auto s = std::make_unique<OccFaceSurface>(shape->face(f), f);
+    if (s->uTurnPeriod() == 0.0 && s->vTurnPeriod() == 0.0) faces.push_back(std::move(s));
+  }
+  ASSERT_GT(faces.size(), 10u);
+  std::vector<std::unique_ptr<Surface>> copiesA, copiesB;
+  for (const auto& s : faces) {
+    copiesA.push_back(s->clone());
+    copiesB.push_back(s->clone());
+  }
+  std::thread other([&] {
+    for (const auto& c : copiesB) c->prepare();
+  });
+  for (const auto& c : copiesA) c->prepare();
+  other.join();
+  std::size_t checked = 0;
+  for (const auto& s : faces) {
+    const std::unique_ptr<Surface> third = s->clone();
+    BRepTopAdaptor_FClass2d ref(s->face(), s->uvTolerance());
+    const ParamBounds b = s->faceUVBounds();
+    const int n = 17;
+    for (int i = 0; i <= n; ++i)
+      for (int j = 0; j <= n; ++j) {
+        const Vec2 p(b.umin + (b.umax - b.umin) * i / n, b.vmin + (b.vmax - b.vmin) * j / n);
+        const Vec2 w = s->wrap(p);
+        const TopAbs_State st = ref.Perform(gp_Pnt2d(w.x(), w.y()), Standard_True);
+        EXPECT_EQ(third->contains(p.x(), p.y()), st == TopAbs_IN || st == TopAbs_ON)
+            << "face " << s->faceId() << " at " << p.transpose();
+        ++checked;
+      }
+  }
+  EXPECT_EQ(checked, faces.size() * 18u * 18u);
+}
+
 // The copies of a face share its classifier and grid; two threads asking contains() of their
 // own copies at once, next to the trimming loops (where the classifier is asked), get the
 // answers of OCC's classifier. Faces with several wires (holes) matter most: OCC's classifier

@@ -454,6 +454,8 @@ const OccFaceSurface::TrimGrid* OccFaceSurface::trimGrid() const {
   return t.grid.get();
 }
 
+void OccFaceSurface::prepare() const { trimGrid(); }
+
 std::unique_ptr<BRepTopAdaptor_FClass2d> OccFaceSurface::newClassifier() const {
   return std::make_unique<BRepTopAdaptor_FClass2d>(face_, uvTol_);
 }

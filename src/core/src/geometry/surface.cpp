@@ -59,11 +59,12 @@ Vec2 Surface::clampToBounds(const Vec2& uv) const {
 }
 
 bool isDegenerate(const SurfaceD1& d) {
-  const double a = d.du.norm();
-  const double b = d.dv.norm();
-  if (!(a > 0.0) || !(b > 0.0)) return true;
-  const double m = std::max(a, b);
-  return d.du.cross(d.dv).norm() <= kDegenerateTol * m * m;
+  // Squared: ‖c‖² ≤ tol² · max(‖φ_u‖², ‖φ_v‖²)² (no square roots on the optimizer's path).
+  const double a2 = d.du.squaredNorm();
+  const double b2 = d.dv.squaredNorm();
+  if (!(a2 > 0.0) || !(b2 > 0.0)) return true;
+  const double t = kDegenerateTol * std::max(a2, b2);
+  return d.du.cross(d.dv).squaredNorm() <= t * t;
 }
 
 }  // namespace surfmesh

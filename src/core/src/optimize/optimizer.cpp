@@ -199,6 +199,10 @@ struct ElemOut {
 /// Newton step fails (quality below 1/4).
 constexpr double kFallbackEta = 4.0;
 
+/// The line search stops halving once the step's first-order 3D length is below this fraction
+/// of moveTol × the node's local size (moveTol = 0: it always runs maxLineSearch halvings).
+constexpr double kMinStepFraction = 0.1;
+
 const double kInvSqrt3 = 0.57735026918962576451;
 const double kDetWinv = 2.0 * kInvSqrt3;  // det W⁻¹ of the equilateral ideal triangle
 
@@ -414,7 +418,7 @@ struct State {
   // corners), fixedNormal holding the corner normals of its Fixed and Edge corners.
   std::vector<Vec3> fixedNormal;
   std::vector<std::uint8_t> faceCorners;  // bit k: corner k of element e is a Face node
-  std::vector<double> elemScale;          // mean squared corner edge length (frozen per sweep)
+  std::vector<double> elemSize;           // √(mean squared corner edge length), frozen per sweep
   // Size² that scales δ for element e: the input's corner scales averaged over the elements
   // around its corners, frozen for the whole run. Frozen, because a δ that followed the
   // element's own size would let a tangled element shrink to a point at no cost; averaged,
@@ -478,7 +482,7 @@ struct State {
         }
       }
     }
-    elemScale.assign(E, 1.0);
+    elemSize.assign(E, 1.0);
     eta0.assign(E, 1.0);
     minSigma.assign(E, 1.0);
   }
@@ -533,7 +537,7 @@ struct State {
     double s = 0.0;
     const std::int64_t b = begin(i), en = end(i);
     for (std::int64_t p = b; p < en; ++p)
-      s += std::sqrt(elemScale[static_cast<std::size_t>(inc.elem[static_cast<std::size_t>(p)])]);
+      s += elemSize[static_cast<std::size_t>(inc.elem[static_cast<std::size_t>(p)])];
     return en > b ? s / static_cast<double>(en - b) : 0.0;
   }
 
@@ -603,6 +607,8 @@ struct LocalEval {
   double minQuality = 1.0;  // min 1/η with δ = 0 (0 when tangled); when asked
   double maxEta = 1.0;      // largest η (sweep's δ) of the submesh
   bool finite = true;
+  bool byQuality = false;         // a trial rejected (at least) for lowering minQuality
+  Vec3 gradWorst = Vec3::Zero();  // ∂η/∂x of the element of minQuality (with g and quality)
 };
 
 /// Per-thread scratch (allocated once, sized by the largest node degree) and statistics,
@@ -950,8 +956,15 @@ class NodeUpdater {
       }
       if (wantQuality) {
         const double q = (ev.tangled || !std::isfinite(ev.eta0)) ? 0.0 : 1.0 / ev.eta0;
-        r.minQuality = std::min(r.minQuality, q);
-        if (cur && q < cur->minQuality) return reject();
+        if (q < r.minQuality) {
+          r.minQuality = q;
+          if (g) r.gradWorst = ge;
+        }
+        if (cur && q < cur->minQuality) {
+          LocalEval rq = reject();
+          rq.byQuality = true;
+          return rq;
+        }
       }
     }
     return r;
@@ -1026,14 +1039,19 @@ class NodeUpdater {
       Vec2 dir = newtonDirection(gu, Hu);
       if (gu.dot(dir) >= 0.0) dir = -gu;  // not a descent direction: use the gradient
       // Cap the step so that its first-order 3D length is at most the local size.
-      const double len3 = (d.du * dir.x() + d.dv * dir.y()).norm();
-      if (len3 > L) dir *= L / len3;
+      double len3 = (d.du * dir.x() + d.dv * dir.y()).norm();
+      if (len3 > L) {
+        dir *= L / len3;
+        len3 = L;
+      }
       const bool wantQ = monotone && cur.tangled == 0 && !s_.relaxTangled;
       Vec2 uvNew;
       SurfaceD2 dn;
       Vec3 nn;
-      LocalEval best = cur;  // acceptance threshold: a trial must beat it
+      LocalEval best = cur;      // acceptance threshold: a trial must beat it
+      bool lostQuality = false;  // the last trial was rejected for lowering the minimum quality
       auto tryStep = [&](const Vec2& step) {
+        lostQuality = false;
         const Vec2 uvT = surf.wrap(uv0 + step);
         if (!surf.contains(uvT.x(), uvT.y())) return false;
         const SurfaceD2 dT = surf.d2(uvT.x(), uvT.y());
@@ -1042,6 +1060,7 @@ class NodeUpdater {
         const Vec3 nT = (orient / c.norm()) * c;
         const LocalEval tr = evalLocal(
             i, dT.p, [&](std::size_t) { return nT; }, zero, wantQ, &best, nullptr, nullptr);
+        lostQuality = tr.byQuality;
         if (!acceptable(best, tr)) return false;
         best = tr;
         uvNew = uvT;
@@ -1051,8 +1070,18 @@ class NodeUpdater {
       };
       bool accepted = false;
       double alpha = 1.0;
-      for (int ls = 0; ls < s_.opt.maxLineSearch && !accepted; ++ls, alpha *= 0.5)
+      // Halvings stop below a tenth of the activity threshold moveTol × L: a shorter step
+      // would not count as a move (the direction fails: e.g. it lowers the submesh's minimum
+      // quality in monotone mode, or the node sits at its local minimum).
+      // In monotone mode, a step that lowered the submesh's minimum quality is not halved
+      // further when the worst element's η grows along the direction: every shorter step
+      // lowers it too (to first order).
+      const double minStep = kMinStepFraction * s_.opt.moveTol * L;
+      const bool worstGrows = wantQ && cur.gradWorst.dot(d.du * dir.x() + d.dv * dir.y()) > 0.0;
+      for (int ls = 0; ls < s_.opt.maxLineSearch && !accepted; ++ls, alpha *= 0.5) {
+        if (ls > 0 && (alpha * len3 < minStep || (lostQuality && worstGrows))) break;
         accepted = tryStep(alpha * dir);
+      }
       if ((!accepted || best.f > 0.5 * cur.f) && s_.deltaHat == 0.0 && cur.maxEta > kFallbackEta) {
         // A badly shaped submesh where the Newton direction fails or barely helps (e.g. three
         // nearly collinear nodes on a curved surface, whose element plane stands across the
@@ -1170,13 +1199,18 @@ class NodeUpdater {
     if (!std::isfinite(gt) || !std::isfinite(Ht) || gt == 0.0) return 0.0;
     double dt = (Ht > 0.0) ? -gt / Ht : -gt / (std::abs(Ht) + 1e-12);
     if (dt * gt > 0.0) dt = -dt;
-    const double len3 = std::abs(dt) * d.dt.norm();
-    if (len3 > L) dt *= L / len3;
+    double len3 = std::abs(dt) * d.dt.norm();
+    if (len3 > L) {
+      dt *= L / len3;
+      len3 = L;
+    }
     const double margin = 1e-3 * (hi - lo);
     const bool wantQ = monotone && cur.tangled == 0;
     Vec3* trialN = w_.normals.data();
     double alpha = 1.0;
+    const double minStep = kMinStepFraction * s_.opt.moveTol * L;  // as for Face nodes
     for (int ls = 0; ls < s_.opt.maxLineSearch; ++ls, alpha *= 0.5) {
+      if (ls > 0 && alpha * len3 < minStep) break;
       const double tn = t0 + alpha * dt;
       if (!(tn > lo + margin && tn < hi - margin)) continue;
       const Vec3 xn = curve.value(tn);
@@ -1510,6 +1544,23 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
 
   std::size_t movable = 0;
   for (const auto& c : colors) movable += c.size();
+  {
+    // What the surfaces of the faces with Face nodes build on first use (a trimmed face's
+    // grid), built here in parallel over the faces rather than by the first trial on each.
+    std::vector<unsigned char> used(mesh.surfaces.size(), 0);
+    for (std::size_t i = 0; i < mesh.nodeCount(); ++i)
+      if (mesh.nodeKind[i] == NodeKind::Face) used[static_cast<std::size_t>(mesh.nodeFace[i])] = 1;
+    std::vector<std::size_t> faces;
+    for (std::size_t f = 0; f < used.size(); ++f)
+      if (used[f] && mesh.surfaces[f]) faces.push_back(f);
+    const ThreadGeometry& geo0 = workers[0]->geo;
+    parallelChunks(
+        team, faces.size(), 1,
+        [&](std::size_t a, std::size_t b) {
+          for (std::size_t k = a; k < b; ++k) geo0.surfaces[faces[k]]->prepare();
+        },
+        error, errorMutex);
+  }
 
   double epsilon = opt.deltaEpsilon;  // ε of the automatic policy, cycled on stalls
   int epsilonLevel = 0;
@@ -1524,7 +1575,7 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
     parallelChunks(
         team, E, 8192,
         [&](std::size_t a, std::size_t b) {
-          for (std::size_t e = a; e < b; ++e) s.elemScale[e] = s.cornerScale(e);
+          for (std::size_t e = a; e < b; ++e) s.elemSize[e] = std::sqrt(s.cornerScale(e));
         },
         error, errorMutex);
   };
@@ -1594,7 +1645,7 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
       const std::int64_t b = s.inc.offset[i], en = s.inc.offset[i + 1];
       for (std::int64_t p = b; p < en; ++p)
         nodeScale[i] +=
-            s.elemScale[static_cast<std::size_t>(s.inc.elem[static_cast<std::size_t>(p)])];
+            s.cornerScale(static_cast<std::size_t>(s.inc.elem[static_cast<std::size_t>(p)]));
       if (en > b) nodeScale[i] /= static_cast<double>(en - b);
     }
     s.deltaScale.assign(E, 0.0);
@@ -1775,7 +1826,7 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
   release(s.d2);
   release(s.nodeNormal);
   release(s.fixedNormal);
-  release(s.elemScale);
+  release(s.elemSize);
   release(s.deltaScale);
   release(s.eta0);
   release(s.minSigma);

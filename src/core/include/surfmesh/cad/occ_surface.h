@@ -67,6 +67,8 @@ class OccFaceSurface final : public Surface {
   int normalSign() const override { return normalSign_; }
   /// Inside the trimmed domain (ON the boundary counts as inside).
   bool contains(double u, double v) const override;
+  /// Builds the grid of the face's trimming loops (shared by the copies).
+  void prepare() const override;
   std::unique_ptr<Surface> clone() const override;
   /// "OCC face 12 (BSplineSurface)".
   std::string describe() const override;

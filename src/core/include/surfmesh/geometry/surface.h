@@ -74,6 +74,11 @@ class Surface {
   /// non-periodic directions; trimmed faces override it to test their trimming loops.
   virtual bool contains(double u, double v) const;
 
+  /// Builds ahead what contains() would build on its first call (a trimmed face's lookup
+  /// grid), so that callers can do it in parallel over surfaces. Safe to call concurrently
+  /// with any use of other copies; the default does nothing.
+  virtual void prepare() const {}
+
   /// An independent copy, safe to use from another thread.
   virtual std::unique_ptr<Surface> clone() const = 0;
 
