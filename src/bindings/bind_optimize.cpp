@@ -15,6 +15,7 @@ namespace surfmesh::bindings {
 py::dict statsToDict(const QualityStats& s);
 
 void bind_optimize(MeshClass& cls) {
+  const OptimizeOptions kDefaults;
   cls.def(
       "optimize",
       [](MeshHandle& h, const std::string& measure, int max_sweeps, double rel_tol, double move_tol,
@@ -97,12 +98,17 @@ void bind_optimize(MeshClass& cls) {
         d["warnings"] = r.warnings;
         return d;
       },
-      py::arg("measure") = "shape", py::arg("max_sweeps") = 100, py::arg("rel_tol") = 1e-5,
-      py::arg("move_tol") = 1e-4, py::arg("inner_iterations") = 1, py::arg("max_line_search") = 30,
-      py::arg("delta_policy") = "auto", py::arg("delta_epsilon") = 1e-2, py::arg("delta") = 1e-2,
-      py::arg("monotone") = true, py::arg("threads") = 0, py::arg("progress") = py::none(),
-      py::arg("before") = py::none(),
-      "Optimizes the mesh in place (nodes stay on their surfaces). progress(dict) is called "
+      // The core's defaults (OptimizeOptions), as in SurfMesh.app.api.OPTIMIZE_DEFAULTS.
+      py::arg("measure") = kDefaults.measure, py::arg("max_sweeps") = kDefaults.maxSweeps,
+      py::arg("rel_tol") = kDefaults.relTol, py::arg("move_tol") = kDefaults.moveTol,
+      py::arg("inner_iterations") = kDefaults.innerIterations,
+      py::arg("max_line_search") = kDefaults.maxLineSearch,
+      py::arg("delta_policy") = kDefaults.deltaPolicy,
+      py::arg("delta_epsilon") = kDefaults.deltaEpsilon, py::arg("delta") = kDefaults.delta,
+      py::arg("monotone") = kDefaults.monotone, py::arg("threads") = kDefaults.threads,
+      py::arg("progress") = py::none(), py::arg("before") = py::none(),
+      "Optimizes the mesh in place (nodes stay on their surfaces); the options' defaults are "
+      "the core's. progress(dict) is called "
       "after every sweep; returning False cancels (reason 'cancelled', mesh unchanged). "
       "Returns a dict: before, after (stats), sweeps, seconds, reason, moved_nodes, threads, "
       "tangled_unmovable / tangled_movable (ids of the elements left tangled without / with a "

@@ -280,6 +280,43 @@ TEST(OccFaceSurface, AnOfferedClassifierIsTakenOnceAndSharedByTheCopies) {
   EXPECT_GT(checked, 0u);
 }
 
+// containsFast() answers only what it knows without asking the classifier at the point (before
+// a face's grid exists: nothing), and then agrees with OCC's classifier; containsWithinBand()
+// is OCC's polygon test with its band. Checked on a lattice over every face of the housing.
+TEST(OccFaceSurface, FastAndBandTestsAgreeWithTheClassifier) {
+  auto shape = load("occt_housing_bottom.brep");
+  std::size_t answered = 0, asked = 0;
+  for (int f = 0; f < shape->faceCount(); ++f) {
+    const OccFaceSurface s(shape->face(f), f);
+    if (s.uTurnPeriod() != 0.0 || s.vTurnPeriod() != 0.0) continue;
+    const ParamBounds b = s.faceUVBounds();
+    EXPECT_EQ(s.containsFast(0.5 * (b.umin + b.umax), 0.5 * (b.vmin + b.vmax)), -1)
+        << "face " << f << ": no grid before its first queries";
+    s.prepare();
+    BRepTopAdaptor_FClass2d ref(s.face(), s.uvTolerance());
+    const int n = 23;
+    for (int i = 0; i <= n; ++i)
+      for (int j = 0; j <= n; ++j) {
+        const Vec2 p(b.umin + (b.umax - b.umin) * i / n, b.vmin + (b.vmax - b.vmin) * j / n);
+        const Vec2 w = s.wrap(p);
+        const TopAbs_State st = ref.Perform(gp_Pnt2d(w.x(), w.y()), Standard_True);
+        const int fast = s.containsFast(p.x(), p.y());
+        ++asked;
+        if (fast >= 0) {
+          ++answered;
+          EXPECT_EQ(fast == 1, st == TopAbs_IN || st == TopAbs_ON)
+              << "face " << f << " at " << p.transpose();
+        }
+        const TopAbs_State band =
+            ref.TestOnRestriction(gp_Pnt2d(w.x(), w.y()), s.uvTolerance(), Standard_True);
+        EXPECT_EQ(s.containsWithinBand(p.x(), p.y()), band == TopAbs_IN || band == TopAbs_ON)
+            << "face " << f << " at " << p.transpose();
+      }
+  }
+  // Most lattice points lie away from the loops: the grids answer them.
+  EXPECT_GT(answered, asked / 2);
+}
+
 // prepare() builds ahead, once for all copies, what contains() builds on first use: two
 // threads preparing their own copies of every face at once (as the optimizer does over the
 // faces), then contains() of a third copy agrees with OCC's classifier on a lattice.

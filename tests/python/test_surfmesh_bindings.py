@@ -96,6 +96,29 @@ class TestBindings(unittest.TestCase):
         self.assertEqual(r3["reason"], "cancelled")
         np.testing.assert_array_equal(m3.positions(), before)
 
+    def test_optimize_defaults_are_the_apis(self):
+        # The binding's defaults are the core's, as documented in api.OPTIMIZE_DEFAULTS: a run
+        # with no option and one with every option of the API's table spelled out take the
+        # same sweeps to the same positions (a different rel_tol or move_tol would not).
+        from SurfMesh.app import api
+
+        t = sm.TorusSurface(10.0, 4.0)
+        uv, tris = torus_grid(nu=40, nv=16)
+        rng = np.random.default_rng(3)
+        uv = uv + rng.uniform(-0.3, 0.3, uv.shape) * [2 * math.pi / 40, 2 * math.pi / 16]
+        runs = []
+        for opts in ({}, dict(api.OPTIMIZE_DEFAULTS)):
+            m = sm.single_surface_mesh(t, uv, "tri3", tris)
+            r = m.optimize(**opts)
+            runs.append((r["sweeps"], r["reason"], m.positions()))
+        self.assertEqual(runs[0][0], runs[1][0])
+        self.assertEqual(runs[0][1], "converged")
+        np.testing.assert_array_equal(runs[0][2], runs[1][2])
+        # …and not those of a tighter tolerance (the test can tell them apart).
+        m = sm.single_surface_mesh(t, uv, "tri3", tris)
+        tight = m.optimize(rel_tol=1e-6, move_tol=1e-5)
+        self.assertGreater(tight["sweeps"], runs[0][0])
+
     def test_validators(self):
         import Part
 

@@ -78,8 +78,9 @@ class Projector {
         faceSlack_(faceSlack),
 
         tools_(static_cast<std::size_t>(s.faceCount())),
-        cls_(static_cast<std::size_t>(s.faceCount())),
-        curves_(static_cast<std::size_t>(s.edgeCount())) {
+        curves_(static_cast<std::size_t>(s.edgeCount())),
+        surfaceCopies_(static_cast<std::size_t>(s.faceCount())),
+        curveCopies_(static_cast<std::size_t>(s.edgeCount())) {
     preci_ = std::max(Precision::Confusion(), 1e-9 * s.diagonal());
     for (double x : faceSlack) maxSlack_ = std::max(maxSlack_, x);
   }
@@ -314,29 +315,32 @@ class Projector {
     }
   }
 
-  /// Gives the classifiers built so far to the faces' surfaces (OccFaceSurface::offerClassifier).
-  void offerClassifiers() {
-    for (std::size_t f = 0; f < cls_.size(); ++f)
-      s_.surface(static_cast<int>(f)).offerClassifier(cls_[f]);
+  /// This thread's copies of face f's surface and edge e's curve (OCC adaptors are not
+  /// thread-safe), made on first use.
+  const Surface& surfaceCopy(int f) {
+    auto& c = surfaceCopies_[static_cast<std::size_t>(f)];
+    if (!c) c = s_.surface(f).clone();
+    return *c;
+  }
+  const Curve& curveCopy(int e) {
+    auto& c = curveCopies_[static_cast<std::size_t>(e)];
+    if (!c) c = s_.curve(e).clone();
+    return *c;
   }
 
-  /// Whether (u,v) is inside (or on) face f's trimming loops.
+  /// Whether (u,v) is inside (or on) face f's trimming loops: this thread's copy of the face
+  /// answers at once away from the loops (its grid and classifier are shared with the other
+  /// copies, the optimizer's included); next to them OCC's polygon test with its deflection
+  /// band decides (the caller measures distances: exactness at the boundary is moot).
   bool classify(int f, const Vec2& uv) {
-    auto& c = cls_[static_cast<std::size_t>(f)];
-    const OccFaceSurface& surf = s_.surface(f);
-    if (!c) c = surf.newClassifier();
-    const Vec2 w = surf.wrap(uv);
-    TopAbs_State st = TopAbs_UNKNOWN;
+    const auto& surf = static_cast<const OccFaceSurface&>(surfaceCopy(f));
+    const int known = surf.containsFast(uv.x(), uv.y());
+    if (known >= 0) return known == 1;
     try {
-      const bool turns = surf.uTurnPeriod() > 0.0 || surf.vTurnPeriod() > 0.0;
-      // Fast polygon test; a point within the polygon's deflection band of the boundary is ON
-      // (counted inside): the caller measures distances, exactness at the boundary is moot.
-      st = c->TestOnRestriction(gp_Pnt2d(w.x(), w.y()), surf.uvTolerance(),
-                                turns ? Standard_False : Standard_True);
+      return surf.containsWithinBand(uv.x(), uv.y());
     } catch (const Standard_Failure&) {
       return false;
     }
-    return st == TopAbs_IN || st == TopAbs_ON;
   }
 
   /// Distance from p to the trimmed face f. Refinement through the boundary edges is skipped
@@ -461,8 +465,9 @@ class Projector {
   std::vector<FaceTools> tools_;
   std::vector<unsigned char> seen_;
   double maxSlack_ = 0.0;
-  std::vector<std::unique_ptr<BRepTopAdaptor_FClass2d>> cls_;
   std::vector<std::unique_ptr<BRepAdaptor_Curve>> curves_;
+  std::vector<std::unique_ptr<Surface>> surfaceCopies_;
+  std::vector<std::unique_ptr<Curve>> curveCopies_;
   double preci_ = 1e-7;
 };
 
@@ -478,12 +483,6 @@ struct ProjectorPool {
     return *p;
   }
   std::size_t size() const { return slots_.size(); }
-  /// Hands the classifiers built here over to the faces' surfaces (the optimizer's contains()
-  /// uses the same one).
-  void offerClassifiers() {
-    for (auto& p : slots_)
-      if (p) p->offerClassifiers();
-  }
 
  private:
   const CadShape& s_;
@@ -555,6 +554,8 @@ ElementEdges elementEdges(ElementType t) {
 }
 
 void fail(const std::string& msg) { throw std::invalid_argument("CadMesh: " + msg); }
+
+constexpr int kMaxElementNodes = 21;  // Tri21 (p = 5), the largest ElementType
 
 }  // namespace
 
@@ -1147,7 +1148,6 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
         std::to_string(firstUnplaced) + ")");
 
   // ---- 4. the SurfaceMesh -------------------------------------------------------------------
-  projectors.offerClassifiers();
   surfaces_.reserve(static_cast<std::size_t>(NF));
   for (int f = 0; f < NF; ++f) surfaces_.push_back(S.surface(f).clone());
   curves_.reserve(static_cast<std::size_t>(NE));
@@ -1188,23 +1188,20 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
     report_.warnings.push_back(std::to_string(report_.unusedNodes) +
                                " nodes belong to no element; they are kept fixed");
 
-  // Corner (u,v) of every element node on the element's face.
-  // The orientation tallies (section 5) are taken in the same pass, from the same first
-  // derivatives at the corners.
-  std::vector<Vec2> corner;
+  // Corner (u,v) of every element node on the element's face, in parallel over the elements
+  // (each thread with its own copies of the surfaces and curves). The orientation votes
+  // (section 5) are taken in the same pass, from the same first derivatives at the corners.
   std::vector<Vec2> allCornerUV(input.conn.size());
-  std::vector<unsigned char> known;
-  std::vector<SurfaceD1> cornerD1;
-  std::vector<std::int64_t> agree(static_cast<std::size_t>(NF), 0),
-      disagree(static_cast<std::size_t>(NF), 0);
-  report_.faceElements.assign(static_cast<std::size_t>(NF), 0);
-  for (std::size_t e = 0; e < E; ++e) {
+  std::vector<signed char> vote(E, 0);  // +1: winding along the surface normal, −1: against
+  parallelFor(E, projectors, [&](std::size_t e, Projector& pr) {
     const int f = elemFace[e];
-    const Surface& surf = *surfaces_[static_cast<std::size_t>(f)];
+    const Surface& surf = pr.surfaceCopy(f);
     const std::int32_t* nd = input.conn.data() + offsets[e];
     const int nn = static_cast<int>(offsets[e + 1] - offsets[e]);
-    corner.assign(static_cast<std::size_t>(nn), Vec2::Zero());
-    known.assign(static_cast<std::size_t>(nn), 0);
+    std::array<Vec2, kMaxElementNodes> corner;
+    std::array<unsigned char, kMaxElementNodes> known{};
+    std::array<SurfaceD1, kMaxElementNodes> cornerD1;
+    corner.fill(Vec2::Zero());
     Vec2 ref = Vec2::Zero();
     bool haveRef = false;
     for (int k = 0; k < nn; ++k) {
@@ -1229,8 +1226,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
           const int ed = report_.nodeEntity[n];
           const auto& ef = S.edgeFaces(ed);
           if (std::binary_search(ef.begin(), ef.end(), f)) {
-            uv = curves_[static_cast<std::size_t>(ed)]->uvOnFace(f, report_.nodeParam[n],
-                                                                 haveRef ? ref : Vec2::Zero());
+            uv = pr.curveCopy(ed).uvOnFace(f, report_.nodeParam[n], haveRef ? ref : Vec2::Zero());
             ok = uv.allFinite();
           }
         } else if (c == NodeClass::Vertex) {
@@ -1245,7 +1241,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
       } catch (const Standard_Failure&) {
         ok = false;
       }
-      if (!ok) uv = proj.faceDistance(f, input.nodes[n], kInf).uv;
+      if (!ok) uv = pr.faceDistance(f, input.nodes[n], kInf).uv;
       if (haveRef) {
         uv = surf.unwrapNear(uv, ref);
       } else {
@@ -1256,7 +1252,6 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
     }
     // Corners on a pole: the free coordinate follows the element's other corners. The first
     // derivatives at the corners are kept (cornerD1[k] is at the current corner[k]).
-    cornerD1.resize(static_cast<std::size_t>(nn));
     for (int k = 0; k < nn; ++k) {
       const Vec2& c = corner[static_cast<std::size_t>(k)];
       cornerD1[static_cast<std::size_t>(k)] = surf.d1(c.x(), c.y());
@@ -1282,21 +1277,26 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
         c.y() = sum / cnt;
       cornerD1[static_cast<std::size_t>(k)] = surf.d1(c.x(), c.y());
     }
-    std::copy(corner.begin(), corner.end(), allCornerUV.begin() + offsets[e]);
+    std::copy(corner.begin(), corner.begin() + nn, allCornerUV.begin() + offsets[e]);
 
-    // ---- 5. orientation (tallies): the element's winding against the surface normal ----
-    ++report_.faceElements[static_cast<std::size_t>(f)];
+    // ---- 5. orientation (votes): the element's winding against the surface normal ----
     const int nc = cornerCount(input.types[e]);
     auto X = [&](int k) { return input.nodes[static_cast<std::size_t>(nd[k])]; };
     const Vec3 g =
         nc == 4 ? Vec3((X(2) - X(0)).cross(X(3) - X(1))) : Vec3((X(1) - X(0)).cross(X(2) - X(0)));
     Vec3 nsum = Vec3::Zero();
     for (int k = 0; k < nc; ++k) nsum += surf.normalOf(cornerD1[static_cast<std::size_t>(k)]);
-    const double s = g.dot(nsum);
-    if (s > 0)
-      ++agree[static_cast<std::size_t>(f)];
-    else if (s < 0)
-      ++disagree[static_cast<std::size_t>(f)];
+    const double sd = g.dot(nsum);
+    vote[e] = sd > 0 ? 1 : sd < 0 ? -1 : 0;
+  });
+  std::vector<std::int64_t> agree(static_cast<std::size_t>(NF), 0),
+      disagree(static_cast<std::size_t>(NF), 0);
+  report_.faceElements.assign(static_cast<std::size_t>(NF), 0);
+  for (std::size_t e = 0; e < E; ++e) {
+    const std::size_t f = static_cast<std::size_t>(elemFace[e]);
+    ++report_.faceElements[f];
+    if (vote[e] > 0) ++agree[f];
+    if (vote[e] < 0) ++disagree[f];
   }
 
   // ---- 5. orientation: faces meshed with the opposite winding ---------------------------------

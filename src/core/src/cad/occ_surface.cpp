@@ -19,6 +19,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -335,9 +336,17 @@ struct OccFaceSurface::TrimShared {
   /// Serializes the classifier's queries: BRepTopAdaptor_FClass2d::Perform is const but not
   /// thread-safe (its sequences of wires cache the last item they were asked for).
   std::mutex classifierMutex;
+  /// Whether the grid was built (or found unusable); containsFast() queries before that.
+  std::atomic<bool> gridTried{false};
+  std::atomic<int> queries{0};
 };
 
 namespace {
+
+/// containsFast() builds a face's grid (~0.1 ms) only after this many queries (each ~µs with
+/// the classifier) unless prepare() built it: a face with a handful of nodes near it (as most
+/// faces of a fine part's CAD recovery) never pays for one.
+constexpr int kQueriesBeforeGrid = 48;
 
 /// The grid of OccFaceSurface::contains: every pcurve of the face is cut into pieces at most
 /// one cell (16 sub-cells) long whose chords pass within 1/20 sub-cell of the curve at a
@@ -450,6 +459,7 @@ const OccFaceSurface::TrimGrid* OccFaceSurface::trimGrid() const {
     } catch (const Standard_Failure&) {
       t.grid.reset();
     }
+    t.gridTried.store(true, std::memory_order_release);
   });
   return t.grid.get();
 }
@@ -465,6 +475,18 @@ void OccFaceSurface::offerClassifier(std::unique_ptr<BRepTopAdaptor_FClass2d>& c
   std::call_once(trim_->classifierOnce, [&]() { trim_->classifier = std::move(c); });
 }
 
+bool OccFaceSurface::containsWithinBand(double u, double v) const {
+  if (!std::isfinite(u) || !std::isfinite(v)) return false;
+  const Vec2 w = wrap(Vec2(u, v));
+  TrimShared& t = *trim_;
+  std::call_once(t.classifierOnce, [&]() { t.classifier = newClassifier(); });
+  std::lock_guard<std::mutex> lock(t.classifierMutex);
+  const TopAbs_State st = t.classifier->TestOnRestriction(
+      gp_Pnt2d(w.x(), w.y()), uvTol_,
+      uTurn_ == 0.0 && vTurn_ == 0.0 ? Standard_True : Standard_False);
+  return st == TopAbs_IN || st == TopAbs_ON;
+}
+
 bool OccFaceSurface::classifyWithClassifier(double u, double v) const {
   TrimShared& t = *trim_;
   std::call_once(t.classifierOnce, [&]() { t.classifier = newClassifier(); });
@@ -475,14 +497,23 @@ bool OccFaceSurface::classifyWithClassifier(double u, double v) const {
 }
 
 bool OccFaceSurface::contains(double u, double v) const {
-  if (!std::isfinite(u) || !std::isfinite(v)) return false;
+  const int known = containsFast(u, v);
+  if (known >= 0) return known == 1;
+  const Vec2 w = wrap(Vec2(u, v));
+  return classifyWithClassifier(w.x(), w.y());
+}
+
+int OccFaceSurface::containsFast(double u, double v) const {
+  if (!std::isfinite(u) || !std::isfinite(v)) return 0;
   const Vec2 w = wrap(Vec2(u, v));
   // Quick rejection outside the face's parameter box (non-periodic directions).
   const double tol = uvTol_;
-  if (!uPeriodic_ && (w.x() < faceBounds_.umin - tol || w.x() > faceBounds_.umax + tol))
-    return false;
-  if (!vPeriodic_ && (w.y() < faceBounds_.vmin - tol || w.y() > faceBounds_.vmax + tol))
-    return false;
+  if (!uPeriodic_ && (w.x() < faceBounds_.umin - tol || w.x() > faceBounds_.umax + tol)) return 0;
+  if (!vPeriodic_ && (w.y() < faceBounds_.vmin - tol || w.y() > faceBounds_.vmax + tol)) return 0;
+  TrimShared& t = *trim_;
+  if (!t.gridTried.load(std::memory_order_acquire) &&
+      t.queries.fetch_add(1, std::memory_order_relaxed) < kQueriesBeforeGrid)
+    return -1;
   if (const TrimGrid* grid = trimGrid()) {
     const TrimGrid& g = *grid;
     if (!cells_) cells_ = std::make_unique<TrimCells>(g);
@@ -515,10 +546,10 @@ bool OccFaceSurface::contains(double u, double v) const {
                           c.scratch);
         st = sc[sj * TrimGrid::kSub + si];
       }
-      if (st != TrimGrid::Boundary) return st == TrimGrid::In;
+      if (st != TrimGrid::Boundary) return st == TrimGrid::In ? 1 : 0;
     }
   }
-  return classifyWithClassifier(w.x(), w.y());
+  return -1;
 }
 
 OccFaceSurface::OccFaceSurface(const OccFaceSurface& o)

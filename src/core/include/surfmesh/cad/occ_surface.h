@@ -17,7 +17,9 @@
 //     comes near, answers at once in every (sub-)cell no pcurve comes near: such regions are
 //     classified once (by the classifier at one centre, then flood-filled); only points in
 //     the sub-cells a pcurve passes through go to the classifier. The optimizer asks
-//     contains() at every line-search trial.
+//     contains() at every line-search trial; it builds the grids of the faces with free nodes
+//     ahead (prepare()), other callers get one on a face's 48th query (before, the classifier
+//     answers: a face queried a few times never pays for a grid).
 //
 // Neither class is thread-safe (OCC adaptors and the lazily classified cells are not): use
 // clone() to get an independent copy per thread. A face's classifier and the pcurve index of
@@ -67,6 +69,16 @@ class OccFaceSurface final : public Surface {
   int normalSign() const override { return normalSign_; }
   /// Inside the trimmed domain (ON the boundary counts as inside).
   bool contains(double u, double v) const override;
+  /// contains() where it needs no classifier query at (u,v) itself: 1 inside, 0 outside; −1
+  /// where a trimming loop passes through the point's sub-cell (or the face has no grid),
+  /// where only a classifier can tell. (Classifying a region of the grid for the first time
+  /// asks the classifier at one point of it.)
+  int containsFast(double u, double v) const;
+  /// OCC's fast polygon test (BRepTopAdaptor_FClass2d::TestOnRestriction) with the shared
+  /// classifier: a point within the polygon's deflection band of a loop counts as inside. For
+  /// callers that measure distances (the CAD recovery), where exactness at the boundary is
+  /// moot. May throw Standard_Failure.
+  bool containsWithinBand(double u, double v) const;
   /// Builds the grid of the face's trimming loops (shared by the copies).
   void prepare() const override;
   std::unique_ptr<Surface> clone() const override;
