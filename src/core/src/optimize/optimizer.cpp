@@ -203,6 +203,9 @@ constexpr double kFallbackEta = 4.0;
 /// of moveTol × the node's local size (moveTol = 0: it always runs maxLineSearch halvings).
 constexpr double kMinStepFraction = 0.1;
 
+/// Colors with fewer nodes are updated on the calling thread alone (see the sweep).
+constexpr std::size_t kMinParallelNodes = 128;
+
 const double kInvSqrt3 = 0.57735026918962576451;
 const double kDetWinv = 2.0 * kInvSqrt3;  // det W⁻¹ of the equilateral ideal triangle
 
@@ -1465,7 +1468,10 @@ void parallelChunks(Team& team, std::size_t n, std::size_t chunk, Body&& body,
       if (!error) error = std::current_exception();
     }
   };
-  team.run(job);
+  if (n <= chunk)
+    job(0);  // one chunk: no worker to wake
+  else
+    team.run(job);
   if (error) std::rethrow_exception(error);
 }
 
@@ -1731,7 +1737,12 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
           if (!error) error = std::current_exception();
         }
       };
-      team.run(job);
+      // A small color runs on the calling thread: waking a sleeping worker costs more than
+      // its nodes (the result is the same: the nodes of a color share no element).
+      if (n < kMinParallelNodes)
+        job(0);
+      else
+        team.run(job);
       if (error) std::rethrow_exception(error);
     }
     double maxMove = 0.0;
