@@ -39,6 +39,22 @@ std::shared_ptr<CadShape> load(const std::string& name) {
   return CadShape::fromFile(std::string(SURFMESH_TEST_DATA_DIR) + "/" + name);
 }
 
+/// The (n + 1)² points of a regular lattice over a face's (u,v) box.
+std::vector<Vec2> uvLattice(const ParamBounds& b, int n) {
+  std::vector<Vec2> out;
+  for (int i = 0; i <= n; ++i)
+    for (int j = 0; j <= n; ++j)
+      out.emplace_back(b.umin + (b.umax - b.umin) * i / n, b.vmin + (b.vmax - b.vmin) * j / n);
+  return out;
+}
+
+/// OCC's own answer for (u,v) of face s: Perform of an independent classifier, IN or ON.
+bool insideByOcc(BRepTopAdaptor_FClass2d& ref, const OccFaceSurface& s, const Vec2& p) {
+  const Vec2 w = s.wrap(p);
+  const TopAbs_State st = ref.Perform(gp_Pnt2d(w.x(), w.y()), Standard_True);
+  return st == TopAbs_IN || st == TopAbs_ON;
+}
+
 /// Interior (u,v) points of a face: the nodes of its BRepMesh triangulation that are not on
 /// an edge polygon.
 std::vector<Vec2> interiorUV(const TopoDS_Face& face, double deflection) {
@@ -239,10 +255,10 @@ TEST(OccFaceSurface, ContainsAgreesWithTheOccClassifierEverywhere) {
   }
 }
 
-// The CAD recovery hands its classifier of a face over to the face's surface (offerClassifier):
-// all copies then use it, it is taken once only, and contains() still agrees with a classifier
-// built on its own. A classifier offered after the copies built theirs is left to the caller.
-TEST(OccFaceSurface, AnOfferedClassifierIsTakenOnceAndSharedByTheCopies) {
+// The copies of a face share its classifier and grid: a copy made before the face's first
+// query and the face itself both agree with a classifier built on its own, through the first
+// queries (the classifier's) and past the one that builds the grid.
+TEST(OccFaceSurface, TheCopiesShareTheClassifierAndTheGrid) {
   auto shape = load("occt_housing_bottom.brep");
   std::size_t checked = 0, faces = 0;
   for (int f = 0; f < shape->faceCount() && faces < 6; ++f) {
@@ -250,31 +266,14 @@ TEST(OccFaceSurface, AnOfferedClassifierIsTakenOnceAndSharedByTheCopies) {
     const OccFaceSurface s(face, f);
     if (s.uTurnPeriod() != 0.0 || s.vTurnPeriod() != 0.0) continue;
     ++faces;
-    auto offered = std::make_unique<BRepTopAdaptor_FClass2d>(face, s.uvTolerance());
-    s.offerClassifier(offered);
-    EXPECT_EQ(offered, nullptr) << "face " << f << ": the first offer is taken";
-    auto second = std::make_unique<BRepTopAdaptor_FClass2d>(face, s.uvTolerance());
     const std::unique_ptr<Surface> copy = s.clone();
-    static_cast<const OccFaceSurface&>(*copy).offerClassifier(second);
-    EXPECT_NE(second, nullptr) << "face " << f << ": a copy already has one";
     BRepTopAdaptor_FClass2d ref(face, s.uvTolerance());
-    const ParamBounds b = s.faceUVBounds();
-    const int n = 29;
-    for (int i = 0; i <= n; ++i)
-      for (int j = 0; j <= n; ++j) {
-        const Vec2 p(b.umin + (b.umax - b.umin) * i / n, b.vmin + (b.vmax - b.vmin) * j / n);
-        const Vec2 w = s.wrap(p);
-        const TopAbs_State st = ref.Perform(gp_Pnt2d(w.x(), w.y()), Standard_True);
-        const bool expected = st == TopAbs_IN || st == TopAbs_ON;
-        EXPECT_EQ(copy->contains(p.x(), p.y()), expected)
-            << "face " << f << " at " << p.transpose();
-        EXPECT_EQ(s.contains(p.x(), p.y()), expected) << "face " << f << " at " << p.transpose();
-        ++checked;
-      }
-    // Once the copies have a classifier (built or taken), later offers are refused.
-    auto late = std::make_unique<BRepTopAdaptor_FClass2d>(face, s.uvTolerance());
-    s.offerClassifier(late);
-    EXPECT_NE(late, nullptr);
+    for (const Vec2& p : uvLattice(s.faceUVBounds(), 29)) {
+      const bool expected = insideByOcc(ref, s, p);
+      EXPECT_EQ(copy->contains(p.x(), p.y()), expected) << "face " << f << " at " << p.transpose();
+      EXPECT_EQ(s.contains(p.x(), p.y()), expected) << "face " << f << " at " << p.transpose();
+      ++checked;
+    }
   }
   EXPECT_EQ(faces, 6u);
   EXPECT_GT(checked, 0u);
@@ -294,24 +293,19 @@ TEST(OccFaceSurface, FastAndBandTestsAgreeWithTheClassifier) {
         << "face " << f << ": no grid before its first queries";
     s.prepare();
     BRepTopAdaptor_FClass2d ref(s.face(), s.uvTolerance());
-    const int n = 23;
-    for (int i = 0; i <= n; ++i)
-      for (int j = 0; j <= n; ++j) {
-        const Vec2 p(b.umin + (b.umax - b.umin) * i / n, b.vmin + (b.vmax - b.vmin) * j / n);
-        const Vec2 w = s.wrap(p);
-        const TopAbs_State st = ref.Perform(gp_Pnt2d(w.x(), w.y()), Standard_True);
-        const int fast = s.containsFast(p.x(), p.y());
-        ++asked;
-        if (fast >= 0) {
-          ++answered;
-          EXPECT_EQ(fast == 1, st == TopAbs_IN || st == TopAbs_ON)
-              << "face " << f << " at " << p.transpose();
-        }
-        const TopAbs_State band =
-            ref.TestOnRestriction(gp_Pnt2d(w.x(), w.y()), s.uvTolerance(), Standard_True);
-        EXPECT_EQ(s.containsWithinBand(p.x(), p.y()), band == TopAbs_IN || band == TopAbs_ON)
-            << "face " << f << " at " << p.transpose();
+    for (const Vec2& p : uvLattice(b, 23)) {
+      const int fast = s.containsFast(p.x(), p.y());
+      ++asked;
+      if (fast >= 0) {
+        ++answered;
+        EXPECT_EQ(fast == 1, insideByOcc(ref, s, p)) << "face " << f << " at " << p.transpose();
       }
+      const Vec2 w = s.wrap(p);
+      const TopAbs_State band =
+          ref.TestOnRestriction(gp_Pnt2d(w.x(), w.y()), s.uvTolerance(), Standard_True);
+      EXPECT_EQ(s.containsWithinBand(p.x(), p.y()), band == TopAbs_IN || band == TopAbs_ON)
+          << "face " << f << " at " << p.transpose();
+    }
   }
   // Most lattice points lie away from the loops: the grids answer them.
   EXPECT_GT(answered, asked / 2);
@@ -342,17 +336,11 @@ TEST(OccFaceSurface, PreparedCopiesOnTwoThreadsAgreeWithTheClassifier) {
   for (const auto& s : faces) {
     const std::unique_ptr<Surface> third = s->clone();
     BRepTopAdaptor_FClass2d ref(s->face(), s->uvTolerance());
-    const ParamBounds b = s->faceUVBounds();
-    const int n = 17;
-    for (int i = 0; i <= n; ++i)
-      for (int j = 0; j <= n; ++j) {
-        const Vec2 p(b.umin + (b.umax - b.umin) * i / n, b.vmin + (b.vmax - b.vmin) * j / n);
-        const Vec2 w = s->wrap(p);
-        const TopAbs_State st = ref.Perform(gp_Pnt2d(w.x(), w.y()), Standard_True);
-        EXPECT_EQ(third->contains(p.x(), p.y()), st == TopAbs_IN || st == TopAbs_ON)
-            << "face " << s->faceId() << " at " << p.transpose();
-        ++checked;
-      }
+    for (const Vec2& p : uvLattice(s->faceUVBounds(), 17)) {
+      EXPECT_EQ(third->contains(p.x(), p.y()), insideByOcc(ref, *s, p))
+          << "face " << s->faceId() << " at " << p.transpose();
+      ++checked;
+    }
   }
   EXPECT_EQ(checked, faces.size() * 18u * 18u);
 }

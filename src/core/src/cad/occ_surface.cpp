@@ -327,8 +327,7 @@ struct OccFaceSurface::TrimCells {
 };
 
 /// What the copies of one face share: its classifier and its grid's pcurve index, each built
-/// once, by the first contains() of any copy that needs it (or, for the classifier, handed
-/// over by the CAD recovery, which built the same one: offerClassifier).
+/// once, by the first query of any copy that needs it (the CAD recovery's included).
 struct OccFaceSurface::TrimShared {
   std::once_flag classifierOnce, gridOnce;
   std::unique_ptr<BRepTopAdaptor_FClass2d> classifier;
@@ -466,33 +465,21 @@ const OccFaceSurface::TrimGrid* OccFaceSurface::trimGrid() const {
 
 void OccFaceSurface::prepare() const { trimGrid(); }
 
-std::unique_ptr<BRepTopAdaptor_FClass2d> OccFaceSurface::newClassifier() const {
-  return std::make_unique<BRepTopAdaptor_FClass2d>(face_, uvTol_);
-}
-
-void OccFaceSurface::offerClassifier(std::unique_ptr<BRepTopAdaptor_FClass2d>& c) const {
-  if (!c) return;
-  std::call_once(trim_->classifierOnce, [&]() { trim_->classifier = std::move(c); });
-}
-
 bool OccFaceSurface::containsWithinBand(double u, double v) const {
   if (!std::isfinite(u) || !std::isfinite(v)) return false;
   const Vec2 w = wrap(Vec2(u, v));
-  TrimShared& t = *trim_;
-  std::call_once(t.classifierOnce, [&]() { t.classifier = newClassifier(); });
-  std::lock_guard<std::mutex> lock(t.classifierMutex);
-  const TopAbs_State st = t.classifier->TestOnRestriction(
-      gp_Pnt2d(w.x(), w.y()), uvTol_,
-      uTurn_ == 0.0 && vTurn_ == 0.0 ? Standard_True : Standard_False);
-  return st == TopAbs_IN || st == TopAbs_ON;
+  return classifyWithClassifier(w.x(), w.y(), true);
 }
 
-bool OccFaceSurface::classifyWithClassifier(double u, double v) const {
+bool OccFaceSurface::classifyWithClassifier(double u, double v, bool band) const {
   TrimShared& t = *trim_;
-  std::call_once(t.classifierOnce, [&]() { t.classifier = newClassifier(); });
+  std::call_once(t.classifierOnce, [&]() {
+    t.classifier = std::make_unique<BRepTopAdaptor_FClass2d>(face_, uvTol_);
+  });
+  const Standard_Boolean recadre = uTurn_ == 0.0 && vTurn_ == 0.0 ? Standard_True : Standard_False;
   std::lock_guard<std::mutex> lock(t.classifierMutex);
-  const TopAbs_State st = t.classifier->Perform(
-      gp_Pnt2d(u, v), uTurn_ == 0.0 && vTurn_ == 0.0 ? Standard_True : Standard_False);
+  const TopAbs_State st = band ? t.classifier->TestOnRestriction(gp_Pnt2d(u, v), uvTol_, recadre)
+                               : t.classifier->Perform(gp_Pnt2d(u, v), recadre);
   return st == TopAbs_IN || st == TopAbs_ON;
 }
 
@@ -500,7 +487,7 @@ bool OccFaceSurface::contains(double u, double v) const {
   const int known = containsFast(u, v);
   if (known >= 0) return known == 1;
   const Vec2 w = wrap(Vec2(u, v));
-  return classifyWithClassifier(w.x(), w.y());
+  return classifyWithClassifier(w.x(), w.y(), false);
 }
 
 int OccFaceSurface::containsFast(double u, double v) const {
@@ -522,7 +509,9 @@ int OccFaceSurface::containsFast(double u, double v) const {
     if (x >= 0.0 && x < TrimGrid::kCells && y >= 0.0 && y < TrimGrid::kCells) {
       const int ci = static_cast<int>(x), cj = static_cast<int>(y);
       const int k = cj * TrimGrid::kCells + ci;
-      auto classify = [this](double cu, double cv) { return classifyWithClassifier(cu, cv); };
+      auto classify = [this](double cu, double cv) {
+        return classifyWithClassifier(cu, cv, false);
+      };
       std::uint8_t st = c.state[static_cast<std::size_t>(k)];
       if (st == TrimGrid::Unknown) {
         // No pcurve comes near this cell (nor the cells connected to it through such cells):

@@ -41,8 +41,6 @@
 #include <string>
 #include <vector>
 
-class BRepTopAdaptor_FClass2d;
-
 namespace surfmesh {
 
 /// OCC name of the geometric type of a face's surface: "Plane", "Cylinder", "Cone", "Sphere",
@@ -96,12 +94,6 @@ class OccFaceSurface final : public Surface {
   const TopoDS_Face& face() const { return face_; }
   const BRepAdaptor_Surface& adaptor() const { return adaptor_; }
   int faceId() const { return faceId_; }
-  /// A new OCC classifier of the face's trimming loops, with tolerance uvTolerance(): the one
-  /// contains() asks near the loops (built on first need, shared by the copies).
-  std::unique_ptr<BRepTopAdaptor_FClass2d> newClassifier() const;
-  /// Hands a classifier made by newClassifier() (e.g. by the CAD recovery) over to all copies
-  /// of the face, unless they have one already; takes `c` then.
-  void offerClassifier(std::unique_ptr<BRepTopAdaptor_FClass2d>& c) const;
 
   /// Cells of the face's (u,v) box that no trimming loop crosses answer contains() at once
   /// (defined in occ_surface.cpp): the pcurve index (TrimGrid, shared by the copies of a
@@ -125,7 +117,10 @@ class OccFaceSurface final : public Surface {
   mutable std::unique_ptr<TrimCells> cells_;    // this copy's cell states (with the grid)
   OccFaceSurface(const OccFaceSurface& other);  // clone(): shares trim_, copies cells_
   const TrimGrid* trimGrid() const;             // trim_'s grid, built on first use (thread-safe)
-  bool classifyWithClassifier(double u, double v) const;
+  /// The face's OCC classifier (BRepTopAdaptor_FClass2d with uvTolerance(), built on first
+  /// use, shared by the copies, its queries serialized) at a wrapped (u,v): Perform, or with
+  /// `band` TestOnRestriction. IN and ON count as inside.
+  bool classifyWithClassifier(double u, double v, bool band) const;
 };
 
 /// One face adjacent to an edge, with the edge's pcurve(s) on it.
