@@ -10,9 +10,10 @@
 // the floor of the speed issue — one first-derivative evaluation per Face node —, the value
 // floor — that plus one shape value of each triangle around each Face node — and the time of
 // sweep 1 and of the mean later sweep). Environment for experiments: BENCH_RELTOL,
-// BENCH_SWEEPS, BENCH_MEASURE, BENCH_MONOTONE (0/1) override relTol, maxSweeps, the measure and
-// the monotone option; BENCH_REPEAT=n optimizes n − 1 copies of the mesh first (profiling);
-// BENCH_BOUNDARY ("fixed" or "slide") the boundary mode of the CAD recovery.
+// BENCH_SWEEPS, BENCH_MEASURE, BENCH_MONOTONE (0/1), BENCH_MOVETOL override relTol, maxSweeps,
+// the measure, the monotone option and moveTol; BENCH_REPEAT=n optimizes n − 1 copies of the
+// mesh first (profiling); BENCH_BOUNDARY ("fixed" or "slide") the boundary mode of the CAD
+// recovery; BENCH_TRACE=1 prints each sweep's progress on stderr.
 #include "bench_common.h"
 #include "surfmesh/cad/cad_bridge.h"
 #include "surfmesh/cad/cad_shape.h"
@@ -119,6 +120,7 @@ int main(int argc, char** argv) {
     if (const char* v = std::getenv("BENCH_SWEEPS")) opt.maxSweeps = std::atoi(v);
     if (const char* v = std::getenv("BENCH_MEASURE")) opt.measure = v;
     if (const char* v = std::getenv("BENCH_MONOTONE")) opt.monotone = std::atoi(v) != 0;
+    if (const char* v = std::getenv("BENCH_MOVETOL")) opt.moveTol = std::atof(v);
     // Floors of the speed issue (bench_common.h): one first-derivative evaluation per Face
     // node, and that plus one value of each triangle around it.
     const Floors floors = measureFloors(m);
@@ -129,9 +131,15 @@ int main(int argc, char** argv) {
         optimizeMesh(copy, opt);
       }
     std::vector<double> stamps;
+    const bool trace = std::getenv("BENCH_TRACE") != nullptr;
     const double tOpt = now();
-    const OptimizeResult r = optimizeMesh(
-        m, opt, [&](const OptimizeProgress&) { return stamps.push_back(now()), true; });
+    const OptimizeResult r = optimizeMesh(m, opt, [&](const OptimizeProgress& p) {
+      stamps.push_back(now());
+      if (trace)  // BENCH_TRACE=1: one line per sweep on stderr
+        std::fprintf(stderr, "sweep %3d  f %.9e  tangled %zu  min q %.6f  delta %.3g\n", p.sweep,
+                     p.objective, p.tangled, p.minQuality, p.delta);
+      return true;
+    });
     // Sweep 1 visits every movable node (its time includes the setup: an upper bound); the
     // later sweeps only the nodes whose submesh changed.
     const double sweep1 = stamps.empty() ? 0.0 : stamps.front() - tOpt;

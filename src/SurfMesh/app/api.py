@@ -46,7 +46,7 @@ OPTIMIZE_DEFAULTS = {
     "delta_policy": "auto",  # "auto": δ from the smallest det S each sweep; "fixed": `delta`
     "delta_epsilon": 1e-2,  # ε of the automatic δ policy (relative to the local size²)
     "delta": 1e-2,  # δ of the fixed policy (dimensionless)
-    "monotone": True,  # reject moves that lower the minimum quality of a valid submesh
+    "monotone": True,  # reject moves that would lower a valid mesh's minimum quality
     "threads": 0,  # worker threads; 0 = all hardware threads (result independent of it)
 }
 

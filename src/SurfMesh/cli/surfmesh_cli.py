@@ -61,7 +61,7 @@ def build_parser():
     o.add_argument("--rel-tol", type=float, default=None)
     o.add_argument("--threads", type=int, default=None)
     o.add_argument("--no-monotone", action="store_true",
-                   help="accept moves that lower a valid submesh's minimum quality")
+                   help="accept moves that lower a valid mesh's minimum quality")
     o.add_argument("--msh-version", type=float, choices=[2, 2.2, 4, 4.1], default=None)
     sub.add_parser("measures", help="list the quality measures")
     return p

@@ -433,7 +433,12 @@ struct State {
   std::vector<std::int64_t> edgeSlot;  // N (or empty): first index in edgeNormal, −1
   std::vector<Vec3> edgeNormal;        // corner normal of an Edge node in each incident element
   // ---- sweep -----------------------------------------------------------------------------
-  double deltaHat = 0.0;   // dimensionless δ of the current sweep
+  double deltaHat = 0.0;  // dimensionless δ of the current sweep
+  // Monotone mode, δ = 0 sweeps: the lowest quality of the valid elements with a movable node
+  // at the start of the sweep. A move may lower its submesh's minimum quality down to this
+  // floor, not below it, so that the mesh's minimum over those elements never decreases.
+  // +∞ in untangling sweeps (no valid submesh's minimum may drop).
+  double qualityFloor = kInf;
   bool trackCache = true;  // δ = 0 sweep: keep eta0/minSigma current at every accepted move
   // Patch untangling (escapeTangledElements → relaxPatch): a node's move may tangle more
   // elements of its submesh than it had (only f̂ must decrease), linear triangles use their
@@ -620,13 +625,18 @@ struct alignas(64) Worker {
   explicit Worker(const State& s) : geo(s.mesh) {
     eta0.resize(s.maxDegree);
     sig.resize(s.maxDegree);
+    keptEta0.resize(s.maxDegree);
+    keptSig.resize(s.maxDegree);
     normals.resize(s.maxDegree);
     baseNormal.resize(s.maxDegree);
   }
   ThreadGeometry geo;
   std::vector<double> eta0, sig;  // trial's per-element η(δ=0) and scaled det S
-  std::vector<Vec3> normals;      // trial's corner normals of a sliding node
-  std::vector<Vec3> baseNormal;   // per incident element: its normal without the free corner
+  // The same of the last accepted trial (swapped in by keepTrial: later trials of the same
+  // update, rejected part way, overwrite eta0/sig).
+  std::vector<double> keptEta0, keptSig;
+  std::vector<Vec3> normals;     // trial's corner normals of a sliding node
+  std::vector<Vec3> baseNormal;  // per incident element: its normal without the free corner
   double maxRelMove = 0.0;
   std::size_t updated = 0, moved = 0;
   char pad[64];
@@ -963,7 +973,7 @@ class NodeUpdater {
           r.minQuality = q;
           if (g) r.gradWorst = ge;
         }
-        if (cur && q < cur->minQuality) {
+        if (cur && q < qualityBar(*cur)) {
           LocalEval rq = reject();
           rq.byQuality = true;
           return rq;
@@ -985,18 +995,31 @@ class NodeUpdater {
     if (!trial.finite) return false;
     if (trial.tangled > cur.tangled && !s_.relaxTangled) return false;
     if (!(trial.f < cur.f)) return false;
-    if (s_.opt.monotone && cur.tangled == 0 && trial.minQuality < cur.minQuality) return false;
+    if (s_.opt.monotone && cur.tangled == 0 && trial.minQuality < qualityBar(cur)) return false;
     return true;
   }
 
-  /// Records the accepted trial's element values (δ = 0 sweeps keep the cache current).
+  /// Monotone mode: the least minimum quality of a valid submesh a move may leave — its
+  /// current minimum or, when lower, the sweep's quality floor (the mesh's minimum over the
+  /// elements with a movable node): no element falls below the mesh's minimum.
+  double qualityBar(const LocalEval& cur) const {
+    return std::min(cur.minQuality, s_.qualityFloor);
+  }
+
+  /// Keeps the element values of the trial just evaluated (and accepted) for commitElements.
+  void keepTrial() {
+    w_.eta0.swap(w_.keptEta0);
+    w_.sig.swap(w_.keptSig);
+  }
+
+  /// Records the kept trial's element values (δ = 0 sweeps keep the cache current).
   void commitElements(std::size_t i) {
     if (!s_.trackCache) return;
     const std::int64_t b = s_.begin(i), en = s_.end(i);
     for (std::int64_t p = b; p < en; ++p) {
       const std::size_t e = static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
-      s_.eta0[e] = w_.eta0[static_cast<std::size_t>(p - b)];
-      s_.minSigma[e] = w_.sig[static_cast<std::size_t>(p - b)];
+      s_.eta0[e] = w_.keptEta0[static_cast<std::size_t>(p - b)];
+      s_.minSigma[e] = w_.keptSig[static_cast<std::size_t>(p - b)];
     }
   }
 
@@ -1065,6 +1088,7 @@ class NodeUpdater {
             i, dT.p, [&](std::size_t) { return nT; }, zero, wantQ, &best, nullptr, nullptr);
         lostQuality = tr.byQuality;
         if (!acceptable(best, tr)) return false;
+        keepTrial();
         best = tr;
         uvNew = uvT;
         dn = dT;
@@ -1080,7 +1104,8 @@ class NodeUpdater {
       // further when the worst element's η grows along the direction: every shorter step
       // lowers it too (to first order).
       const double minStep = kMinStepFraction * s_.opt.moveTol * L;
-      const bool worstGrows = wantQ && cur.gradWorst.dot(d.du * dir.x() + d.dv * dir.y()) > 0.0;
+      const bool worstGrows = wantQ && cur.minQuality <= s_.qualityFloor &&
+                              cur.gradWorst.dot(d.du * dir.x() + d.dv * dir.y()) > 0.0;
       for (int ls = 0; ls < s_.opt.maxLineSearch && !accepted; ++ls, alpha *= 0.5) {
         if (ls > 0 && (alpha * len3 < minStep || (lostQuality && worstGrows))) break;
         accepted = tryStep(alpha * dir);
@@ -1221,6 +1246,7 @@ class NodeUpdater {
       const LocalEval tr = evalLocal(
           i, xn, [&](std::size_t j) { return trialN[j]; }, old, wantQ, &cur, nullptr, nullptr);
       if (!acceptable(cur, tr)) continue;
+      keepTrial();
       double tb = tn;
       if (s_.deltaHat > 0.0 && cur.tangled > 0 && tr.tangled >= cur.tangled &&
           (xn - x0).norm() < s_.opt.moveTol * L)
@@ -1437,6 +1463,7 @@ struct GlobalEval {
   std::size_t frozenTangled = 0;  // tangled elements without one (no move can change them)
   double minSigma = kInf;
   double minQuality = 1.0;
+  double minValidMovable = 1.0;  // lowest quality of the valid elements with a movable node
 };
 
 /// Per element: 1 when none of its nodes may move (it is in no node's submesh).
@@ -1609,6 +1636,7 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
         g.objective0 = g.movable0 = kInf;
       } else {
         g.minQuality = std::min(g.minQuality, 1.0 / et);
+        if (!frozen[e]) g.minValidMovable = std::min(g.minValidMovable, 1.0 / et);
         g.objective0 += 0.5 * (et - 1.0) * (et - 1.0);
         if (!frozen[e]) g.movable0 += 0.5 * (et - 1.0) * (et - 1.0);
       }
@@ -1682,6 +1710,9 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
     freezeScales();
     s.deltaHat = chooseDelta(g);
     s.trackCache = s.deltaHat == 0.0;
+    // Untangling sweeps keep every valid submesh's minimum (the relaxed bar would let the
+    // valid elements around a fold give way to moves that only lower f̂).
+    s.qualityFloor = s.deltaHat > 0.0 ? kInf : g.minValidMovable;
     // While δ > 0 it (and the scaled δ of every element) changes from sweep to sweep: every
     // node is revisited. In δ = 0 sweeps a node is revisited only when it or a neighbour
     // moved by more than moveTol × its local size since its last update.
