@@ -555,8 +555,6 @@ ElementEdges elementEdges(ElementType t) {
 
 void fail(const std::string& msg) { throw std::invalid_argument("CadMesh: " + msg); }
 
-constexpr int kMaxElementNodes = 21;  // Tri21 (p = 5), the largest ElementType
-
 }  // namespace
 
 const char* nodeClassName(NodeClass c) {

@@ -33,7 +33,6 @@ const char* stopReasonName(StopReason r) {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
-constexpr int kMaxElementNodes = 21;
 
 bool isMovable(NodeKind k) { return k == NodeKind::Face || k == NodeKind::Edge; }
 
@@ -1100,11 +1099,12 @@ class NodeUpdater {
       // Halvings stop below a tenth of the activity threshold moveTol × L: a shorter step
       // would not count as a move (the direction fails: e.g. it lowers the submesh's minimum
       // quality in monotone mode, or the node sits at its local minimum).
-      // In monotone mode, a step that lowered the submesh's minimum quality is not halved
-      // further when the worst element's η grows along the direction: every shorter step
-      // lowers it too (to first order).
+      // In monotone mode, when the submesh's minimum is the bar (qualityBar: it is at or below
+      // the sweep's floor), a step that lowered it is not halved further when the worst
+      // element's η grows along the direction: every shorter step lowers it too (to first
+      // order). Above the floor, the element that fell below it need not be the worst.
       const double minStep = kMinStepFraction * s_.opt.moveTol * L;
-      const bool worstGrows = wantQ && cur.minQuality <= s_.qualityFloor &&
+      const bool worstGrows = wantQ && qualityBar(cur) == cur.minQuality &&
                               cur.gradWorst.dot(d.du * dir.x() + d.dv * dir.y()) > 0.0;
       for (int ls = 0; ls < s_.opt.maxLineSearch && !accepted; ++ls, alpha *= 0.5) {
         if (ls > 0 && (alpha * len3 < minStep || (lostQuality && worstGrows))) break;

@@ -30,6 +30,9 @@ enum class ElementType : std::uint8_t {
   Tri21 = 5,  ///< quintic triangle (p = 5)
 };
 
+/// Nodes of the largest element type (Tri21): a bound for per-element scratch arrays.
+constexpr int kMaxElementNodes = 21;
+
 /// Whether `code` is the value of an ElementType (0…5).
 bool isElementTypeCode(int code);
 /// Number of nodes of an element type. Throws std::invalid_argument for a value outside the

@@ -71,8 +71,9 @@ struct OptimizeOptions {
   int innerIterations = 1;
   /// Maximum halvings of the line search. It stops earlier once the step's 3D length falls
   /// below 0.1 × moveTol × the node's local size (a shorter step would not count as a move),
-  /// and in monotone mode once a trial lowered the submesh's minimum quality while the worst
-  /// element's η grows along the step (every shorter step lowers it too, to first order).
+  /// and in monotone mode, when the submesh's minimum quality is the least a move may leave
+  /// (see monotone), once a trial lowered it while the worst element's η grows along the step
+  /// (every shorter step lowers it too, to first order).
   int maxLineSearch = 30;
   /// δ policy: "auto" (Escobar, from σ_min each sweep) or "fixed" (use `delta` while tangled).
   std::string deltaPolicy = "auto";
