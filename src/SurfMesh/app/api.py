@@ -38,8 +38,9 @@ BOUNDARY_MODES = ("fixed", "slide")
 #: Options of :func:`optimize` that map to the core's OptimizeOptions, with their defaults.
 OPTIMIZE_DEFAULTS = {
     "max_sweeps": 100,  # maximum number of Gauss-Seidel sweeps over the movable nodes
-    "rel_tol": 1e-3,  # once untangled, stop when the objective's relative decrease over a sweep
-    # (over the elements with a movable node) is below rel_tol,
+    "rel_tol": 1e-3,  # once untangled, stop when the relative decrease over a sweep of both the
+    # objective and the quality deficit sum(1 - q) (over the elements with a movable node) is
+    # below rel_tol,
     "move_tol": 1e-3,  # or when no node moved more than move_tol × its local size
     "inner_iterations": 1,  # Newton iterations per node and sweep (the paper uses 1)
     "max_line_search": 30,  # maximum halvings of the backtracking line search

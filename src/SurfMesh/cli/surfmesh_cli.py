@@ -58,7 +58,9 @@ def build_parser():
     o.add_argument("-o", "--output", required=True, help="optimized mesh file")
     o.add_argument("--boundary", default="fixed", choices=["fixed", "slide"])
     o.add_argument("--max-sweeps", type=int, default=None)
-    o.add_argument("--rel-tol", type=float, default=None)
+    o.add_argument("--rel-tol", type=float, default=None,
+                   help="once untangled, stop when a sweep lowers both the objective and the "
+                   "quality deficit sum(1 - q) by less than this fraction (default 1e-3)")
     o.add_argument("--threads", type=int, default=None)
     o.add_argument("--no-monotone", action="store_true",
                    help="accept moves that lower a valid mesh's minimum quality")

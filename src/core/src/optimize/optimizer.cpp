@@ -1459,6 +1459,7 @@ struct GlobalEval {
   double objective = 0.0;         // ½ Σ (η − 1)² with the sweep's δ
   double objective0 = 0.0;        // the same with δ = 0 (+∞ while tangled)
   double movable0 = 0.0;          // objective0 without the elements no move can change
+  double deficit = 0.0;           // Σ (1 − q) over the same elements (0 while tangled)
   std::size_t tangled = 0;        // tangled elements with a movable node
   std::size_t frozenTangled = 0;  // tangled elements without one (no move can change them)
   double minSigma = kInf;
@@ -1638,7 +1639,10 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
         g.minQuality = std::min(g.minQuality, 1.0 / et);
         if (!frozen[e]) g.minValidMovable = std::min(g.minValidMovable, 1.0 / et);
         g.objective0 += 0.5 * (et - 1.0) * (et - 1.0);
-        if (!frozen[e]) g.movable0 += 0.5 * (et - 1.0) * (et - 1.0);
+        if (!frozen[e]) {
+          g.movable0 += 0.5 * (et - 1.0) * (et - 1.0);
+          g.deficit += 1.0 - 1.0 / et;
+        }
       }
       g.minSigma = std::min(g.minSigma, s.minSigma[e]);
     }
@@ -1721,6 +1725,7 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
     // The stopping rule's f leaves out the elements no move can change: a poor element between
     // fixed nodes would otherwise dwarf the decrease over the rest of the mesh.
     const double fStartMovable = g.movable0;
+    const double deficitStart = g.deficit;
     for (auto& w : workers) {
       w->maxRelMove = 0.0;
       w->updated = w->moved = 0;
@@ -1849,9 +1854,13 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
     }
     if (g.tangled == 0 && s.deltaHat == 0.0) {
       const double fEndMovable = g.movable0;
-      const bool decreaseSmall =
+      const bool fSmall =
           !(fStartMovable > 0.0) ||
           (fStartMovable - fEndMovable) <= opt.relTol * std::max(fStartMovable, 1e-300);
+      const bool deficitSmall =
+          !std::isfinite(deficitStart) ||
+          (deficitStart - g.deficit) <= opt.relTol * std::max(deficitStart, 1e-300);
+      const bool decreaseSmall = fSmall && deficitSmall;
       if (decreaseSmall || maxMove <= opt.moveTol) {
         res.reason = StopReason::Converged;
         break;
