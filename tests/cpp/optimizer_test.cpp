@@ -308,24 +308,38 @@ TEST(Optimizer, GivesUpAnUnrepairableTangleAndSmoothsTheRest) {
   expectOnSurfaceAndInDomain(m);
 }
 
+// A 12-cell square mesh of [0, 1]² on `plane`, its interior nodes moved by up to amp × the
+// spacing, and the same mesh as a grid (moved (u,v)) that a test adds elements to.
+struct SquareBeside {
+  SurfaceMesh square;
+  GridMesh grid;
+};
+
+SquareBeside perturbedSquare(const Surface& plane, double amp) {
+  const GridMesh sq = squareMesh(12);
+  SquareBeside r;
+  r.square = makeSingleSurfaceMesh(plane, sq.uv, ElementType::Tri3, sq.conn, sq.fixed);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> unif(-amp / 12, amp / 12);
+  for (std::size_t i = 0; i < r.square.nodeCount(); ++i)
+    if (r.square.nodeKind[i] == NodeKind::Face) r.square.uv[i] += Vec2(unif(rng), unif(rng));
+  syncFaceNodes(r.square);
+  r.grid.uv = r.square.uv;
+  r.grid.conn = sq.conn;
+  r.grid.fixed = sq.fixed;
+  return r;
+}
+
 // The stopping rule weighs only the elements a move can change: a sliver between fixed nodes
 // (η ≈ 100, so ½(η − 1)² dwarfs the rest of f) beside a perturbed valid square changes nothing
 // in the square's run — same sweeps, same positions as the square optimized alone.
 TEST(Optimizer, AnElementBetweenFixedNodesDoesNotStopTheRunEarly) {
   const PlaneSurface plane({0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0.0, 4.0, 0.0, 1.0});
-  const GridMesh sq = squareMesh(12);
-  SurfaceMesh square = makeSingleSurfaceMesh(plane, sq.uv, ElementType::Tri3, sq.conn, sq.fixed);
   // Every interior node moved by up to a tenth of the spacing: valid (the half cells along
   // the sides are half as wide), not optimal.
-  std::mt19937 rng(5);
-  std::uniform_real_distribution<double> unif(-0.1 / 12, 0.1 / 12);
-  for (std::size_t i = 0; i < square.nodeCount(); ++i)
-    if (square.nodeKind[i] == NodeKind::Face) square.uv[i] += Vec2(unif(rng), unif(rng));
-  syncFaceNodes(square);
-  GridMesh g;
-  g.uv = square.uv;
-  g.conn = sq.conn;
-  g.fixed = sq.fixed;
+  SquareBeside sb = perturbedSquare(plane, 0.1);
+  SurfaceMesh& square = sb.square;
+  GridMesh& g = sb.grid;
   const std::int32_t a = static_cast<std::int32_t>(g.uv.size());
   g.uv.insert(g.uv.end(), {{2.0, 0.0}, {3.0, 0.0}, {2.5, 0.005}});
   g.fixed.insert(g.fixed.end(), {a, a + 1, a + 2});
@@ -408,21 +422,13 @@ namespace {
 // perturbed square must end as smooth as when it is optimized alone.
 TEST(Optimizer, PinnedNeedlesDoNotStopTheRunEarly) {
   const PlaneSurface plane({0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0.0, 4.0, 0.0, 1.0});
-  const GridMesh sq = squareMesh(12);
-  SurfaceMesh square = makeSingleSurfaceMesh(plane, sq.uv, ElementType::Tri3, sq.conn, sq.fixed);
-  std::mt19937 rng(5);
-  std::uniform_real_distribution<double> unif(-0.2 / 12, 0.2 / 12);
-  for (std::size_t i = 0; i < square.nodeCount(); ++i)
-    if (square.nodeKind[i] == NodeKind::Face) square.uv[i] += Vec2(unif(rng), unif(rng));
-  syncFaceNodes(square);
+  SquareBeside sb = perturbedSquare(plane, 0.2);
+  SurfaceMesh& square = sb.square;
+  GridMesh& g = sb.grid;
   ASSERT_EQ(measureQuality(square, measureByName("shape")).stats.tangled, 0u);
   // The needles, apart from the square: a movable node p between fixed nodes 0.6 to its
   // left and right and 0.006 above and below, in four needles. Any move of p lowers the worst
   // of them: it stays at the centre.
-  GridMesh g;
-  g.uv = square.uv;
-  g.conn = sq.conn;
-  g.fixed = sq.fixed;
   const std::int32_t p = static_cast<std::int32_t>(g.uv.size());
   const Vec2 centre(2.5, 0.5);
   g.uv.push_back(centre + Vec2(0.001, 0.0005));
