@@ -1459,7 +1459,7 @@ struct GlobalEval {
   double objective = 0.0;         // ½ Σ (η − 1)² with the sweep's δ
   double objective0 = 0.0;        // the same with δ = 0 (+∞ while tangled)
   double movable0 = 0.0;          // objective0 without the elements no move can change
-  double deficit = 0.0;           // Σ (1 − q) over the same elements (0 while tangled)
+  double deficit = 0.0;           // Σ (1 − q) over the same elements, the tangled left out
   std::size_t tangled = 0;        // tangled elements with a movable node
   std::size_t frozenTangled = 0;  // tangled elements without one (no move can change them)
   double minSigma = kInf;
@@ -1853,14 +1853,11 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
       break;
     }
     if (g.tangled == 0 && s.deltaHat == 0.0) {
-      const double fEndMovable = g.movable0;
-      const bool fSmall =
-          !(fStartMovable > 0.0) ||
-          (fStartMovable - fEndMovable) <= opt.relTol * std::max(fStartMovable, 1e-300);
-      const bool deficitSmall =
-          !std::isfinite(deficitStart) ||
-          (deficitStart - g.deficit) <= opt.relTol * std::max(deficitStart, 1e-300);
-      const bool decreaseSmall = fSmall && deficitSmall;
+      auto decreaseBelowTol = [&](double start, double end) {
+        return !(start > 0.0) || (start - end) <= opt.relTol * std::max(start, 1e-300);
+      };
+      const bool decreaseSmall =
+          decreaseBelowTol(fStartMovable, g.movable0) && decreaseBelowTol(deficitStart, g.deficit);
       if (decreaseSmall || maxMove <= opt.moveTol) {
         res.reason = StopReason::Converged;
         break;
