@@ -93,6 +93,7 @@ void bind_optimize(MeshClass& cls) {
         d["final_objective"] = r.finalObjective;
         d["moved_nodes"] = r.movedNodes;
         d["threads"] = r.threadsUsed;
+        d["patch_untanglings"] = r.patchUntanglings;
         d["tangled_unmovable"] = r.tangledUnmovable;
         d["tangled_movable"] = r.tangledMovable;
         d["warnings"] = r.warnings;
@@ -111,6 +112,7 @@ void bind_optimize(MeshClass& cls) {
       "the core's. progress(dict) is called "
       "after every sweep; returning False cancels (reason 'cancelled', mesh unchanged). "
       "Returns a dict: before, after (stats), sweeps, seconds, reason, moved_nodes, threads, "
+      "patch_untanglings (escapes of stuck tangled elements by joint relaxation tried), "
       "tangled_unmovable / tangled_movable (ids of the elements left tangled without / with a "
       "movable node) and warnings (a line for each non-empty list). before: the stats dict of "
       "measure(measure) on the mesh as it is, when the caller has it (not measured again).");

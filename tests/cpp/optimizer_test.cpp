@@ -280,14 +280,20 @@ TEST(Optimizer, GivesUpAnUnrepairableTangleAndSmoothsTheRest) {
     tangledPerSweep.push_back(p.tangled);
     return true;
   });
-  std::printf("square + C fan: %d sweeps, %s, tangled %zu -> %zu\n", r.sweeps,
-              stopReasonName(r.reason), r.before.tangled, r.after.tangled);
+  std::printf("square + C fan: %d sweeps, %s, tangled %zu -> %zu, %zu patch untanglings\n",
+              r.sweeps, stopReasonName(r.reason), r.before.tangled, r.after.tangled,
+              r.patchUntanglings);
   EXPECT_EQ(r.reason, StopReason::Converged);
   EXPECT_LT(r.sweeps, 120);
   for (std::size_t k = 1; k < tangledPerSweep.size(); ++k)
     EXPECT_LE(tangledPerSweep[k], tangledPerSweep[k - 1]);
   ASSERT_FALSE(r.tangledMovable.empty());
   EXPECT_TRUE(r.tangledUnmovable.empty());
+  // The escape (patch untangling) is tried on the stuck elements, with a backoff: after 1, 2,
+  // 4, then every 8 stalled sweeps, and once at each change of ε (6 levels before the run
+  // gives up), not at each of the 48 stalled sweeps.
+  EXPECT_GE(r.patchUntanglings, r.tangledMovable.size());
+  EXPECT_LE(r.patchUntanglings, 12 * r.tangledMovable.size());
   for (std::int32_t e : r.tangledMovable) EXPECT_GE(static_cast<std::size_t>(e), squareElements);
   ASSERT_EQ(r.warnings.size(), 1u);
   EXPECT_NE(r.warnings[0].find("some of their nodes may move"), std::string::npos);

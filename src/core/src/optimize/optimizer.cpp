@@ -13,6 +13,7 @@
 #include <stdexcept>
 #include <thread>
 #include <type_traits>
+#include <unordered_map>
 
 namespace surfmesh {
 
@@ -443,8 +444,19 @@ struct State {
   // elements of its submesh than it had (only f̂ must decrease), linear triangles use their
   // projected σ; the patch as a whole is kept only when it ends with fewer tangled elements.
   bool relaxTangled = false;
-  std::int32_t clock = 0;      // advanced once per color
-  std::int32_t validFrom = 1;  // a node last visited before this clock is revisited
+  // Backoff of the patch untangling per stuck element (escapeTangledElements): after n failed
+  // attempts in a row, an element's patches are relaxed again only min(2^(n−1),
+  // deltaStallSweeps) sweeps later, or as soon as ε has moved to another level. Only elements
+  // that stay tangled have an entry.
+  struct RelaxBackoff {
+    int fails = 0;
+    int nextSweep = 0;
+    int epsilonLevel = 0;
+  };
+  std::unordered_map<std::size_t, RelaxBackoff> relaxBackoff;
+  std::size_t patchUntanglings = 0;  // elements whose patches were relaxed (per escape)
+  std::int32_t clock = 0;            // advanced once per color
+  std::int32_t validFrom = 1;        // a node last visited before this clock is revisited
 
   State(const SurfaceMesh& m, const PlanarMeasure& pm, const OptimizeOptions& o)
       : mesh(m), measure(pm), opt(o), inc(buildIncidence(m)), xyz(m.xyz), uv(m.uv), t(m.nodeT) {
@@ -663,11 +675,16 @@ class NodeUpdater {
   /// surface — a stacked fan of a coarse mesh between two CAD-edge nodes over 70° of a torus
   /// fillet), the patch is untangled jointly by relaxPatch, from the harmonic layout and from
   /// its current positions (with `relax`: the sweeps have left the number of tangled elements
-  /// unchanged a few times in a row — a short stall usually ends by itself). The smallest
+  /// unchanged a few times in a row — a short stall usually ends by itself; an element whose
+  /// patches failed is relaxed again only after State::RelaxBackoff's wait, at `sweep` ≥ its
+  /// next sweep or at another `epsilonLevel`: the joint untangling costs up to hundreds of
+  /// node updates per node, and a tangle no motion repairs would pay it at every stalled
+  /// sweep until the run gives up — 48 of them by default). The smallest
   /// patch that leaves fewer tangled elements among all elements of the moved nodes is kept —
   /// strict progress, so it cannot cycle. Runs on one thread between sweeps, only while
   /// tangled elements stall; returns the number of elements untangled.
-  std::size_t escapeTangledElements(const std::vector<unsigned char>& frozen, bool relax) {
+  std::size_t escapeTangledElements(const std::vector<unsigned char>& frozen, bool relax, int sweep,
+                                    int epsilonLevel) {
     std::size_t gained = 0;
     std::vector<std::size_t> patch, elems;
     std::vector<Vec2> uvSave, iter;
@@ -694,7 +711,11 @@ class NodeUpdater {
         if (movableHere(j) && !inPatch(j)) patch.push_back(j);
       }
       if (patch.empty()) continue;
-      bool kept = false;
+      auto backoff = s_.relaxBackoff.find(e);
+      const bool relaxHere = relax && (backoff == s_.relaxBackoff.end() ||
+                                       backoff->second.epsilonLevel != epsilonLevel ||
+                                       sweep >= backoff->second.nextSweep);
+      bool kept = false, relaxed = false;
       for (int ring = 0; ring <= 3 && !kept; ++ring) {
         if (ring > 0) {  // grow by one ring of Face nodes of this face
           const std::size_t n0 = patch.size();
@@ -804,12 +825,13 @@ class NodeUpdater {
         // that may pass through tangled states, from the input positions and from the
         // harmonic layout when it was placeable.
         std::size_t t2 = t0;
-        if (!relax || patch.size() > kMaxRelaxPatchNodes) {
+        if (!relaxHere || patch.size() > kMaxRelaxPatchNodes) {
           restore(patch, uvSave, xyzSave, nSave);
           continue;
         }
         if (ok && relaxTries_ < kMaxRelaxPatches) {
           ++relaxTries_;
+          relaxed = true;
           t2 = relaxPatch(patch, countTangled, t0);
           if (t2 < t0) {
             kept = true;
@@ -820,6 +842,7 @@ class NodeUpdater {
         restore(patch, uvSave, xyzSave, nSave);
         if (relaxTries_ < kMaxRelaxPatches) {
           ++relaxTries_;
+          relaxed = true;
           t2 = relaxPatch(patch, countTangled, t0);
           if (t2 < t0) {
             kept = true;
@@ -828,6 +851,15 @@ class NodeUpdater {
           }
           restore(patch, uvSave, xyzSave, nSave);
         }
+      }
+      if (kept && backoff != s_.relaxBackoff.end()) s_.relaxBackoff.erase(backoff);
+      if (relaxed) ++s_.patchUntanglings;
+      if (!kept && relaxed) {
+        State::RelaxBackoff& b = s_.relaxBackoff[e];
+        ++b.fails;
+        const int wait = 1 << std::min(b.fails - 1, 20);
+        b.nextSweep = sweep + std::min(wait, std::max(1, s_.opt.deltaStallSweeps));
+        b.epsilonLevel = epsilonLevel;
       }
     }
     return gained;
@@ -1809,7 +1841,8 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
     // Sweeps in a row that left more tangled elements than the best so far.
     stuckSweeps = (g.tangled > 0 && g.tangled >= bestTangled) ? stuckSweeps + 1 : 0;
     if (stuckSweeps > 0 &&
-        NodeUpdater(s, *workers[0]).escapeTangledElements(frozen, stuckSweeps >= 3) > 0)
+        NodeUpdater(s, *workers[0])
+                .escapeTangledElements(frozen, stuckSweeps >= 3, sweep, epsilonLevel) > 0)
       g = fullEval(s.deltaHat);  // a stuck element untangled by moving its nodes together
     if (g.tangled < fewestTangled) {
       fewestTangled = g.tangled;
@@ -1900,6 +1933,7 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
     }
   }
   res.movedNodes = moved;
+  res.patchUntanglings = s.patchUntanglings;
   std::vector<Vec3> xyz = std::move(s.xyz);
   std::vector<Vec2> uv = std::move(s.uv);
   std::vector<double> t = std::move(s.t);
@@ -1981,6 +2015,7 @@ OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
   }
   res.before = held.before;
   res.sweeps += held.sweeps;
+  res.patchUntanglings += held.patchUntanglings;
   res.initialObjective = held.initialObjective;
   if (res.reason == StopReason::NothingToDo) res.reason = held.reason;
   res.movedNodes = 0;

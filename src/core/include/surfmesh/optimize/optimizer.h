@@ -29,10 +29,12 @@
 // row the patch is also untangled jointly (Newton steps on its nodes alone that may tangle
 // more elements while the objective drops, δ stepped down from 4× to 1/16 of the sweep's,
 // projected areas in place of signed ones so that thin elements standing across a curved
-// surface can turn over). Tangled elements without a movable node cannot change: they do
-// not keep δ > 0 and are reported (OptimizeResult::warnings). Neither do, after
-// 6 × deltaStallSweeps sweeps without fewer tangled elements than ever before (every escape
-// tried with each ε twice), the elements still tangled: their nodes are held from then on,
+// surface can turn over; an element that stays stuck is untangled jointly again only after a
+// backoff of 1, 2, 4, then deltaStallSweeps sweeps, or when ε changes level — see
+// OptimizeResult::patchUntanglings). Tangled elements without a movable node cannot change:
+// they do not keep δ > 0 and are reported (OptimizeResult::warnings). Neither do, after
+// 6 × deltaStallSweeps sweeps without fewer tangled elements than ever before (each level of
+// ε tried twice), the elements still tangled: their nodes are held from then on,
 // the rest of the mesh is smoothed with δ = 0, and they are reported in tangledMovable.
 //
 // Guarantees: the number of tangled elements of a node's submesh never increases (so the
@@ -127,6 +129,12 @@ struct OptimizeResult {
   double finalObjective = 0.0;
   std::size_t movedNodes = 0;  ///< nodes whose position changed
   int threadsUsed = 1;
+  /// Escapes by patch untangling tried (each: one tangled element the node-by-node sweeps no
+  /// longer untangle, its Face nodes within up to 3 rings relaxed jointly, up to 8 short runs
+  /// over at most 96 nodes), summed over the run. An element that stays stuck is retried
+  /// after 1, 2, 4, then every deltaStallSweeps sweeps, and when ε changes level: a few
+  /// escapes per ε level, not one per stalled sweep.
+  std::size_t patchUntanglings = 0;
   /// Elements tangled after the run none of whose nodes may move (all on CAD vertices, on
   /// fixed CAD edges or poles): no node motion can repair them.
   std::vector<std::int32_t> tangledUnmovable;
