@@ -5,6 +5,7 @@ normals (surfmesh_testing.reference_tri_quality), FreeCAD's geometry queries and
 closed-form distance for node positions.
 """
 
+import re
 import unittest
 
 import FreeCAD
@@ -183,6 +184,19 @@ class TestOptimize(ApiCase):
         self.assertEqual(res.tangled_movable, [])
         self.assertGreater(len(res.tangled_unmovable), 0)
         self.assertTrue(any("no node that may move" in w for w in res.warnings))
+        # the warning says where the first one is: its centroid, on a face of the shape
+        # (FreeCAD's own name and distance query)
+        warn = next(w for w in res.warnings if "no node that may move" in w)
+        self.assertIn("try boundary='slide'", warn)
+        where = re.search(r"near \(([^)]*)\) on Face(\d+)", warn)
+        self.assertIsNotNone(where, warn)
+        near = FreeCAD.Vector(*[float(x) for x in where.group(1).split(",")])
+        first = res.tangled_unmovable[0]
+        centroid = sum((FreeCAD.Vector(*p) for p in m.Facets[first].Points), FreeCAD.Vector())
+        self.assertLess((near - centroid * (1.0 / 3.0)).Length, 1e-5 * diag)
+        face = shape.Faces[int(where.group(2)) - 1]
+        for p in m.Facets[first].Points:
+            self.assertLess(face.distToShape(Part.Vertex(FreeCAD.Vector(*p)))[0], 1e-5 * diag)
         # every node of those facets lies on a CAD edge or vertex (FreeCAD's own query)
         edges = Part.Compound(shape.Edges)
         for f in res.tangled_unmovable:

@@ -465,19 +465,30 @@ def optimize(
     t4 = time.perf_counter()
     timings.update(before=t1 - t0, optimize=t2 - t1, after=t3 - t2, rebuild=t4 - t3,
                    total=t4 - t_start)
-    unmovable = _user_element_ids(data, r.get("tangled_unmovable", []))
-    movable = _user_element_ids(data, r.get("tangled_movable", []))
+    core_unmovable = list(r.get("tangled_unmovable", []))
+    core_movable = list(r.get("tangled_movable", []))
+    unmovable = _user_element_ids(data, core_unmovable)
+    movable = _user_element_ids(data, core_movable)
     warnings = []
     if unmovable:
+        hint = "try boundary='slide', or change" if boundary == "fixed" else "change"
         warnings.append(
             f"{len(unmovable)} element(s) stay tangled with no node that may move (all on CAD "
-            "vertices, fixed CAD edges or poles; try boundary='slide', or change the mesh "
-            f"there): elements {_id_list(unmovable)}"
+            f"vertices, fixed CAD edges or poles; {hint} the mesh there): elements "
+            f"{_id_list(unmovable)}{_where(data, handle, new_nodes, core_unmovable)}"
         )
     if movable:
+        if r["reason"] == "max_sweeps":
+            hint = "the run reached max_sweeps: try more sweeps"
+        elif boundary == "fixed":
+            hint = "no motion of their movable nodes repairs them: try boundary='slide'"
+        else:
+            hint = ("no motion of their movable nodes repairs them: change the mesh there, "
+                    "e.g. elements smaller than the CAD feature they span")
         warnings.append(
             f"{len(movable)} element(s) stay tangled although some of their nodes may move "
-            f"(try more sweeps, or boundary='slide'): elements {_id_list(movable)}"
+            f"({hint}): elements {_id_list(movable)}"
+            f"{_where(data, handle, new_nodes, core_movable)}"
         )
     return OptimizeResult(
         mesh=new_mesh,
@@ -509,6 +520,18 @@ def _user_element_ids(data, core_indices):
     if ids is not None:
         idx = np.asarray(ids)[idx]
     return [int(i) for i in idx]
+
+
+def _where(data, handle, nodes, core_indices):
+    """Where the first of these elements is, for a warning: its centroid (at `nodes`) and the
+    CAD face it lies on, by FreeCAD's name (Face1 is the shape's first face)."""
+    if not core_indices:
+        return ""
+    k = int(core_indices[0])
+    e = int(np.nonzero(data.kept)[0][k]) if data.kept is not None else k
+    c = nodes[data.conn[data.offsets[e]:data.offsets[e + 1]]].mean(axis=0)
+    face = int(handle.element_faces()[k]) + 1
+    return f" (the first near ({c[0]:.6g}, {c[1]:.6g}, {c[2]:.6g}) on Face{face})"
 
 
 def _id_list(ids, shown=20):
