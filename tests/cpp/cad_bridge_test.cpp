@@ -24,6 +24,7 @@
 #include <cmath>
 #include <functional>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <set>
 #include <stdexcept>
@@ -300,6 +301,56 @@ TEST(CadBridge, HintsAreUsedAndVerified) {
   for (std::size_t n = 0; n < N; ++n) {
     EXPECT_EQ(cm.report().nodeClass[n], om.nodeClass[n]) << "node " << n;
     EXPECT_EQ(cm.report().nodeEntity[n], om.nodeEntity[n]) << "node " << n;
+  }
+}
+
+// A mesher's node-on-entity query accepts nodes within the entity's tolerance; at a CAD feature
+// smaller than that it also names a neighbouring vertex or edge. Such a hint, within the
+// bridge's tolerance but farther than another vertex (edge), is ignored: the node is classified
+// as without hints (it would otherwise leave its elements on no single face).
+TEST(CadBridge, HintNamingANeighbourEntityIsIgnored) {
+  auto shape = load("occt_crankarm.brep");
+  OccMesh om = meshWithBRepMesh(*shape, 1e-3 * shape->diagonal(), 0.5);
+  const std::size_t N = om.input.nodes.size();
+  for (NodeClass kind : {NodeClass::Vertex, NodeClass::Edge}) {
+    // The node on a vertex (edge) with the nearest other vertex (edge), by OCC's distances.
+    std::size_t node = N;
+    int other = -1;
+    double otherDist = std::numeric_limits<double>::infinity();
+    for (std::size_t n = 0; n < N; ++n) {
+      if (om.nodeClass[n] != kind) continue;
+      const gp_Pnt p(om.input.nodes[n].x(), om.input.nodes[n].y(), om.input.nodes[n].z());
+      const int count = kind == NodeClass::Vertex ? shape->vertexCount() : shape->edgeCount();
+      for (int k = 0; k < count; ++k) {
+        if (k == om.nodeEntity[n]) continue;
+        double d = std::numeric_limits<double>::infinity();
+        if (kind == NodeClass::Vertex) {
+          d = BRep_Tool::Pnt(shape->vertex(k)).Distance(p);
+        } else if (!BRep_Tool::Degenerated(shape->edge(k))) {
+          BRepExtrema_DistShapeShape dss(BRepBuilderAPI_MakeVertex(p).Vertex(), shape->edge(k));
+          if (dss.IsDone()) d = dss.Value();
+        }
+        if (d > 1e-6 * shape->diagonal() && d < otherDist) {
+          otherDist = d;
+          node = n;
+          other = k;
+        }
+      }
+      if (node < N && kind == NodeClass::Edge) break;  // the first edge node will do
+    }
+    ASSERT_LT(node, N);
+    MeshInput in = om.input;
+    (kind == NodeClass::Vertex ? in.hintVertex : in.hintEdge).assign(N, -1);
+    (kind == NodeClass::Vertex ? in.hintVertex : in.hintEdge)[node] = other;
+    BridgeOptions opt;
+    opt.tolerance = 2.0 * otherDist;  // the wrong entity is within the tolerance
+    CadMesh cm(shape, in, opt);
+    EXPECT_EQ(cm.report().hintsRejected, 1u) << nodeClassName(kind);
+    EXPECT_EQ(cm.report().nodeClass[node], kind);
+    EXPECT_EQ(cm.report().nodeEntity[node], om.nodeEntity[node]);
+    // The same hint naming the node's own entity is taken.
+    (kind == NodeClass::Vertex ? in.hintVertex : in.hintEdge)[node] = om.nodeEntity[node];
+    EXPECT_EQ(CadMesh(shape, in, opt).report().hintsRejected, 0u);
   }
 }
 

@@ -412,6 +412,24 @@ class Projector {
     return std::max(base, 2.0 * tol);
   }
 
+  /// Whether a vertex other than `except` is nearer to p than d.
+  bool vertexNearerThan(const Vec3& p, double d, int except) const {
+    for (int v = 0; v < s_.vertexCount(); ++v)
+      if (v != except && (s_.vertexPoint(v) - p).norm() < d) return true;
+    return false;
+  }
+
+  /// Whether an edge other than `except` (degenerated edges left out) is nearer to p than d.
+  bool edgeNearerThan(const Vec3& p, double d, int except) {
+    for (int e = 0; e < s_.edgeCount(); ++e) {
+      if (e == except || s_.isDegeneratedEdge(e)) continue;
+      if (boxDistance(edgeBoxes_[static_cast<std::size_t>(e)], p) >= d) continue;
+      double t = 0.0;
+      if (edgeDistance(e, p, &t) < d) return true;
+    }
+    return false;
+  }
+
   /// Exact distance from p to the whole shape (branch and bound over face boxes).
   double shapeDistance(const Vec3& p, int* nearestFace) {
     std::vector<std::pair<double, int>> order;
@@ -744,6 +762,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   std::vector<unsigned char> hintRejected(N, 0);
   const bool anyHints =
       !input.hintFace.empty() || !input.hintEdge.empty() || !input.hintVertex.empty();
+  const double close = 1e-6 * diag;  // a node this near an entity lies on it
   parallelFor(N, projectors, [&](std::size_t n, Projector& pr) {
     const Vec3& p = input.nodes[n];
     auto& h = hits[n];
@@ -751,9 +770,14 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
       const int hv = input.hintVertex.empty() ? -1 : input.hintVertex[n];
       const int he = input.hintEdge.empty() ? -1 : input.hintEdge[n];
       const int hf = input.hintFace.empty() ? -1 : input.hintFace[n];
+      // A hint is taken when the node lies on its entity (within `close`), or within the
+      // tolerance and no other entity of its kind is nearer: the mesher's own queries accept
+      // a node within the entity's tolerance, which at a CAD feature smaller than that
+      // tolerance also names a neighbouring vertex or edge (its element would then lie on
+      // no single face).
       if (hv >= 0) {
         const double d = (S.vertexPoint(hv) - p).norm();
-        if (d <= tol) {
+        if (d <= tol && (d <= close || !pr.vertexNearerThan(p, d - close, hv))) {
           for (int f : S.vertexFaces(hv)) h.push_back(FaceHit{f, d, Vec2::Zero(), false, false});
           forced[n] = Forced::Vertex;
           forcedId[n] = hv;
@@ -763,7 +787,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
       } else if (he >= 0) {
         double t = 0.0;
         const double d = pr.edgeDistance(he, p, &t);
-        if (d <= tol) {
+        if (d <= tol && (d <= close || !pr.edgeNearerThan(p, d - close, he))) {
           for (int f : S.edgeFaces(he)) h.push_back(FaceHit{f, d, Vec2::Zero(), false, false});
           forced[n] = Forced::Edge;
           forcedId[n] = he;
@@ -773,7 +797,14 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
         hintRejected[n] = 1;
       } else if (hf >= 0) {
         const FaceHit fh = pr.faceDistance(hf, p, tol);
-        if (fh.dist <= tol) {
+        bool take = fh.dist <= tol;
+        if (take && fh.dist > close) {
+          pr.facesNear(p, tol, &h);
+          for (const FaceHit& x : h)
+            if (x.face != hf && x.dist < fh.dist - close) take = false;
+          h.clear();
+        }
+        if (take) {
           h.push_back(fh);
           forced[n] = Forced::Face;
           forcedId[n] = hf;
@@ -838,8 +869,9 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
     std::size_t first = 0;
     while (!hintRejected[first]) ++first;
     report_.warnings.push_back(std::to_string(rejected) +
-                               " node hints were farther than the tolerance from their entity "
-                               "and were ignored (e.g. node " +
+                               " node hints were farther than the tolerance from their entity, "
+                               "or farther than another entity of its kind, and were ignored "
+                               "(e.g. node " +
                                std::to_string(first) + ")");
   }
 

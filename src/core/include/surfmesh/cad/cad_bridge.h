@@ -14,8 +14,11 @@
 //      the edge's bounded curve). C(n) keeps the faces no farther than the nearest one plus
 //      the tolerance of their boundary near the node (≥ 1e-6·diagonal): a node near a tangent
 //      edge or on a thin wall is close to the neighbouring face too, but not on it.
-//      Hints (Gmsh's node → face/edge/vertex) replace the search when they check out; a hint
-//      farther than the tolerance is ignored, counted and reported in a warning.
+//      Hints (Gmsh's node → face/edge/vertex) replace the search when they check out: the
+//      node lies on the entity (within 1e-6·diagonal), or within the tolerance of it with no
+//      other entity of its kind nearer (a mesher's node query within the entity's own
+//      tolerance also names a neighbouring vertex or edge at a CAD feature smaller than that
+//      tolerance). Other hints are ignored, counted and reported in a warning.
 //   2. Every element is assigned the face shared by all its nodes (∩ C(n)); when several faces
 //      qualify, the one minimizing the sum of its nodes' distances plus its centroid's
 //      distance. An element whose nodes share no face is an error (std::invalid_argument
