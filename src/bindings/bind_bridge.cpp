@@ -61,6 +61,7 @@ py::dict reportDict(const BridgeReport& r) {
   d["sliding_nodes"] = r.slidingNodes;
   d["faces_used"] = r.facesUsed;
   d["hints_rejected"] = r.hintsRejected;
+  d["hints_taken"] = r.hintsTaken;
   d["warnings"] = r.warnings;
   d["seconds"] = r.seconds;
   d["summary"] = r.summary();
@@ -75,7 +76,7 @@ void bind_bridge(py::module_& m) {
       [](std::shared_ptr<CadShape> shape, const ArrayD& nodes, const ArrayI& types,
          const ArrayI& offsets, const ArrayI& conn, const py::object& hint_face,
          const py::object& hint_edge, const py::object& hint_vertex, double tolerance,
-         const std::string& boundary, int threads) {
+         const std::string& boundary, int threads, bool tolerance_hints) {
         if (!shape) throw std::invalid_argument("shape is None");
         // ---- validate everything before the core sees it (GIL held) ----
         checkShape2D(nodes, 3, "nodes");
@@ -128,6 +129,7 @@ void bind_bridge(py::module_& m) {
         opt.tolerance = tolerance;
         opt.boundary = boundary;
         opt.threads = threads;
+        opt.toleranceHints = tolerance_hints;
         std::shared_ptr<CadMesh> cm;
         {
           py::gil_scoped_release release;
@@ -143,12 +145,14 @@ void bind_bridge(py::module_& m) {
       py::arg("shape"), py::arg("nodes"), py::arg("types"), py::arg("offsets"), py::arg("conn"),
       py::arg("hint_face") = py::none(), py::arg("hint_edge") = py::none(),
       py::arg("hint_vertex") = py::none(), py::arg("tolerance") = 0.0,
-      py::arg("boundary") = "fixed", py::arg("threads") = 0,
+      py::arg("boundary") = "fixed", py::arg("threads") = 0, py::arg("tolerance_hints") = false,
       "Recovers a mesh on a CadShape. nodes float64 (N, 3); types int64 (E,) codes of "
       "element_types(); offsets int64 (E+1,); conn int64 0-based (Gmsh node order); optional "
       "hint_face/edge/vertex int64 (N,) 0-based ids or −1; tolerance 0 = 1e-3·diagonal; "
-      "boundary 'fixed' or 'slide'. Returns a SurfaceMesh whose .report says how every node "
-      "was classified.");
+      "boundary 'fixed' or 'slide'; tolerance_hints: nodes without a hint are hinted to the "
+      "vertex or the single edge whose own tolerance they are within (FreeCAD's "
+      "FemMesh.getNodesByVertex/Edge rule). Returns a SurfaceMesh whose .report says how every "
+      "node was classified.");
 }
 
 }  // namespace surfmesh::bindings

@@ -304,6 +304,28 @@ TEST(CadBridge, HintsAreUsedAndVerified) {
   }
 }
 
+// Tolerance hints (FreeCAD's node-on-entity rule, applied by the bridge) classify BRepMesh's
+// nodes as BRepMesh placed them, on parts with many small edges and sloppy tolerances alike.
+TEST(CadBridge, ToleranceHintsAgreeWithTheMesher) {
+  for (const char* name : {"occt_crankarm.brep", "occt_screw.step"}) {
+    auto shape = load(name);
+    OccMesh om = meshWithBRepMesh(*shape, 1e-3 * shape->diagonal(), 0.5);
+    BridgeOptions opt;
+    opt.toleranceHints = true;
+    CadMesh cm(shape, om.input, opt);
+    EXPECT_EQ(cm.report().hintsRejected, 0u) << name;
+    std::size_t onEdges = 0, differ = 0;
+    for (NodeClass c : om.nodeClass) onEdges += c == NodeClass::Vertex || c == NodeClass::Edge;
+    // every vertex and edge node is hinted (and the face nodes on seam edges)
+    EXPECT_GE(cm.report().hintsTaken, onEdges) << name;
+    for (std::size_t n = 0; n < om.input.nodes.size(); ++n)
+      if (cm.report().nodeClass[n] != om.nodeClass[n] ||
+          cm.report().nodeEntity[n] != om.nodeEntity[n])
+        ++differ;
+    EXPECT_EQ(differ, 0u) << name;
+  }
+}
+
 // A mesher's node-on-entity query accepts nodes within the entity's tolerance; at a CAD feature
 // smaller than that it also names a neighbouring vertex or edge. Such a hint, within the
 // bridge's tolerance but farther than another vertex (edge), is ignored: the node is classified

@@ -87,6 +87,30 @@ class GmshCase(unittest.TestCase):
         counts = self.check_classification(tor, mesh)
         self.assertEqual(counts[1], 0)  # the torus's two edges are seams: inside the face
 
+    def test_tolerance_hints_match_freecads_queries(self):
+        # hints="auto" lets the core hint every node within a CAD vertex's or a single CAD
+        # edge's own tolerance (FreeCAD's rule); the same hints from FreeCAD's own queries
+        # (FemMesh.getNodesByVertex/Edge, hints="given") give the same classification and the
+        # same elements left out. The crank arm's second-order mesh has a CAD feature smaller
+        # than the elements, where the hints decide which slivers lie along a CAD edge.
+        from SurfMesh.app import conversion
+
+        for name, order in (("occt_crankarm.brep", "2nd"), ("occt_screw.step", "1st")):
+            part = self.part(name)
+            mesh = examples.make_gmsh_mesh(
+                self.doc, part, part.Shape.BoundBox.DiagonalLength / 25, order=order
+            )
+            d_core, h_core = api.prepare(mesh, part.Shape, hints="auto")
+            data = conversion.read_mesh(mesh)
+            conversion.fem_hints(data, part.Shape, faces=False)
+            self.assertGreater(int((data.hint_edge >= 0).sum()), 0)
+            d_fc, h_fc = api.prepare(data, part.Shape, hints="given")
+            r_core, r_fc = h_core.report, h_fc.report
+            np.testing.assert_array_equal(r_core["node_class"], r_fc["node_class"], name)
+            np.testing.assert_array_equal(r_core["node_entity"], r_fc["node_entity"], name)
+            self.assertEqual(r_core.get("skipped_elements", []), r_fc.get("skipped_elements", []))
+            self.assertEqual(r_core["hints_rejected"], 0)
+
     def test_crankarm_untangled(self):
         part = self.part("occt_crankarm.brep")
         mesh = examples.make_gmsh_mesh(self.doc, part, 1e22)

@@ -173,9 +173,12 @@ def prepare(mesh, shape, boundary="fixed", tolerance=None, hints="auto", collaps
     When elements were left out (``collapsed="skip"``), ``data.kept`` is the bool mask of the
     elements given to the core.
 
-    hints: "auto" (FEM inputs: edge and vertex hints from FreeCAD's ``getNodesByEdge/Vertex``;
-    face nodes are classified by the core), "all" (also ``getNodesByFace``: slow on big parts),
-    "none", or "given" (the MeshData's hint arrays are used as they are).
+    hints: "auto" (FEM inputs: a node within a CAD vertex's or a single CAD edge's own
+    tolerance is hinted to it — the rule of FreeCAD's ``getNodesByVertex/Edge``, applied by the
+    core with a box grid instead of a distance query per node and entity: seconds instead of
+    minutes on big parts; face nodes are classified by the core), "all" (FreeCAD's own
+    ``getNodesByVertex/Edge/Face`` queries: slow on big parts), "none", or "given" (the
+    MeshData's hint arrays are used as they are).
 
     collapsed: what to do with elements that repeat a node (zero area: Gmsh meshes made
     through FreeCAD have them where nodes were merged, e.g. at the apex of a cone) and with
@@ -207,8 +210,9 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, timings=None):
         raise ValueError("the mesh has no elements")
     if hints not in ("auto", "all", "none", "given"):
         raise ValueError(f"unknown hints mode {hints!r}; use 'auto', 'all' or 'none'")
-    if data.kind == "fem" and hints in ("auto", "all") and part_shape is not None:
-        conversion.fem_hints(data, part_shape, faces=(hints == "all"))
+    if data.kind == "fem" and hints == "all" and part_shape is not None:
+        conversion.fem_hints(data, part_shape, faces=True)
+    tolerance_hints = data.kind == "fem" and hints == "auto"
     bad = data.collapsed_elements()
     dup = data.duplicate_elements() & ~bad
     work = data
@@ -235,6 +239,7 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, timings=None):
                 cshape, w.nodes, w.types, w.offsets, w.conn,
                 hint_face=w.hint_face, hint_edge=w.hint_edge, hint_vertex=w.hint_vertex,
                 tolerance=0.0 if tolerance is None else float(tolerance), boundary=boundary,
+                tolerance_hints=tolerance_hints,
             )
         except ValueError as err:
             raise ValueError(_name_by_ids(str(err), w)) from None

@@ -58,6 +58,78 @@ double boxDistance(const Box& b, const Vec3& p) {
 
 gp_Pnt toPnt(const Vec3& v) { return gp_Pnt(v.x(), v.y(), v.z()); }
 
+/// The boxes that contain a point, through a uniform grid over their union (cells registered
+/// with every box that overlaps them): for many point queries against hundreds of boxes.
+class BoxGrid {
+ public:
+  explicit BoxGrid(std::vector<Box> boxes) : boxes_(std::move(boxes)) {
+    Box all = {kInf, kInf, kInf, -kInf, -kInf, -kInf};
+    std::size_t count = 0;
+    for (const Box& b : boxes_) {
+      if (b[0] > b[3]) continue;
+      ++count;
+      for (std::size_t i = 0; i < 3; ++i) {
+        all[i] = std::min(all[i], b[i]);
+        all[i + 3] = std::max(all[i + 3], b[i + 3]);
+      }
+    }
+    if (count == 0) return;
+    n_ = std::clamp(static_cast<int>(std::ceil(std::cbrt(static_cast<double>(count)))), 1, 32);
+    for (std::size_t i = 0; i < 3; ++i) {
+      lo_[i] = all[i];
+      const double extent = all[i + 3] - all[i];
+      scale_[i] = extent > 0.0 ? n_ / extent : 0.0;
+    }
+    const std::size_t cells = static_cast<std::size_t>(n_) * n_ * n_;
+    std::vector<std::int32_t> counts(cells + 1, 0);
+    auto visit = [&](const Box& b, auto&& f) {
+      int c0[3], c1[3];
+      for (std::size_t i = 0; i < 3; ++i) {
+        c0[i] = cell(b[i], i);
+        c1[i] = cell(b[i + 3], i);
+      }
+      for (int x = c0[0]; x <= c1[0]; ++x)
+        for (int y = c0[1]; y <= c1[1]; ++y)
+          for (int z = c0[2]; z <= c1[2]; ++z) f(static_cast<std::size_t>((x * n_ + y) * n_ + z));
+    };
+    for (const Box& b : boxes_)
+      if (b[0] <= b[3]) visit(b, [&](std::size_t c) { ++counts[c + 1]; });
+    for (std::size_t c = 0; c < cells; ++c) counts[c + 1] += counts[c];
+    offset_ = counts;
+    ids_.resize(static_cast<std::size_t>(offset_[cells]));
+    for (std::size_t k = 0; k < boxes_.size(); ++k)
+      if (boxes_[k][0] <= boxes_[k][3])
+        visit(boxes_[k], [&](std::size_t c) {
+          ids_[static_cast<std::size_t>(counts[c]++)] = static_cast<std::int32_t>(k);
+        });
+  }
+
+  /// Calls f(id) for every box that contains p.
+  template <class F>
+  void forEach(const Vec3& p, F&& f) const {
+    if (n_ == 0) return;
+    std::size_t c = 0;
+    for (std::size_t i = 0; i < 3; ++i) {
+      const double x = (p[static_cast<int>(i)] - lo_[i]) * scale_[i];
+      if (!(x >= 0.0) || x > n_) return;
+      c = c * static_cast<std::size_t>(n_) + static_cast<std::size_t>(std::min(int(x), n_ - 1));
+    }
+    for (std::int32_t k = offset_[c]; k < offset_[c + 1]; ++k) {
+      const std::int32_t id = ids_[static_cast<std::size_t>(k)];
+      if (boxDistance(boxes_[static_cast<std::size_t>(id)], p) == 0.0) f(static_cast<int>(id));
+    }
+  }
+
+ private:
+  int cell(double x, std::size_t i) const {
+    return std::clamp(static_cast<int>((x - lo_[i]) * scale_[i]), 0, n_ - 1);
+  }
+  std::vector<Box> boxes_;
+  int n_ = 0;
+  double lo_[3] = {0, 0, 0}, scale_[3] = {0, 0, 0};
+  std::vector<std::int32_t> offset_, ids_;
+};
+
 /// Distance of a point to one face.
 struct FaceHit {
   int face = -1;
@@ -412,6 +484,34 @@ class Projector {
     return std::max(base, 2.0 * tol);
   }
 
+  /// FreeCAD's node-on-entity rule (FemMesh.getNodesByVertex/Edge) for one node: the nearest
+  /// vertex within its tolerance (`vertexTol`), else the only edge closer than its tolerance
+  /// (`edgeTol`); −1 when none (or several edges) qualify.
+  void toleranceHint(const Vec3& p, const BoxGrid& vertexGrid, const std::vector<double>& vertexTol,
+                     const BoxGrid& edgeGrid, const std::vector<double>& edgeTol, int* hv,
+                     int* he) {
+    *hv = *he = -1;
+    double best = kInf;
+    vertexGrid.forEach(p, [&](int v) {
+      const double d = (s_.vertexPoint(v) - p).norm();
+      if (d <= vertexTol[static_cast<std::size_t>(v)] && d < best) {
+        best = d;
+        *hv = v;
+      }
+    });
+    if (*hv >= 0) return;
+    int found = 0;
+    edgeGrid.forEach(p, [&](int e) {
+      if (found > 1 || s_.isDegeneratedEdge(e)) return;
+      double t = 0.0;
+      if (edgeDistance(e, p, &t) < edgeTol[static_cast<std::size_t>(e)]) {
+        ++found;
+        *he = e;
+      }
+    });
+    if (found != 1) *he = -1;
+  }
+
   /// Whether a vertex other than `except` is nearer to p than d.
   bool vertexNearerThan(const Vec3& p, double d, int except) const {
     for (int v = 0; v < s_.vertexCount(); ++v)
@@ -760,16 +860,45 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   std::vector<std::int32_t> forcedId(N, -1);
   std::vector<double> forcedT(N, kNaN);
   std::vector<unsigned char> hintRejected(N, 0);
-  const bool anyHints =
+  const bool givenHints =
       !input.hintFace.empty() || !input.hintEdge.empty() || !input.hintVertex.empty();
+  const bool anyHints = givenHints || options.toleranceHints;
+  // Tolerance hints (BridgeOptions::toleranceHints): the vertices' and edges' tolerance zones.
+  std::vector<double> vertexTol, edgeTol;
+  std::unique_ptr<BoxGrid> vertexGrid, edgeGrid;
+  if (options.toleranceHints) {
+    std::vector<Box> vb(static_cast<std::size_t>(NV)), eb(static_cast<std::size_t>(NE));
+    for (int v = 0; v < NV; ++v) {
+      const double t = S.vertexTolerance(v);
+      const Vec3 c = S.vertexPoint(v);
+      vertexTol.push_back(t);
+      vb[static_cast<std::size_t>(v)] = {c.x() - t, c.y() - t, c.z() - t,
+                                         c.x() + t, c.y() + t, c.z() + t};
+    }
+    for (int e = 0; e < NE; ++e) {
+      const double t = BRep_Tool::Tolerance(S.edge(e));
+      edgeTol.push_back(t);
+      Box b = edgeBoxes[static_cast<std::size_t>(e)];
+      for (std::size_t i = 0; i < 3; ++i) {
+        b[i] -= t;
+        b[i + 3] += t;
+      }
+      eb[static_cast<std::size_t>(e)] = b;
+    }
+    vertexGrid = std::make_unique<BoxGrid>(std::move(vb));
+    edgeGrid = std::make_unique<BoxGrid>(std::move(eb));
+  }
   const double close = 1e-6 * diag;  // a node this near an entity lies on it
   parallelFor(N, projectors, [&](std::size_t n, Projector& pr) {
     const Vec3& p = input.nodes[n];
     auto& h = hits[n];
     if (anyHints) {
-      const int hv = input.hintVertex.empty() ? -1 : input.hintVertex[n];
-      const int he = input.hintEdge.empty() ? -1 : input.hintEdge[n];
+      int hv = input.hintVertex.empty() ? -1 : input.hintVertex[n];
+      int he = input.hintEdge.empty() ? -1 : input.hintEdge[n];
       const int hf = input.hintFace.empty() ? -1 : input.hintFace[n];
+      const bool given = hv >= 0 || he >= 0 || hf >= 0;
+      if (!given && options.toleranceHints)
+        pr.toleranceHint(p, *vertexGrid, vertexTol, *edgeGrid, edgeTol, &hv, &he);
       // A hint is taken when the node lies on its entity (within `close`), or within the
       // tolerance and no other entity of its kind is nearer: the mesher's own queries accept
       // a node within the entity's tolerance, which at a CAD feature smaller than that
@@ -783,7 +912,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
           forcedId[n] = hv;
           if (!h.empty()) return;
         }
-        hintRejected[n] = 1;
+        hintRejected[n] = given;
       } else if (he >= 0) {
         double t = 0.0;
         const double d = pr.edgeDistance(he, p, &t);
@@ -794,7 +923,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
           forcedT[n] = t;
           if (!h.empty()) return;
         }
-        hintRejected[n] = 1;
+        hintRejected[n] = given;
       } else if (hf >= 0) {
         const FaceHit fh = pr.faceDistance(hf, p, tol);
         bool take = fh.dist <= tol;
@@ -810,7 +939,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
           forcedId[n] = hf;
           return;
         }
-        hintRejected[n] = 1;
+        hintRejected[n] = given;
       }
       forced[n] = Forced::None;
       h.clear();
@@ -865,6 +994,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   std::size_t rejected = 0;
   for (unsigned char r : hintRejected) rejected += r;
   report_.hintsRejected = rejected;
+  for (Forced f : forced) report_.hintsTaken += f != Forced::None;
   if (rejected) {
     std::size_t first = 0;
     while (!hintRejected[first]) ++first;

@@ -85,6 +85,13 @@ struct BridgeOptions {
   std::string boundary = "fixed";
   /// Threads for the node search; 0 = all hardware threads.
   int threads = 0;
+  /// Hint the nodes that have none by the entities' own tolerances (BRep_Tool::Tolerance),
+  /// as FreeCAD's FemMesh.getNodesByVertex/Edge do, but with one box-grid search per node
+  /// instead of one distance query per node and entity: a node within a vertex's tolerance
+  /// is hinted to the nearest such vertex; else a node closer than its tolerance to exactly
+  /// one edge, to that edge. These hints are checked like given ones (and not counted in
+  /// hintsRejected when they do not check out).
+  bool toleranceHints = false;
 };
 
 /// Where a node lies on the B-rep.
@@ -116,6 +123,7 @@ struct BridgeReport {
   std::size_t slidingNodes = 0;  ///< NodeKind::Edge
   std::size_t facesUsed = 0;     ///< faces carrying at least one element
   std::size_t hintsRejected = 0;
+  std::size_t hintsTaken = 0;  ///< nodes classified by a hint (given or from tolerances)
   std::vector<std::string> warnings;
   double seconds = 0.0;  ///< time of the whole recovery
 
