@@ -10,12 +10,15 @@
 #include <BRepTools_WireExplorer.hxx>
 #include <BRepTopAdaptor_FClass2d.hxx>
 #include <BRep_Tool.hxx>
+#include <Geom2d_Curve.hxx>
 #include <Poly_Triangulation.hxx>
 #include <TopExp.hxx>
 #include <TopExp_Explorer.hxx>
 #include <TopTools_IndexedMapOfShape.hxx>
 #include <TopoDS.hxx>
 #include <TopoDS_Wire.hxx>
+#include <gp_Pnt2d.hxx>
+#include <gp_Vec2d.hxx>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -309,6 +312,90 @@ TEST(OccFaceSurface, FastAndBandTestsAgreeWithTheClassifier) {
   }
   // Most lattice points lie away from the loops: the grids answer them.
   EXPECT_GT(answered, asked / 2);
+}
+
+// Next to the trimming loops (points off every boundary pcurve by 0.02 to 0.6 of a grid
+// sub-cell, 1/768 of the face's parameter box, on both sides), containsFast() answers most
+// points from the pieces of the grid cell (no classifier at the point) and agrees with OCC's
+// classifier on every one it answers.
+TEST(OccFaceSurface, FastTestNextToTheLoopsAgreesWithTheClassifier) {
+  std::size_t answered = 0, asked = 0;
+  for (const char* part : {"occt_housing_bottom.brep", "occt_propeller.brep", "occt_bottle.brep"}) {
+    auto shape = load(part);
+    for (int f = 0; f < shape->faceCount(); ++f) {
+      const OccFaceSurface s(shape->face(f), f);
+      if (s.uTurnPeriod() != 0.0 || s.vTurnPeriod() != 0.0) continue;
+      s.prepare();
+      const ParamBounds b = s.faceUVBounds();
+      const double su = (b.umax - b.umin) / 768.0, sv = (b.vmax - b.vmin) / 768.0;
+      BRepTopAdaptor_FClass2d ref(s.face(), s.uvTolerance());
+      for (TopExp_Explorer ex(s.face(), TopAbs_EDGE); ex.More(); ex.Next()) {
+        double t0 = 0.0, t1 = 0.0;
+        const Handle(Geom2d_Curve) c =
+            BRep_Tool::CurveOnSurface(TopoDS::Edge(ex.Current()), s.face(), t0, t1);
+        if (c.IsNull()) continue;
+        for (int k = 1; k < 12; ++k) {
+          gp_Pnt2d q;
+          gp_Vec2d d;
+          c->D1(t0 + (t1 - t0) * k / 12.0, q, d);
+          // the normal to the pcurve, measured in sub-cells
+          Vec2 n(-d.Y() / sv, d.X() / su);
+          if (!(n.norm() > 0.0)) continue;
+          n /= n.norm();
+          for (double off : {-0.6, -0.3, -0.1, -0.02, 0.02, 0.1, 0.3, 0.6}) {
+            const Vec2 p(q.X() + off * n.x() * su, q.Y() + off * n.y() * sv);
+            const int fast = s.containsFast(p.x(), p.y());
+            ++asked;
+            if (fast < 0) continue;
+            ++answered;
+            EXPECT_EQ(fast == 1, insideByOcc(ref, s, p))
+                << part << " face " << f << " at " << p.transpose() << " (" << off << ")";
+          }
+        }
+      }
+    }
+  }
+  std::cout << answered << " of " << asked << " points next to the loops answered\n";
+  EXPECT_GT(answered, asked / 2);
+}
+
+// In a periodic direction a face may cover part of the period (a torus's fillet): points
+// outside its parameter box modulo the period are outside at once, those inside it are
+// answered by its grid, whichever period they are given in. Checked against OCC's classifier on
+// a lattice over two periods around every periodic face of three parts.
+TEST(OccFaceSurface, FastTestOverTwoPeriodsAgreesWithTheClassifier) {
+  std::size_t answered = 0, asked = 0, faces = 0;
+  for (const char* part : {"occt_housing_bottom.brep", "occt_propeller.brep", "occt_screw.step"}) {
+    auto shape = load(part);
+    for (int f = 0; f < shape->faceCount(); ++f) {
+      const OccFaceSurface s(shape->face(f), f);
+      if (s.uTurnPeriod() != 0.0 || s.vTurnPeriod() != 0.0) continue;
+      if (!s.isUPeriodic() && !s.isVPeriodic()) continue;
+      ++faces;
+      s.prepare();
+      ParamBounds b = s.faceUVBounds();
+      if (s.isUPeriodic()) {
+        b.umin -= 0.5 * s.uPeriod();
+        b.umax = b.umin + 2.0 * s.uPeriod();
+      }
+      if (s.isVPeriodic()) {
+        b.vmin -= 0.5 * s.vPeriod();
+        b.vmax = b.vmin + 2.0 * s.vPeriod();
+      }
+      BRepTopAdaptor_FClass2d ref(s.face(), s.uvTolerance());
+      for (const Vec2& p : uvLattice(b, 31)) {
+        const int fast = s.containsFast(p.x(), p.y());
+        ++asked;
+        if (fast < 0) continue;
+        ++answered;
+        EXPECT_EQ(fast == 1, insideByOcc(ref, s, p))
+            << part << " face " << f << " at " << p.transpose();
+      }
+    }
+  }
+  std::cout << faces << " periodic faces: " << answered << " of " << asked << " answered\n";
+  EXPECT_GT(faces, 10u);
+  EXPECT_GT(answered, 9 * asked / 10);
 }
 
 // prepare() builds ahead, once for all copies, what contains() builds on first use: two

@@ -324,6 +324,67 @@ struct OccFaceSurface::TrimCells {
     }
     return sub.data() + subOf[static_cast<std::size_t>(k)];
   }
+
+  /// Side of (u,v), in a Boundary sub-cell of Boundary cell k (sub-cell states `sc`), from
+  /// the pieces of the cell: the parity of their crossings with the segment to the centre of
+  /// the nearest sub-cell of the cell whose side is known (classified first when none is).
+  /// The pieces follow the pcurves within 1/20 sub-cell and that centre is farther than that
+  /// from them, so the parity is the pcurves' own as long as (u,v) is too: −1 when (u,v) is
+  /// within that deviation plus the classifier's tolerance band of a piece.
+  template <class Classify>
+  int sideByCrossings(const TrimGrid& g, int k, std::uint8_t* sc, double u, double v,
+                      Classify classify) {
+    constexpr int kCells = G::kCells, kSub = G::kSub;
+    const int ci = k % kCells, cj = k / kCells;
+    const double su = g.subDu(), sv = g.subDv();
+    const double x0 = g.u0 + ci * g.du, y0 = g.v0 + cj * g.dv;
+    const double px = (u - x0) / su, py = (v - y0) / sv;  // in sub-cells
+    int ref = -1;
+    for (int pass = 0; pass < 2 && ref < 0; ++pass) {
+      double best = std::numeric_limits<double>::infinity();
+      for (int q = 0; q < kSub * kSub; ++q) {
+        const std::uint8_t s = sc[q];
+        if (s == G::Boundary || (pass == 0 && s == G::Unknown)) continue;
+        const double dx = q % kSub + 0.5 - px, dy = q / kSub + 0.5 - py;
+        if (dx * dx + dy * dy < best) {
+          best = dx * dx + dy * dy;
+          ref = q;
+        }
+      }
+      if (pass == 0 || ref < 0) continue;
+      const int ri = ref % kSub, rj = ref / kSub;  // an Unknown one: classify its region
+      G::flood(sc, kSub, ri, rj,
+               classify(x0 + (ri + 0.5) * su, y0 + (rj + 0.5) * sv) ? G::In : G::Out, scratch);
+    }
+    if (ref < 0) return -1;
+    const double qx = ref % kSub + 0.5, qy = ref / kSub + 0.5;
+    const double dx = qx - px, dy = qy - py, len2 = dx * dx + dy * dy;
+    const double margin = 0.1 + g.tol / std::min(su, sv);
+    int crossings = 0;
+    for (int p = g.cellStart[static_cast<std::size_t>(k)];
+         p < g.cellStart[static_cast<std::size_t>(k) + 1]; ++p) {
+      const auto& pc =
+          g.pieces[static_cast<std::size_t>(g.cellPieces[static_cast<std::size_t>(p)])];
+      const double ax = (pc[0] - x0) / su, ay = (pc[1] - y0) / sv;
+      const double bx = (pc[2] - x0) / su, by = (pc[3] - y0) / sv;
+      // Distance of (u,v) to the piece.
+      const double ex = bx - ax, ey = by - ay, el2 = ex * ex + ey * ey;
+      const double t =
+          el2 > 0.0 ? std::clamp(((px - ax) * ex + (py - ay) * ey) / el2, 0.0, 1.0) : 0.0;
+      const double hx = ax + t * ex - px, hy = ay + t * ey - py;
+      if (hx * hx + hy * hy <= margin * margin) return -1;
+      // Crossing of the segment (u,v) → centre, half-open at the piece's ends (a polyline
+      // through the segment at a shared end counts once).
+      const double sa = (ax - px) * dy - (ay - py) * dx;
+      const double sb = (bx - px) * dy - (by - py) * dx;
+      if ((sa > 0.0) == (sb > 0.0)) continue;
+      const double s =
+          ((ax - px) * dx + (ay - py) * dy + (ex * dx + ey * dy) * (sa / (sa - sb))) / len2;
+      if (s >= 0.0 && s <= 1.0) ++crossings;
+    }
+    const bool refIn = sc[ref] == G::In;
+    return (crossings % 2 == 0) == refIn ? 1 : 0;
+  }
 };
 
 /// What the copies of one face share: its classifier and its grid's pcurve index, each built
@@ -492,11 +553,23 @@ bool OccFaceSurface::contains(double u, double v) const {
 
 int OccFaceSurface::containsFast(double u, double v) const {
   if (!std::isfinite(u) || !std::isfinite(v)) return 0;
-  const Vec2 w = wrap(Vec2(u, v));
-  // Quick rejection outside the face's parameter box (non-periodic directions).
+  // Quick rejection outside the face's parameter box, in a periodic direction modulo the
+  // period; inside it, the point is taken to the box's window (where the pcurves, and so the
+  // grid, lie).
   const double tol = uvTol_;
-  if (!uPeriodic_ && (w.x() < faceBounds_.umin - tol || w.x() > faceBounds_.umax + tol)) return 0;
-  if (!vPeriodic_ && (w.y() < faceBounds_.vmin - tol || w.y() > faceBounds_.vmax + tol)) return 0;
+  auto outside = [tol](double x, double lo, double hi, bool periodic, double period, double* rep) {
+    if (!periodic || !(period > 0.0)) {
+      *rep = x;
+      return x < lo - tol || x > hi + tol;
+    }
+    double d = std::fmod(x - (lo - tol), period);
+    if (d < 0.0) d += period;
+    *rep = lo - tol + d;
+    return d > hi - lo + 2.0 * tol;
+  };
+  Vec2 w;
+  if (outside(u, faceBounds_.umin, faceBounds_.umax, uPeriodic_, uPeriod_, &w.x())) return 0;
+  if (outside(v, faceBounds_.vmin, faceBounds_.vmax, vPeriodic_, vPeriod_, &w.y())) return 0;
   TrimShared& t = *trim_;
   if (!t.gridTried.load(std::memory_order_acquire) &&
       t.queries.fetch_add(1, std::memory_order_relaxed) < kQueriesBeforeGrid)
@@ -534,6 +607,7 @@ int OccFaceSurface::containsFast(double u, double v) const {
                               : TrimGrid::Out,
                           c.scratch);
         st = sc[sj * TrimGrid::kSub + si];
+        if (st == TrimGrid::Boundary) return c.sideByCrossings(g, k, sc, w.x(), w.y(), classify);
       }
       if (st != TrimGrid::Boundary) return st == TrimGrid::In ? 1 : 0;
     }
