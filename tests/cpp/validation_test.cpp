@@ -613,6 +613,46 @@ TEST(CadInput, DuplicateNodes) {
                      "nodes " + std::to_string(i) + " and " + std::to_string(in.nodes.size() - 1));
 }
 
+// An element across a CAD edge (one node on each face, one on the edge) is an error when its
+// nodes are farther than the tolerance from every common face; within the tolerance (nodes a
+// mesher left off both faces of an edge as sloppy as the elements) it goes on one of the
+// edge's faces, with a warning.
+TEST(CadInput, AnElementAcrossACadEdge) {
+  for (double s : {0.005, 0.05}) {  // the tolerance is 1e-3 x diagonal = 0.0173
+    MeshInput in = boxInput();
+    std::int32_t corner = -1;  // a node on the edge x = y = 0, inside it
+    for (std::size_t n = 0; n < in.nodes.size() && corner < 0; ++n)
+      if (in.nodes[n].x() == 0.0 && in.nodes[n].y() == 0.0 && in.nodes[n].z() > 1.0 &&
+          in.nodes[n].z() < 9.0)
+        corner = static_cast<std::int32_t>(n);
+    ASSERT_GE(corner, 0);
+    const Vec3 c = in.nodes[static_cast<std::size_t>(corner)];
+    const std::int32_t a = static_cast<std::int32_t>(in.nodes.size());
+    in.nodes.push_back(c + Vec3(0.0, s, 0.5 * s));  // on the face x = 0
+    in.nodes.push_back(c + Vec3(s, 0.0, 0.5 * s));  // on the face y = 0
+    in.types.push_back(ElementType::Tri3);
+    in.conn.insert(in.conn.end(), {corner, a, a + 1});
+    if (s > 0.0173) {
+      const std::string msg = invalidArgument([&] { CadMesh(boxShape(), in); });
+      EXPECT_MESSAGE_HAS(
+          msg, "element " + std::to_string(in.types.size() - 1) + " lies on no single face");
+      continue;
+    }
+    CadMesh cm(boxShape(), in);
+    const std::size_t e = in.types.size() - 1;
+    const int f = cm.mesh().elemFace[e];
+    const auto& report = cm.report();
+    ASSERT_EQ(report.nodeClass[static_cast<std::size_t>(corner)], NodeClass::Edge);
+    const auto& faces = boxShape()->edgeFaces(report.nodeEntity[static_cast<std::size_t>(corner)]);
+    EXPECT_NE(std::find(faces.begin(), faces.end(), f), faces.end());
+    bool warned = false;
+    for (const auto& w : report.warnings)
+      warned = warned || (w.find("put on the face") != std::string::npos &&
+                          w.find("element " + std::to_string(e)) != std::string::npos);
+    EXPECT_TRUE(warned);
+  }
+}
+
 TEST(CadInput, NonManifoldEdge) {
   MeshInput in = boxInput();
   const int i = interiorNodeOf(in);

@@ -235,7 +235,7 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, timings=None):
 
     def build(w):
         try:
-            return core().cad_mesh(
+            h = core().cad_mesh(
                 cshape, w.nodes, w.types, w.offsets, w.conn,
                 hint_face=w.hint_face, hint_edge=w.hint_edge, hint_vertex=w.hint_vertex,
                 tolerance=0.0 if tolerance is None else float(tolerance), boundary=boundary,
@@ -243,6 +243,9 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, timings=None):
             )
         except ValueError as err:
             raise ValueError(_name_by_ids(str(err), w)) from None
+        report = h.report  # the handle's own dict: the user's ids in its warnings too
+        report["warnings"] = [_name_by_ids(x, w) for x in report.get("warnings", [])]
+        return h
 
     handle = build(work)
     shape_measure = None

@@ -1016,6 +1016,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
     nodeFaces[n].erase(std::unique(nodeFaces[n].begin(), nodeFaces[n].end()), nodeFaces[n].end());
   }
   std::vector<std::int32_t> elemFace(E, -1);
+  std::size_t offFaceElements = 0, firstOffFace = 0;
   {
     std::vector<int> common, tmp;
     for (std::size_t e = 0; e < E; ++e) {
@@ -1030,6 +1031,33 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
         common.swap(tmp);
       }
       if (common.empty()) {
+        // No face is among every node's nearest ones: next to a CAD edge whose tolerance is as
+        // large as the elements, the mesher's nodes may sit off both faces, some nearer to
+        // one, some to the other. The element goes on the face of its nodes' candidates
+        // farthest from none of them by more than the tolerance (nearest in its worst node).
+        tmp.clear();
+        for (int k = 0; k < nn; ++k) {
+          const auto& f = nodeFaces[static_cast<std::size_t>(nd[k])];
+          tmp.insert(tmp.end(), f.begin(), f.end());
+        }
+        std::sort(tmp.begin(), tmp.end());
+        tmp.erase(std::unique(tmp.begin(), tmp.end()), tmp.end());
+        double bestWorst = kInf;
+        for (int f : tmp) {
+          double worst = 0.0;
+          for (int k = 0; k < nn && worst <= tol; ++k)
+            worst = std::max(
+                worst,
+                proj.faceDistance(f, input.nodes[static_cast<std::size_t>(nd[k])], tol).dist);
+          if (worst <= tol && worst < bestWorst) {
+            bestWorst = worst;
+            elemFace[e] = f;
+          }
+        }
+        if (elemFace[e] >= 0) {
+          if (offFaceElements++ == 0) firstOffFace = e;
+          continue;
+        }
         std::ostringstream os;
         os << "element " << e << " lies on no single face of the shape (its nodes share no face):";
         for (int k = 0; k < nn; ++k)
@@ -1061,6 +1089,13 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
       if (elemFace[e] < 0) elemFace[e] = common[0];
     }
   }
+  if (offFaceElements)
+    report_.warnings.push_back(
+        std::to_string(offFaceElements) +
+        " element(s) whose nodes are each nearest to another face (next to a CAD edge with a "
+        "tolerance as large as the elements) were put on the face all their nodes are within "
+        "the tolerance of (e.g. element " +
+        std::to_string(firstOffFace) + " on face " + std::to_string(elemFace[firstOffFace]) + ")");
 
   // ---- 3. node classes ----------------------------------------------------------------------
   // Faces of each node's elements, mesh boundary nodes, shortest incident mesh edge.

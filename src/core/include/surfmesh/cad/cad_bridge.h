@@ -21,8 +21,12 @@
 //      tolerance). Other hints are ignored, counted and reported in a warning.
 //   2. Every element is assigned the face shared by all its nodes (∩ C(n)); when several faces
 //      qualify, the one minimizing the sum of its nodes' distances plus its centroid's
-//      distance. An element whose nodes share no face is an error (std::invalid_argument
-//      naming the element and its nodes' faces): the mesh must conform to the B-rep.
+//      distance. When they share none (next to a CAD edge whose tolerance is as large as the
+//      elements, a mesher's nodes may sit off both faces, each nearer to another one), the
+//      face among their candidates that no node is farther from than the tolerance (nearest
+//      in the worst node), with a warning; with no such face the element is an error
+//      (std::invalid_argument naming the element and its nodes' faces): the mesh must conform
+//      to the B-rep.
 //   3. Every node gets the faces F(n) of its elements. One face → a face node (seam edges of
 //      periodic faces are inside the face), except on the mesh's own boundary, where the node
 //      is put on the nearest CAD edge of its face. Several faces → the node is on a CAD vertex
