@@ -517,13 +517,17 @@ def optimize(
     )
 
 
-def _user_element_ids(data, core_indices):
+def _input_element_indices(data, core_indices):
     """Core element indices (over the elements that were optimized, i.e. without the skipped
-    ones) → the user's element ids (FEM ids, else 0-based input indices)."""
+    ones) → 0-based indices into the input's element arrays."""
     idx = np.asarray(list(core_indices), dtype=np.int64)
     kept = getattr(data, "kept", None)
-    if kept is not None:
-        idx = np.nonzero(kept)[0][idx]
+    return np.nonzero(kept)[0][idx] if kept is not None else idx
+
+
+def _user_element_ids(data, core_indices):
+    """Core element indices → the user's element ids (FEM ids, else 0-based input indices)."""
+    idx = _input_element_indices(data, core_indices)
     ids = getattr(data, "element_ids", None)
     if ids is not None:
         idx = np.asarray(ids)[idx]
@@ -536,7 +540,7 @@ def _where(data, handle, nodes, core_indices):
     if not core_indices:
         return ""
     k = int(core_indices[0])
-    e = int(np.nonzero(data.kept)[0][k]) if data.kept is not None else k
+    e = int(_input_element_indices(data, [k])[0])
     c = nodes[data.conn[data.offsets[e]:data.offsets[e + 1]]].mean(axis=0)
     face = int(handle.element_faces()[k]) + 1
     return f" (the first near ({c[0]:.6g}, {c[1]:.6g}, {c[2]:.6g}) on Face{face})"

@@ -90,6 +90,14 @@ double unwrapCoord(double x, double ref, double p) {
   return x + p * std::round((ref - x) / p);
 }
 
+/// Squared distance from point (px, py) to the segment (ax, ay)–(bx, by).
+double segmentDistance2(double ax, double ay, double bx, double by, double px, double py) {
+  const double ex = bx - ax, ey = by - ay, l2 = ex * ex + ey * ey;
+  const double t = l2 > 0.0 ? std::clamp(((px - ax) * ex + (py - ay) * ey) / l2, 0.0, 1.0) : 0.0;
+  const double dx = ax + t * ex - px, dy = ay + t * ey - py;
+  return dx * dx + dy * dy;
+}
+
 }  // namespace
 
 std::string occSurfaceTypeName(const TopoDS_Face& face) {
@@ -367,19 +375,15 @@ struct OccFaceSurface::TrimCells {
           g.pieces[static_cast<std::size_t>(g.cellPieces[static_cast<std::size_t>(p)])];
       const double ax = (pc[0] - x0) / su, ay = (pc[1] - y0) / sv;
       const double bx = (pc[2] - x0) / su, by = (pc[3] - y0) / sv;
-      // Distance of (u,v) to the piece.
-      const double ex = bx - ax, ey = by - ay, el2 = ex * ex + ey * ey;
-      const double t =
-          el2 > 0.0 ? std::clamp(((px - ax) * ex + (py - ay) * ey) / el2, 0.0, 1.0) : 0.0;
-      const double hx = ax + t * ex - px, hy = ay + t * ey - py;
-      if (hx * hx + hy * hy <= margin * margin) return -1;
+      if (segmentDistance2(ax, ay, bx, by, px, py) <= margin * margin) return -1;
       // Crossing of the segment (u,v) → centre, half-open at the piece's ends (a polyline
       // through the segment at a shared end counts once).
       const double sa = (ax - px) * dy - (ay - py) * dx;
       const double sb = (bx - px) * dy - (by - py) * dx;
       if ((sa > 0.0) == (sb > 0.0)) continue;
       const double s =
-          ((ax - px) * dx + (ay - py) * dy + (ex * dx + ey * dy) * (sa / (sa - sb))) / len2;
+          ((ax - px) * dx + (ay - py) * dy + ((bx - ax) * dx + (by - ay) * dy) * (sa / (sa - sb))) /
+          len2;
       if (s >= 0.0 && s <= 1.0) ++crossings;
     }
     const bool refIn = sc[ref] == G::In;
@@ -486,12 +490,8 @@ std::unique_ptr<OccFaceSurface::TrimGrid> buildTrimGrid(const TopoDS_Face& face,
         // The curve at a quarter and three quarters against the half-chords (in sub-cells):
         // a piece whose midpoint sits on the chord may still bend away between.
         auto offChord = [&](const gp_Pnt2d& a, const gp_Pnt2d& b, const gp_Pnt2d& x) {
-          const double ax = (b.X() - a.X()) / su, ay = (b.Y() - a.Y()) / sv;
-          const double px = (x.X() - a.X()) / su, py = (x.Y() - a.Y()) / sv;
-          const double l2 = ax * ax + ay * ay;
-          const double t = l2 > 0.0 ? std::min(1.0, std::max(0.0, (px * ax + py * ay) / l2)) : 0.0;
-          const double dx = px - t * ax, dy = py - t * ay;
-          return dx * dx + dy * dy;
+          return segmentDistance2(0.0, 0.0, (b.X() - a.X()) / su, (b.Y() - a.Y()) / sv,
+                                  (x.X() - a.X()) / su, (x.Y() - a.Y()) / sv);
         };
         fine = offChord(pc.p0, pm, c->Value(0.5 * (pc.t0 + tm))) <= 0.0025 &&
                offChord(pm, pc.p1, c->Value(0.5 * (tm + pc.t1))) <= 0.0025;
@@ -558,14 +558,8 @@ int OccFaceSurface::containsFast(double u, double v) const {
   // grid, lie).
   const double tol = uvTol_;
   auto outside = [tol](double x, double lo, double hi, bool periodic, double period, double* rep) {
-    if (!periodic || !(period > 0.0)) {
-      *rep = x;
-      return x < lo - tol || x > hi + tol;
-    }
-    double d = std::fmod(x - (lo - tol), period);
-    if (d < 0.0) d += period;
-    *rep = lo - tol + d;
-    return d > hi - lo + 2.0 * tol;
+    *rep = periodic ? wrapInto(x, lo - tol, period) : x;
+    return *rep < lo - tol || *rep > hi + tol;
   };
   Vec2 w;
   if (outside(u, faceBounds_.umin, faceBounds_.umax, uPeriodic_, uPeriod_, &w.x())) return 0;

@@ -21,7 +21,7 @@ Vec3 Surface::normalOf(const SurfaceD1& d) const {
   return (normalSign() * n.normalized()).eval();
 }
 
-static double wrapInto(double x, double lo, double period) {
+double wrapInto(double x, double lo, double period) {
   if (!(period > 0.0) || !std::isfinite(x)) return x;
   double k = std::floor((x - lo) / period);
   double y = x - k * period;

@@ -110,4 +110,8 @@ constexpr double kDegenerateTol = 1e-12;
 /// True where the parameterization is degenerate (φ_u × φ_v ≈ 0).
 bool isDegenerate(const SurfaceD1& d);
 
+/// x shifted by whole periods into [lo, lo + period) (x itself when period ≤ 0 or x is not
+/// finite).
+double wrapInto(double x, double lo, double period);
+
 }  // namespace surfmesh
