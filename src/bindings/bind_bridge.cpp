@@ -76,8 +76,15 @@ void bind_bridge(py::module_& m) {
       [](std::shared_ptr<CadShape> shape, const ArrayD& nodes, const ArrayI& types,
          const ArrayI& offsets, const ArrayI& conn, const py::object& hint_face,
          const py::object& hint_edge, const py::object& hint_vertex, double tolerance,
-         const std::string& boundary, int threads, bool tolerance_hints) {
+         const std::string& boundary, int threads, bool tolerance_hints, bool keep_node_search,
+         const py::object& same_nodes_as) {
         if (!shape) throw std::invalid_argument("shape is None");
+        const CadMesh* previous = nullptr;
+        if (!same_nodes_as.is_none()) {
+          const auto& other = same_nodes_as.cast<const MeshHandle&>();
+          if (other.source == "cad" && other.cad)
+            previous = static_cast<const CadMesh*>(other.cad.get());
+        }
         // ---- validate everything before the core sees it (GIL held) ----
         checkShape2D(nodes, 3, "nodes");
         const py::ssize_t n = nodes.shape(0);
@@ -130,14 +137,16 @@ void bind_bridge(py::module_& m) {
         opt.boundary = boundary;
         opt.threads = threads;
         opt.toleranceHints = tolerance_hints;
+        opt.keepNodeSearch = keep_node_search;
         std::shared_ptr<CadMesh> cm;
         {
           py::gil_scoped_release release;
-          cm = std::make_shared<CadMesh>(shape, in, opt);
+          cm = std::make_shared<CadMesh>(shape, in, opt, previous);
         }
         auto h = std::make_shared<MeshHandle>();
         h->mesh = &cm->mesh();
         h->owner = cm;
+        h->cad = cm;
         h->source = "cad";
         h->report = reportDict(cm->report());
         return h;
@@ -146,13 +155,16 @@ void bind_bridge(py::module_& m) {
       py::arg("hint_face") = py::none(), py::arg("hint_edge") = py::none(),
       py::arg("hint_vertex") = py::none(), py::arg("tolerance") = 0.0,
       py::arg("boundary") = "fixed", py::arg("threads") = 0, py::arg("tolerance_hints") = false,
+      py::arg("keep_node_search") = false, py::arg("same_nodes_as") = py::none(),
       "Recovers a mesh on a CadShape. nodes float64 (N, 3); types int64 (E,) codes of "
       "element_types(); offsets int64 (E+1,); conn int64 0-based (Gmsh node order); optional "
       "hint_face/edge/vertex int64 (N,) 0-based ids or −1; tolerance 0 = 1e-3·diagonal; "
       "boundary 'fixed' or 'slide'; tolerance_hints: nodes without a hint are hinted to the "
       "vertex or the single edge whose own tolerance they are within (FreeCAD's "
-      "FemMesh.getNodesByVertex/Edge rule). Returns a SurfaceMesh whose .report says how every "
-      "node was classified.");
+      "FemMesh.getNodesByVertex/Edge rule); keep_node_search: the result keeps its per-node "
+      "face search (~100 bytes per node) so that same_nodes_as=<that result> can skip it when "
+      "recovering the same nodes with other elements (the same answer, faster). Returns a "
+      "SurfaceMesh whose .report says how every node was classified.");
 }
 
 }  // namespace surfmesh::bindings

@@ -233,13 +233,14 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, timings=None):
         data.kept = ~bad
     cshape = shape if part_shape is None else _core_shape(part_shape)
 
-    def build(w):
+    def build(w, keep=False, same_nodes_as=None):
         try:
             h = core().cad_mesh(
                 cshape, w.nodes, w.types, w.offsets, w.conn,
                 hint_face=w.hint_face, hint_edge=w.hint_edge, hint_vertex=w.hint_vertex,
                 tolerance=0.0 if tolerance is None else float(tolerance), boundary=boundary,
-                tolerance_hints=tolerance_hints,
+                tolerance_hints=tolerance_hints, keep_node_search=keep,
+                same_nodes_as=same_nodes_as,
             )
         except ValueError as err:
             raise ValueError(_name_by_ids(str(err), w)) from None
@@ -247,7 +248,9 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, timings=None):
         report["warnings"] = [_name_by_ids(x, w) for x in report.get("warnings", [])]
         return h
 
-    handle = build(work)
+    # Flat elements found on the first recovery are left out by a second one, which reuses
+    # the first's per-node face search (the costly part): same nodes, other elements.
+    handle = build(work, keep=collapsed == "skip")
     shape_measure = None
     reasons = []
     if bad.any():
@@ -268,7 +271,7 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, timings=None):
             bad = ~keep
             work = data.subset(keep)
             data.kept = keep
-            handle = build(work)
+            handle = build(work, same_nodes_as=handle)
             shape_measure = None  # measured on the handle replaced here
             reasons.append(
                 f"{int(flat.sum())} flat element(s) on one CAD edge or with two nodes on one "

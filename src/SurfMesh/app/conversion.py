@@ -115,11 +115,11 @@ class MeshData:
         """A MeshData with only the elements where ``keep`` is True (same nodes)."""
         keep = np.asarray(keep, dtype=bool)
         sizes = np.diff(self.offsets)[keep]
-        idx = np.concatenate(
-            [np.arange(self.offsets[e], self.offsets[e + 1]) for e in np.nonzero(keep)[0]]
-        ) if keep.any() else np.zeros(0, dtype=np.int64)
         offsets = np.zeros(len(sizes) + 1, dtype=np.int64)
         np.cumsum(sizes, out=offsets[1:])
+        # conn positions of the kept elements: each element's start, then its consecutive nodes
+        starts = np.asarray(self.offsets[:-1], dtype=np.int64)[keep]
+        idx = np.repeat(starts - offsets[:-1], sizes) + np.arange(offsets[-1], dtype=np.int64)
         return dataclasses.replace(
             self, types=self.types[keep], offsets=offsets, conn=self.conn[idx],
             element_ids=self.element_ids[keep],

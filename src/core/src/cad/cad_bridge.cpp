@@ -330,13 +330,18 @@ class Projector {
         if (tryStart(ft.sampleUV[k])) break;
       }
     }
-    if (bestGap <= slack) {
+    // On the surface: done. Off it, even by less than the face's slack (a mesher's node next
+    // to a sloppy edge), the local searches may have stopped at a foot point that is not the
+    // nearest (a thin face folded close to itself) or on the border of the parameter range;
+    // which one they find depends on the start, hence on the nodes queried before. The global
+    // search decides, so that a node's faces do not depend on the order of the nodes.
+    if (bestGap <= enough) {
       ft.last = Vec2(uv->X(), uv->Y());
       ft.hasLast = true;
       *gap = bestGap;
       return;
     }
-    // Not on the surface as far as the local searches tell: confirm with the global search.
+    // Not on the surface as far as the local searches tell: the global search.
     if (!ft.sas) ft.sas = std::make_unique<ShapeAnalysis_Surface>(ft.g);
     const gp_Pnt2d g = ft.sas->ValueOfUV(P, preci_);
     if (ft.sas->Gap() < bestGap || !std::isfinite(bestGap)) {
@@ -675,6 +680,28 @@ void fail(const std::string& msg) { throw std::invalid_argument("CadMesh: " + ms
 
 }  // namespace
 
+/// Step 1 of a recovery, kept for reuse (BridgeOptions::keepNodeSearch): what it depends on
+/// (nodes, hints, tolerance, tolerance-hint option) and what it found per node.
+struct NodeSearch {
+  std::vector<Vec3> nodes;
+  std::vector<std::int32_t> hintFace, hintEdge, hintVertex;
+  double tol = 0.0;
+  bool toleranceHints = false;
+  std::vector<std::vector<FaceHit>> hits;
+  std::vector<std::uint8_t> forced;
+  std::vector<std::int32_t> forcedId;
+  std::vector<double> forcedT;
+  std::vector<unsigned char> hintRejected;
+
+  bool matches(const MeshInput& in, double t, bool th) const {
+    return t == tol && th == toleranceHints && in.nodes.size() == nodes.size() &&
+           std::equal(
+               nodes.begin(), nodes.end(), in.nodes.begin(),
+               [](const Vec3& a, const Vec3& b) { return (a.array() == b.array()).all(); }) &&
+           in.hintFace == hintFace && in.hintEdge == hintEdge && in.hintVertex == hintVertex;
+  }
+};
+
 const char* nodeClassName(NodeClass c) {
   switch (c) {
     case NodeClass::Vertex:
@@ -720,8 +747,10 @@ MeshInput triangleMeshInput(const std::vector<double>& xyz, const std::vector<st
   return in;
 }
 
+CadMesh::~CadMesh() = default;
+
 CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
-                 const BridgeOptions& options)
+                 const BridgeOptions& options, const CadMesh* sameNodes)
     : shape_(std::move(shape)), options_(options) {
   const auto t0 = std::chrono::steady_clock::now();
   if (!shape_) fail("no shape given");
@@ -863,103 +892,132 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   const bool givenHints =
       !input.hintFace.empty() || !input.hintEdge.empty() || !input.hintVertex.empty();
   const bool anyHints = givenHints || options.toleranceHints;
-  // Tolerance hints (BridgeOptions::toleranceHints): the vertices' and edges' tolerance zones.
-  std::vector<double> vertexTol, edgeTol;
-  std::unique_ptr<BoxGrid> vertexGrid, edgeGrid;
-  if (options.toleranceHints) {
-    std::vector<Box> vb(static_cast<std::size_t>(NV)), eb(static_cast<std::size_t>(NE));
-    for (int v = 0; v < NV; ++v) {
-      const double t = S.vertexTolerance(v);
-      const Vec3 c = S.vertexPoint(v);
-      vertexTol.push_back(t);
-      vb[static_cast<std::size_t>(v)] = {c.x() - t, c.y() - t, c.z() - t,
-                                         c.x() + t, c.y() + t, c.z() + t};
-    }
-    for (int e = 0; e < NE; ++e) {
-      const double t = BRep_Tool::Tolerance(S.edge(e));
-      edgeTol.push_back(t);
-      Box b = edgeBoxes[static_cast<std::size_t>(e)];
-      for (std::size_t i = 0; i < 3; ++i) {
-        b[i] -= t;
-        b[i + 3] += t;
+  const NodeSearch* reuse =
+      sameNodes && sameNodes->nodeSearch_ &&
+              sameNodes->nodeSearch_->matches(input, tol, options.toleranceHints)
+          ? sameNodes->nodeSearch_.get()
+          : nullptr;
+  if (reuse) {
+    hits = reuse->hits;
+    for (std::size_t n = 0; n < N; ++n) forced[n] = static_cast<Forced>(reuse->forced[n]);
+    forcedId = reuse->forcedId;
+    forcedT = reuse->forcedT;
+    hintRejected = reuse->hintRejected;
+  } else {
+    // Tolerance hints (BridgeOptions::toleranceHints): the vertices' and edges' tolerance zones.
+    std::vector<double> vertexTol, edgeTol;
+    std::unique_ptr<BoxGrid> vertexGrid, edgeGrid;
+    if (options.toleranceHints) {
+      std::vector<Box> vb(static_cast<std::size_t>(NV)), eb(static_cast<std::size_t>(NE));
+      for (int v = 0; v < NV; ++v) {
+        const double t = S.vertexTolerance(v);
+        const Vec3 c = S.vertexPoint(v);
+        vertexTol.push_back(t);
+        vb[static_cast<std::size_t>(v)] = {c.x() - t, c.y() - t, c.z() - t,
+                                           c.x() + t, c.y() + t, c.z() + t};
       }
-      eb[static_cast<std::size_t>(e)] = b;
+      for (int e = 0; e < NE; ++e) {
+        const double t = BRep_Tool::Tolerance(S.edge(e));
+        edgeTol.push_back(t);
+        Box b = edgeBoxes[static_cast<std::size_t>(e)];
+        for (std::size_t i = 0; i < 3; ++i) {
+          b[i] -= t;
+          b[i + 3] += t;
+        }
+        eb[static_cast<std::size_t>(e)] = b;
+      }
+      vertexGrid = std::make_unique<BoxGrid>(std::move(vb));
+      edgeGrid = std::make_unique<BoxGrid>(std::move(eb));
     }
-    vertexGrid = std::make_unique<BoxGrid>(std::move(vb));
-    edgeGrid = std::make_unique<BoxGrid>(std::move(eb));
+    const double close = 1e-6 * diag;  // a node this near an entity lies on it
+    parallelFor(N, projectors, [&](std::size_t n, Projector& pr) {
+      const Vec3& p = input.nodes[n];
+      auto& h = hits[n];
+      if (anyHints) {
+        int hv = input.hintVertex.empty() ? -1 : input.hintVertex[n];
+        int he = input.hintEdge.empty() ? -1 : input.hintEdge[n];
+        const int hf = input.hintFace.empty() ? -1 : input.hintFace[n];
+        const bool given = hv >= 0 || he >= 0 || hf >= 0;
+        if (!given && options.toleranceHints)
+          pr.toleranceHint(p, *vertexGrid, vertexTol, *edgeGrid, edgeTol, &hv, &he);
+        // A hint is taken when the node lies on its entity (within `close`), or within the
+        // tolerance and no other entity of its kind is nearer: the mesher's own queries accept
+        // a node within the entity's tolerance, which at a CAD feature smaller than that
+        // tolerance also names a neighbouring vertex or edge (its element would then lie on
+        // no single face).
+        if (hv >= 0) {
+          const double d = (S.vertexPoint(hv) - p).norm();
+          if (d <= tol && (d <= close || !pr.vertexNearerThan(p, d - close, hv))) {
+            for (int f : S.vertexFaces(hv)) h.push_back(FaceHit{f, d, Vec2::Zero(), false, false});
+            forced[n] = Forced::Vertex;
+            forcedId[n] = hv;
+            if (!h.empty()) return;
+          }
+          hintRejected[n] = given;
+        } else if (he >= 0) {
+          double t = 0.0;
+          const double d = pr.edgeDistance(he, p, &t);
+          if (d <= tol && (d <= close || !pr.edgeNearerThan(p, d - close, he))) {
+            for (int f : S.edgeFaces(he)) h.push_back(FaceHit{f, d, Vec2::Zero(), false, false});
+            forced[n] = Forced::Edge;
+            forcedId[n] = he;
+            forcedT[n] = t;
+            if (!h.empty()) return;
+          }
+          hintRejected[n] = given;
+        } else if (hf >= 0) {
+          const FaceHit fh = pr.faceDistance(hf, p, tol);
+          bool take = fh.dist <= tol;
+          if (take && fh.dist > close) {
+            pr.facesNear(p, tol, &h);
+            for (const FaceHit& x : h)
+              if (x.face != hf && x.dist < fh.dist - close) take = false;
+            h.clear();
+          }
+          if (take) {
+            h.push_back(fh);
+            forced[n] = Forced::Face;
+            forcedId[n] = hf;
+            return;
+          }
+          hintRejected[n] = given;
+        }
+        forced[n] = Forced::None;
+        h.clear();
+      }
+      pr.facesNear(p, tol, &h);
+      // Keep the faces as close as the nearest one up to the tolerance of their boundary near
+      // the node (a node near a tangent edge, or on a thin wall, is within `tol` of the
+      // neighbouring face too, but not on it).
+      double dmin = kInf;
+      for (const FaceHit& x : h) dmin = std::min(dmin, x.dist);
+      const double base = 1e-6 * diag;
+      h.erase(std::remove_if(h.begin(), h.end(),
+                             [&](const FaceHit& x) {
+                               if (x.dist <= dmin + base) return false;
+                               if (x.dist > dmin + faceSlack[static_cast<std::size_t>(x.face)])
+                                 return true;
+                               return x.dist > dmin + pr.boundarySlack(x.face, p, base);
+                             }),
+              h.end());
+    });
   }
-  const double close = 1e-6 * diag;  // a node this near an entity lies on it
-  parallelFor(N, projectors, [&](std::size_t n, Projector& pr) {
-    const Vec3& p = input.nodes[n];
-    auto& h = hits[n];
-    if (anyHints) {
-      int hv = input.hintVertex.empty() ? -1 : input.hintVertex[n];
-      int he = input.hintEdge.empty() ? -1 : input.hintEdge[n];
-      const int hf = input.hintFace.empty() ? -1 : input.hintFace[n];
-      const bool given = hv >= 0 || he >= 0 || hf >= 0;
-      if (!given && options.toleranceHints)
-        pr.toleranceHint(p, *vertexGrid, vertexTol, *edgeGrid, edgeTol, &hv, &he);
-      // A hint is taken when the node lies on its entity (within `close`), or within the
-      // tolerance and no other entity of its kind is nearer: the mesher's own queries accept
-      // a node within the entity's tolerance, which at a CAD feature smaller than that
-      // tolerance also names a neighbouring vertex or edge (its element would then lie on
-      // no single face).
-      if (hv >= 0) {
-        const double d = (S.vertexPoint(hv) - p).norm();
-        if (d <= tol && (d <= close || !pr.vertexNearerThan(p, d - close, hv))) {
-          for (int f : S.vertexFaces(hv)) h.push_back(FaceHit{f, d, Vec2::Zero(), false, false});
-          forced[n] = Forced::Vertex;
-          forcedId[n] = hv;
-          if (!h.empty()) return;
-        }
-        hintRejected[n] = given;
-      } else if (he >= 0) {
-        double t = 0.0;
-        const double d = pr.edgeDistance(he, p, &t);
-        if (d <= tol && (d <= close || !pr.edgeNearerThan(p, d - close, he))) {
-          for (int f : S.edgeFaces(he)) h.push_back(FaceHit{f, d, Vec2::Zero(), false, false});
-          forced[n] = Forced::Edge;
-          forcedId[n] = he;
-          forcedT[n] = t;
-          if (!h.empty()) return;
-        }
-        hintRejected[n] = given;
-      } else if (hf >= 0) {
-        const FaceHit fh = pr.faceDistance(hf, p, tol);
-        bool take = fh.dist <= tol;
-        if (take && fh.dist > close) {
-          pr.facesNear(p, tol, &h);
-          for (const FaceHit& x : h)
-            if (x.face != hf && x.dist < fh.dist - close) take = false;
-          h.clear();
-        }
-        if (take) {
-          h.push_back(fh);
-          forced[n] = Forced::Face;
-          forcedId[n] = hf;
-          return;
-        }
-        hintRejected[n] = given;
-      }
-      forced[n] = Forced::None;
-      h.clear();
-    }
-    pr.facesNear(p, tol, &h);
-    // Keep the faces as close as the nearest one up to the tolerance of their boundary near
-    // the node (a node near a tangent edge, or on a thin wall, is within `tol` of the
-    // neighbouring face too, but not on it).
-    double dmin = kInf;
-    for (const FaceHit& x : h) dmin = std::min(dmin, x.dist);
-    const double base = 1e-6 * diag;
-    h.erase(std::remove_if(h.begin(), h.end(),
-                           [&](const FaceHit& x) {
-                             if (x.dist <= dmin + base) return false;
-                             if (x.dist > dmin + faceSlack[static_cast<std::size_t>(x.face)])
-                               return true;
-                             return x.dist > dmin + pr.boundarySlack(x.face, p, base);
-                           }),
-            h.end());
-  });
+  if (options.keepNodeSearch) {
+    auto keep = std::make_shared<NodeSearch>();
+    keep->nodes = input.nodes;
+    keep->hintFace = input.hintFace;
+    keep->hintEdge = input.hintEdge;
+    keep->hintVertex = input.hintVertex;
+    keep->tol = tol;
+    keep->toleranceHints = options.toleranceHints;
+    keep->hits = hits;
+    keep->forced.resize(N);
+    for (std::size_t n = 0; n < N; ++n) keep->forced[n] = static_cast<std::uint8_t>(forced[n]);
+    keep->forcedId = forcedId;
+    keep->forcedT = forcedT;
+    keep->hintRejected = hintRejected;
+    nodeSearch_ = std::move(keep);
+  }
 
   report_.tolerance = tol;
   report_.nodeDistance.assign(N, kInf);
@@ -1016,10 +1074,13 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
     nodeFaces[n].erase(std::unique(nodeFaces[n].begin(), nodeFaces[n].end()), nodeFaces[n].end());
   }
   std::vector<std::int32_t> elemFace(E, -1);
-  std::size_t offFaceElements = 0, firstOffFace = 0;
+  // In parallel (the distances of several faces to an element's nodes and centroid may need
+  // global projections): 1 marks an element put on a face its nodes are each within the
+  // tolerance of, 2 one on no face (an error, reported below for the first).
+  std::vector<unsigned char> elemStatus(E, 0);
   {
-    std::vector<int> common, tmp;
-    for (std::size_t e = 0; e < E; ++e) {
+    parallelFor(E, projectors, [&](std::size_t e, Projector& pr) {
+      std::vector<int> common, tmp;
       const std::int32_t* nd = input.conn.data() + offsets[e];
       const int nn = static_cast<int>(offsets[e + 1] - offsets[e]);
       common = nodeFaces[static_cast<std::size_t>(nd[0])];
@@ -1047,28 +1108,18 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
           double worst = 0.0;
           for (int k = 0; k < nn && worst <= tol; ++k)
             worst = std::max(
-                worst,
-                proj.faceDistance(f, input.nodes[static_cast<std::size_t>(nd[k])], tol).dist);
+                worst, pr.faceDistance(f, input.nodes[static_cast<std::size_t>(nd[k])], tol).dist);
           if (worst <= tol && worst < bestWorst) {
             bestWorst = worst;
             elemFace[e] = f;
           }
         }
-        if (elemFace[e] >= 0) {
-          if (offFaceElements++ == 0) firstOffFace = e;
-          continue;
-        }
-        std::ostringstream os;
-        os << "element " << e << " lies on no single face of the shape (its nodes share no face):";
-        for (int k = 0; k < nn; ++k)
-          os << " node " << nd[k] << " on faces "
-             << joinInts(nodeFaces[static_cast<std::size_t>(nd[k])]) << (k + 1 < nn ? "," : "");
-        os << ". The mesh must conform to the B-rep faces (no element across a CAD edge).";
-        fail(os.str());
+        elemStatus[e] = elemFace[e] >= 0 ? 1 : 2;
+        return;
       }
       if (common.size() == 1) {
         elemFace[e] = common[0];
-        continue;
+        return;
       }
       // Several faces qualify (small elements at an edge, faces tangent to each other, thin
       // walls): the face nearest to the element's nodes and to its centroid.
@@ -1077,7 +1128,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
       c /= nn;
       double best = kInf;
       for (int f : common) {
-        double d = proj.faceDistance(f, c, kInf).dist;
+        double d = pr.faceDistance(f, c, kInf).dist;
         for (int k = 0; k < nn; ++k)
           for (const FaceHit& h : hits[static_cast<std::size_t>(nd[k])])
             if (h.face == f) d += h.dist;
@@ -1087,7 +1138,22 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
         }
       }
       if (elemFace[e] < 0) elemFace[e] = common[0];
+    });
+  }
+  std::size_t offFaceElements = 0, firstOffFace = 0;
+  for (std::size_t e = 0; e < E; ++e) {
+    if (elemStatus[e] == 2) {
+      const std::int32_t* nd = input.conn.data() + offsets[e];
+      const int nn = static_cast<int>(offsets[e + 1] - offsets[e]);
+      std::ostringstream os;
+      os << "element " << e << " lies on no single face of the shape (its nodes share no face):";
+      for (int k = 0; k < nn; ++k)
+        os << " node " << nd[k] << " on faces "
+           << joinInts(nodeFaces[static_cast<std::size_t>(nd[k])]) << (k + 1 < nn ? "," : "");
+      os << ". The mesh must conform to the B-rep faces (no element across a CAD edge).";
+      fail(os.str());
     }
+    if (elemStatus[e] == 1 && offFaceElements++ == 0) firstOffFace = e;
   }
   if (offFaceElements)
     report_.warnings.push_back(

@@ -96,7 +96,13 @@ struct BridgeOptions {
   /// one edge, to that edge. These hints are checked like given ones (and not counted in
   /// hintsRejected when they do not check out).
   bool toleranceHints = false;
+  /// Keep the per-node face search (step 1 of the recovery, the costly part) in the CadMesh,
+  /// so that a CadMesh of the same nodes with other elements (e.g. some left out) can reuse
+  /// it: about 100 bytes per node while this CadMesh lives.
+  bool keepNodeSearch = false;
 };
+
+struct NodeSearch;  // the per-node face search of a recovery (cad_bridge.cpp)
 
 /// Where a node lies on the B-rep.
 enum class NodeClass : std::uint8_t {
@@ -141,8 +147,13 @@ struct BridgeReport {
 class CadMesh {
  public:
   /// Classifies `input` on `shape` (see the file comment). Throws std::invalid_argument.
+  /// `sameNodes`, when given and built with BridgeOptions::keepNodeSearch from the same
+  /// nodes, hints, tolerance and tolerance-hint option (its elements may differ: typically
+  /// this input leaves some of them out), lends its per-node face search instead of running
+  /// it again; the result is the same as without it. Otherwise it is ignored.
   CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
-          const BridgeOptions& options = {});
+          const BridgeOptions& options = {}, const CadMesh* sameNodes = nullptr);
+  ~CadMesh();
   CadMesh(CadMesh&&) = default;
   CadMesh& operator=(CadMesh&&) = default;
   CadMesh(const CadMesh&) = delete;
@@ -154,6 +165,8 @@ class CadMesh {
   const CadShape& shape() const { return *shape_; }
   const std::shared_ptr<const CadShape>& shapePtr() const { return shape_; }
   const BridgeOptions& options() const { return options_; }
+  /// Whether this CadMesh keeps its node search (BridgeOptions::keepNodeSearch).
+  bool keepsNodeSearch() const { return nodeSearch_ != nullptr; }
 
  private:
   std::shared_ptr<const CadShape> shape_;
@@ -162,6 +175,7 @@ class CadMesh {
   std::vector<std::unique_ptr<Curve>> curves_;
   SurfaceMesh mesh_;
   BridgeReport report_;
+  std::shared_ptr<const NodeSearch> nodeSearch_;
 };
 
 /// Convenience for the bindings: a MeshInput of linear triangles from flat arrays
