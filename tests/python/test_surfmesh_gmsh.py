@@ -212,6 +212,35 @@ class GmshCase(unittest.TestCase):
         self.assertLess(T.distance_to_shape(shape, res.nodes[sample]).max(),
                         2 * max(v.Tolerance for v in shape.Vertexes))
 
+    def test_advice_on_elements_left_tangled_follows_the_run(self):
+        # The crank arm's second-order Gmsh mesh has a few elements at a CAD feature smaller
+        # than themselves that no motion repairs. A run cut short while their number still
+        # drops advises more sweeps; one that reaches max_sweeps long after the last drop does
+        # not.
+        part = self.part("occt_crankarm.brep")
+        mesh = examples.make_gmsh_mesh(
+            self.doc, part, part.Shape.BoundBox.DiagonalLength / 25, order="2nd"
+        )
+        runs = {}
+        for sweeps in (2, 40):
+            seen = []
+            res = SurfMesh.optimize(mesh, part, max_sweeps=sweeps,
+                                    progress=lambda p: seen.append(p["tangled"]))
+            self.assertEqual(res.reason, "max_sweeps")
+            self.assertGreater(len(res.tangled_movable), 0)
+            warn = next(w for w in res.warnings if "some of their nodes may move" in w)
+            runs[sweeps] = (seen, warn)
+        seen, warn = runs[2]
+        self.assertLess(seen[-1], seen[0])  # still dropping at the end
+        self.assertIn("try more sweeps", warn)
+        seen, warn = runs[40]
+        last_drop = max(i for i in range(1, len(seen)) if seen[i] < min(seen[:i]))
+        quiet = len(seen) - 1 - last_drop
+        self.assertGreaterEqual(quiet, 24)
+        self.assertNotIn("try more sweeps", warn)
+        self.assertIn(f"has not dropped over its last {quiet} sweeps", warn)
+        self.assertIn("try boundary='slide'", warn)
+
 
 if __name__ == "__main__":
     unittest.main()

@@ -52,6 +52,12 @@ OPTIMIZE_DEFAULTS = {
 }
 
 
+# A run that ends at max_sweeps with tangled elements left advises more sweeps only when their
+# number dropped within this many sweeps before the end (3 × the core's deltaStallSweeps: every
+# level of its ε tried once since).
+_STILL_DROPPING = 24
+
+
 class Cancelled(RuntimeError):
     """Raised by :func:`optimize` when the progress callback asked to stop; nothing changed."""
 
@@ -464,7 +470,14 @@ def optimize(
                      measured=measured if measure == "shape" else None)
     t1 = time.perf_counter()
     stats = {k: before.stats[k] for k in ("min", "max", "mean", "std", "tangled", "elements")}
-    r = handle.optimize(measure=measure, progress=progress, before=stats, **opts)
+    fewest = {"tangled": None, "sweep": 0}  # when the run last reached fewer tangled elements
+
+    def track(p):
+        if fewest["tangled"] is None or p["tangled"] < fewest["tangled"]:
+            fewest.update(tangled=p["tangled"], sweep=p["sweep"])
+        return None if progress is None else progress(p)
+
+    r = handle.optimize(measure=measure, progress=track, before=stats, **opts)
     if r["reason"] == "cancelled":
         raise Cancelled(f"optimization cancelled after {r['sweeps']} sweep(s); nothing changed")
     t2 = time.perf_counter()
@@ -489,13 +502,21 @@ def optimize(
             f"{_id_list(unmovable)}{_where(data, handle, new_nodes, core_unmovable)}"
         )
     if movable:
-        if r["reason"] == "max_sweeps":
-            hint = "the run reached max_sweeps: try more sweeps"
-        elif boundary == "fixed":
-            hint = "no motion of their movable nodes repairs them: try boundary='slide'"
+        quiet = int(r["sweeps"]) - fewest["sweep"]  # sweeps since the last drop
+        if r["reason"] == "max_sweeps" and quiet < _STILL_DROPPING:
+            hint = ("the run reached max_sweeps while their number was still dropping: try more "
+                    "sweeps")
         else:
-            hint = ("no motion of their movable nodes repairs them: change the mesh there, "
-                    "e.g. elements smaller than the CAD feature they span")
+            hint = ("no motion of their movable nodes repairs them"
+                    if r["reason"] != "max_sweeps" else
+                    f"the run reached max_sweeps, but their number has not dropped over its last "
+                    f"{quiet} sweeps, so more sweeps are unlikely to help")
+            sep = "; " if r["reason"] == "max_sweeps" else ": "
+            if boundary == "fixed":
+                hint += sep + "try boundary='slide'"
+            else:
+                hint += (sep + "change the mesh there, e.g. elements smaller than the CAD "
+                         "feature they span")
         warnings.append(
             f"{len(movable)} element(s) stay tangled although some of their nodes may move "
             f"({hint}): elements {_id_list(movable)}"
