@@ -77,7 +77,7 @@ void bind_bridge(py::module_& m) {
          const ArrayI& offsets, const ArrayI& conn, const py::object& hint_face,
          const py::object& hint_edge, const py::object& hint_vertex, double tolerance,
          const std::string& boundary, int threads, bool tolerance_hints, bool keep_node_search,
-         const py::object& same_nodes_as) {
+         const py::object& same_nodes_as, const py::object& left_out_nodes) {
         if (!shape) throw std::invalid_argument("shape is None");
         const CadMesh* previous = nullptr;
         if (!same_nodes_as.is_none()) {
@@ -132,6 +132,14 @@ void bind_bridge(py::module_& m) {
         in.hintFace = hintVector(hint_face, n, shape->faceCount(), "hint_face");
         in.hintEdge = hintVector(hint_edge, n, shape->edgeCount(), "hint_edge");
         in.hintVertex = hintVector(hint_vertex, n, shape->vertexCount(), "hint_vertex");
+        if (!left_out_nodes.is_none()) {
+          const auto mask = py::cast<py::array_t<bool, py::array::c_style | py::array::forcecast>>(
+              left_out_nodes);
+          if (mask.ndim() != 1 || mask.shape(0) != n)
+            throw std::invalid_argument("left_out_nodes must have shape (" + std::to_string(n) +
+                                        ",)");
+          in.leftOutNeighbour.assign(mask.data(), mask.data() + n);
+        }
         BridgeOptions opt;
         opt.tolerance = tolerance;
         opt.boundary = boundary;
@@ -156,6 +164,7 @@ void bind_bridge(py::module_& m) {
       py::arg("hint_vertex") = py::none(), py::arg("tolerance") = 0.0,
       py::arg("boundary") = "fixed", py::arg("threads") = 0, py::arg("tolerance_hints") = false,
       py::arg("keep_node_search") = false, py::arg("same_nodes_as") = py::none(),
+      py::arg("left_out_nodes") = py::none(),
       "Recovers a mesh on a CadShape. nodes float64 (N, 3); types int64 (E,) codes of "
       "element_types(); offsets int64 (E+1,); conn int64 0-based (Gmsh node order); optional "
       "hint_face/edge/vertex int64 (N,) 0-based ids or −1; tolerance 0 = 1e-3·diagonal; "
@@ -163,7 +172,10 @@ void bind_bridge(py::module_& m) {
       "vertex or the single edge whose own tolerance they are within (FreeCAD's "
       "FemMesh.getNodesByVertex/Edge rule); keep_node_search: the result keeps its per-node "
       "face search (~100 bytes per node) so that same_nodes_as=<that result> can skip it when "
-      "recovering the same nodes with other elements (the same answer, faster). Returns a "
+      "recovering the same nodes with other elements (the same answer, faster); left_out_nodes "
+      "bool (N,): nodes of elements left out of conn, which lie on the mesh's boundary only "
+      "through the hole those leave (on a CAD edge only within twice its tolerance, else they "
+      "move in their face). Returns a "
       "SurfaceMesh whose .report says how every node was classified.");
 }
 

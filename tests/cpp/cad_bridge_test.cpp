@@ -408,6 +408,77 @@ std::string errorOf(const std::function<void()>& f) {
   return "";
 }
 
+TEST(CadBridge, NodesNextToLeftOutElementsStayWhereTheyLie) {
+  // Elements a caller leaves out (collapsed, duplicate or flat ones) leave holes: their nodes
+  // are on the mesh's boundary only through those. Marked as such, they keep BRepMesh's own
+  // classification: inside their face (movable), or on the CAD edge they lie on. Unmarked,
+  // the ones within the tolerance of a CAD edge were put on it, the others kept fixed.
+  auto shape = load("occt_crankarm.brep");
+  OccMesh om = meshWithBRepMesh(*shape, 1e-3 * shape->diagonal(), 0.5);
+  const std::size_t E = om.elemFace.size();
+  std::vector<unsigned char> leave(E, 0);
+  std::size_t withEdgeNode = 0, interior = 0;
+  for (std::size_t e = 0; e < E && (withEdgeNode < 30 || interior < 30); e += 7) {
+    int edgeNodes = 0, faceNodes = 0;
+    for (int k = 0; k < 3; ++k) {
+      const NodeClass c = om.nodeClass[static_cast<std::size_t>(om.input.conn[3 * e + k])];
+      edgeNodes += c == NodeClass::Edge;
+      faceNodes += c == NodeClass::Face;
+    }
+    if (faceNodes == 3 && interior < 30) {
+      leave[e] = 1;
+      ++interior;
+    } else if (edgeNodes == 2 && faceNodes == 1 && withEdgeNode < 30) {
+      leave[e] = 1;
+      ++withEdgeNode;
+    }
+  }
+  ASSERT_EQ(interior, 30u);
+  ASSERT_EQ(withEdgeNode, 30u);
+  MeshInput in = om.input;
+  in.types.clear();
+  in.conn.clear();
+  in.leftOutNeighbour.assign(in.nodes.size(), 0);
+  for (std::size_t e = 0; e < E; ++e) {
+    for (int k = 0; k < 3; ++k) {
+      const std::int32_t n = om.input.conn[3 * e + k];
+      if (leave[e])
+        in.leftOutNeighbour[static_cast<std::size_t>(n)] = 1;
+      else
+        in.conn.push_back(n);
+    }
+    if (!leave[e]) in.types.push_back(ElementType::Tri3);
+  }
+  auto mismatches = [&](const CadMesh& cm) {
+    std::size_t bad = 0;
+    for (std::size_t n = 0; n < in.nodes.size(); ++n) {
+      if (!in.leftOutNeighbour[n] || cm.report().nodeClass[n] == NodeClass::None) continue;
+      bad += cm.report().nodeClass[n] != om.nodeClass[n] ||
+             cm.report().nodeEntity[n] != om.nodeEntity[n];
+    }
+    return bad;
+  };
+  CadMesh marked(shape, in);
+  EXPECT_EQ(mismatches(marked), 0u);
+  std::size_t movable = 0;
+  for (std::size_t n = 0; n < in.nodes.size(); ++n)
+    movable += in.leftOutNeighbour[n] && om.nodeClass[n] == NodeClass::Face &&
+               marked.mesh().nodeKind[n] == NodeKind::Face;
+  EXPECT_GT(movable, 60u);
+  MeshInput unmarked = in;
+  unmarked.leftOutNeighbour.clear();
+  CadMesh plain(shape, unmarked);
+  std::size_t fixedFaceNodes = 0;
+  for (std::size_t n = 0; n < in.nodes.size(); ++n)
+    fixedFaceNodes += in.leftOutNeighbour[n] && om.nodeClass[n] == NodeClass::Face &&
+                      plain.mesh().nodeKind[n] != NodeKind::Face;
+  EXPECT_GT(fixedFaceNodes, 60u);  // the hole's nodes were held (or put on an edge)
+  MeshInput wrongSize = in;
+  wrongSize.leftOutNeighbour.pop_back();
+  EXPECT_NE(errorOf([&] { CadMesh(shape, wrongSize); }).find("leftOutNeighbour"),
+            std::string::npos);
+}
+
 TEST(CadBridge, NodesOffTheShapeAreReportedWithCountWorstAndId) {
   auto shape = load("occt_propeller.brep");
   const double diag = shape->diagonal();

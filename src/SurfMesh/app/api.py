@@ -240,13 +240,19 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, timings=None):
     cshape = shape if part_shape is None else _core_shape(part_shape)
 
     def build(w, keep=False, same_nodes_as=None):
+        # The nodes of the elements left out border the holes those leave: not the mesh's
+        # boundary (the core puts them on a CAD edge only when they lie on it).
+        left_out = None
+        if data.kept is not None:
+            left_out = np.zeros(len(data.nodes), dtype=bool)
+            left_out[data.subset(~data.kept).conn] = True
         try:
             h = core().cad_mesh(
                 cshape, w.nodes, w.types, w.offsets, w.conn,
                 hint_face=w.hint_face, hint_edge=w.hint_edge, hint_vertex=w.hint_vertex,
                 tolerance=0.0 if tolerance is None else float(tolerance), boundary=boundary,
                 tolerance_hints=tolerance_hints, keep_node_search=keep,
-                same_nodes_as=same_nodes_as,
+                same_nodes_as=same_nodes_as, left_out_nodes=left_out,
             )
         except ValueError as err:
             raise ValueError(_name_by_ids(str(err), w)) from None

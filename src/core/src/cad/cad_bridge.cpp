@@ -772,6 +772,9 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
                           ? options.threads
                           : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
   if (N == 0) fail("the mesh has no nodes");
+  if (!input.leftOutNeighbour.empty() && input.leftOutNeighbour.size() != N)
+    fail("leftOutNeighbour has " + std::to_string(input.leftOutNeighbour.size()) + " entries for " +
+         std::to_string(N) + " nodes");
   if (E == 0) fail("the mesh has no elements");
   for (std::size_t i = 0; i < N; ++i)
     if (!input.nodes[i].allFinite())
@@ -1348,8 +1351,13 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
           bt = t;
         }
       }
-      if (be >= 0 && bd <= tol) {
+      const bool hole = !input.leftOutNeighbour.empty() && input.leftOutNeighbour[n];
+      const double reach =
+          hole && be >= 0 ? std::max(2.0 * BRep_Tool::Tolerance(S.edge(be)), 1e-6 * diag) : tol;
+      if (be >= 0 && bd <= reach) {
         setEdge(n, be, bt);
+      } else if (hole) {
+        setFace(n, f);  // inside the face, next to a left-out element: moves in the face
       } else {
         setFace(n, f);
         report_.nodeClass[n] = NodeClass::None;  // fixed below

@@ -79,6 +79,12 @@ struct MeshInput {
   /// on, −1 when unknown. The most specific wins (vertex, then edge, then face). A Gmsh FEM
   /// mesh gives them through FemMesh.getNodesByFace/Edge/Vertex.
   std::vector<std::int32_t> hintFace, hintEdge, hintVertex;
+  /// Optional, empty or of size N: nonzero for the nodes of elements the caller left out of
+  /// `conn` (collapsed, duplicate or flat elements). Such a node may lie on the mesh's
+  /// boundary only through the hole its left-out element leaves: it goes on its face's nearest
+  /// CAD edge only when within twice that edge's tolerance (at least 1e-6 × diagonal), and
+  /// moves in its face otherwise (other boundary nodes go on an edge within the tolerance).
+  std::vector<unsigned char> leftOutNeighbour;
 };
 
 struct BridgeOptions {
