@@ -2,6 +2,7 @@
 // data back, and measuring quality.
 #include "arrays.h"
 #include "handle.h"
+#include "surfmesh/cad/cad_bridge.h"
 #include "surfmesh/geometry/analytic_surfaces.h"
 #include "surfmesh/measures/measure.h"
 #include "surfmesh/mesh/quality.h"
@@ -111,6 +112,20 @@ MeshClass bind_mesh(py::module_& m) {
       .def(
           "element_faces", [](const MeshHandle& h) { return toArray(h.get().elemFace); },
           "Per element: the face id it lies on")
+      .def(
+          "release_node_search",
+          [](MeshHandle& h) {
+            if (h.source == "cad" && h.owner)
+              static_cast<CadMesh*>(h.owner.get())->releaseNodeSearch();
+          },
+          "Frees the per-node face search kept by cad_mesh(keep_node_search=True)")
+      .def_property_readonly(
+          "keeps_node_search",
+          [](const MeshHandle& h) {
+            return h.source == "cad" && h.cad &&
+                   static_cast<const CadMesh*>(h.cad.get())->keepsNodeSearch();
+          },
+          "Whether the per-node face search is kept (cad_mesh(keep_node_search=True))")
       .def(
           "validate", [](const MeshHandle& h) { h.get().validate(); },
           "Checks sizes, ranges and finiteness (ValueError naming the first problem)")

@@ -192,6 +192,14 @@ class GmshCase(unittest.TestCase):
             np.testing.assert_array_equal(reused.report[key], fresh.report[key], key)
         np.testing.assert_allclose(reused.report["node_param"], fresh.report["node_param"],
                                    atol=1e-9)
+        self.assertTrue(first.keeps_node_search)
+        self.assertFalse(reused.keeps_node_search)
+        first.release_node_search()  # then same_nodes_as searches again: the same answer
+        self.assertFalse(first.keeps_node_search)
+        again = api.core().cad_mesh(cshape, sub.nodes, sub.types, sub.offsets, sub.conn,
+                                    same_nodes_as=first)
+        np.testing.assert_array_equal(again.element_faces(), fresh.element_faces())
+        self.assertFalse(handle.keeps_node_search)  # the API frees it once recovered
         # Gmsh leaves a few tangled elements there; all are untangled, on the faces.
         res = SurfMesh.optimize(mesh, part)
         self.assertGreater(res.before.stats["tangled"], 0)

@@ -289,6 +289,7 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, timings=None):
                 f"{int(flat.sum())} flat element(s) on one CAD edge or with two nodes on one "
                 "CAD vertex"
             )
+    handle.release_node_search()  # kept only for the second recovery
     if data.kept is not None:
         ids = data.element_ids[bad]
         report = handle.report  # the handle's own dict: additions stay with it

@@ -173,6 +173,8 @@ class CadMesh {
   const BridgeOptions& options() const { return options_; }
   /// Whether this CadMesh keeps its node search (BridgeOptions::keepNodeSearch).
   bool keepsNodeSearch() const { return nodeSearch_ != nullptr; }
+  /// Frees the kept node search (when no second recovery will need it).
+  void releaseNodeSearch() { nodeSearch_.reset(); }
 
  private:
   std::shared_ptr<const CadShape> shape_;
