@@ -82,8 +82,8 @@ void bind_bridge(py::module_& m) {
         const CadMesh* previous = nullptr;
         if (!same_nodes_as.is_none()) {
           const auto& other = same_nodes_as.cast<const MeshHandle&>();
-          if (other.source == "cad" && other.cad)
-            previous = static_cast<const CadMesh*>(other.cad.get());
+          if (other.source == "cad" && other.owner)
+            previous = static_cast<const CadMesh*>(other.owner.get());
         }
         // ---- validate everything before the core sees it (GIL held) ----
         checkShape2D(nodes, 3, "nodes");
@@ -154,7 +154,6 @@ void bind_bridge(py::module_& m) {
         auto h = std::make_shared<MeshHandle>();
         h->mesh = &cm->mesh();
         h->owner = cm;
-        h->cad = cm;
         h->source = "cad";
         h->report = reportDict(cm->report());
         return h;

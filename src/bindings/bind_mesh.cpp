@@ -122,8 +122,8 @@ MeshClass bind_mesh(py::module_& m) {
       .def_property_readonly(
           "keeps_node_search",
           [](const MeshHandle& h) {
-            return h.source == "cad" && h.cad &&
-                   static_cast<const CadMesh*>(h.cad.get())->keepsNodeSearch();
+            return h.source == "cad" && h.owner &&
+                   static_cast<const CadMesh*>(h.owner.get())->keepsNodeSearch();
           },
           "Whether the per-node face search is kept (cad_mesh(keep_node_search=True))")
       .def(

@@ -15,11 +15,10 @@ namespace py = pybind11;
 /// A SurfaceMesh together with whatever keeps its surfaces and curves alive (an analytic
 /// surface, or the CAD bridge's mesh and its CadShape). Exposed to Python as `SurfaceMesh`.
 struct MeshHandle {
-  std::shared_ptr<void> owner;      ///< keeps `mesh` and its geometry alive
-  SurfaceMesh* mesh = nullptr;      ///< the mesh (owned through `owner`)
-  py::dict report;                  ///< how the mesh was built (bridge report), as a dict
-  std::string source;               ///< "cad" or "surface"
-  std::shared_ptr<const void> cad;  ///< the CadMesh when source is "cad" (for cad_mesh reuse)
+  std::shared_ptr<void> owner;  ///< keeps `mesh` and its geometry alive (the CadMesh for "cad")
+  SurfaceMesh* mesh = nullptr;  ///< the mesh (owned through `owner`)
+  py::dict report;              ///< how the mesh was built (bridge report), as a dict
+  std::string source;           ///< "cad" or "surface"
 
   SurfaceMesh& get() const;
 };

@@ -680,15 +680,21 @@ void fail(const std::string& msg) { throw std::invalid_argument("CadMesh: " + ms
 
 }  // namespace
 
+/// The hint a node's classification was forced by.
+enum class Forced : std::uint8_t { None, Vertex, Edge, Face };
+
 /// Step 1 of a recovery, kept for reuse (BridgeOptions::keepNodeSearch): what it depends on
-/// (nodes, hints, tolerance, tolerance-hint option) and what it found per node.
+/// (nodes, hints, tolerance, tolerance-hint option) and what it found per node. Read-only once
+/// made: the recovery that made it and any that reuse it read it in place.
 struct NodeSearch {
+  // what it depends on (filled only when it is kept)
   std::vector<Vec3> nodes;
   std::vector<std::int32_t> hintFace, hintEdge, hintVertex;
   double tol = 0.0;
   bool toleranceHints = false;
+  // per node: candidate faces, the hint taken (entity, edge parameter), a given hint rejected
   std::vector<std::vector<FaceHit>> hits;
-  std::vector<std::uint8_t> forced;
+  std::vector<Forced> forced;
   std::vector<std::int32_t> forcedId;
   std::vector<double> forcedT;
   std::vector<unsigned char> hintRejected;
@@ -886,27 +892,25 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   }
 
   // ---- 1. faces near every node (hints first) -----------------------------------------------
-  enum class Forced : std::uint8_t { None, Vertex, Edge, Face };
-  std::vector<std::vector<FaceHit>> hits(N);
-  std::vector<Forced> forced(N, Forced::None);
-  std::vector<std::int32_t> forcedId(N, -1);
-  std::vector<double> forcedT(N, kNaN);
-  std::vector<unsigned char> hintRejected(N, 0);
   const bool givenHints =
       !input.hintFace.empty() || !input.hintEdge.empty() || !input.hintVertex.empty();
   const bool anyHints = givenHints || options.toleranceHints;
-  const NodeSearch* reuse =
-      sameNodes && sameNodes->nodeSearch_ &&
-              sameNodes->nodeSearch_->matches(input, tol, options.toleranceHints)
-          ? sameNodes->nodeSearch_.get()
-          : nullptr;
-  if (reuse) {
-    hits = reuse->hits;
-    for (std::size_t n = 0; n < N; ++n) forced[n] = static_cast<Forced>(reuse->forced[n]);
-    forcedId = reuse->forcedId;
-    forcedT = reuse->forcedT;
-    hintRejected = reuse->hintRejected;
+  std::shared_ptr<const NodeSearch> search;
+  if (sameNodes && sameNodes->nodeSearch_ &&
+      sameNodes->nodeSearch_->matches(input, tol, options.toleranceHints)) {
+    search = sameNodes->nodeSearch_;
   } else {
+    auto fresh = std::make_shared<NodeSearch>();
+    auto& hits = fresh->hits;
+    auto& forced = fresh->forced;
+    auto& forcedId = fresh->forcedId;
+    auto& forcedT = fresh->forcedT;
+    auto& hintRejected = fresh->hintRejected;
+    hits.resize(N);
+    forced.assign(N, Forced::None);
+    forcedId.assign(N, -1);
+    forcedT.assign(N, kNaN);
+    hintRejected.assign(N, 0);
     // Tolerance hints (BridgeOptions::toleranceHints): the vertices' and edges' tolerance zones.
     std::vector<double> vertexTol, edgeTol;
     std::unique_ptr<BoxGrid> vertexGrid, edgeGrid;
@@ -1004,23 +1008,22 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
                              }),
               h.end());
     });
+    if (options.keepNodeSearch) {
+      fresh->nodes = input.nodes;
+      fresh->hintFace = input.hintFace;
+      fresh->hintEdge = input.hintEdge;
+      fresh->hintVertex = input.hintVertex;
+      fresh->tol = tol;
+      fresh->toleranceHints = options.toleranceHints;
+    }
+    search = std::move(fresh);
   }
-  if (options.keepNodeSearch) {
-    auto keep = std::make_shared<NodeSearch>();
-    keep->nodes = input.nodes;
-    keep->hintFace = input.hintFace;
-    keep->hintEdge = input.hintEdge;
-    keep->hintVertex = input.hintVertex;
-    keep->tol = tol;
-    keep->toleranceHints = options.toleranceHints;
-    keep->hits = hits;
-    keep->forced.resize(N);
-    for (std::size_t n = 0; n < N; ++n) keep->forced[n] = static_cast<std::uint8_t>(forced[n]);
-    keep->forcedId = forcedId;
-    keep->forcedT = forcedT;
-    keep->hintRejected = hintRejected;
-    nodeSearch_ = std::move(keep);
-  }
+  if (options.keepNodeSearch) nodeSearch_ = search;
+  const auto& hits = search->hits;
+  const auto& forced = search->forced;
+  const auto& forcedId = search->forcedId;
+  const auto& forcedT = search->forcedT;
+  const auto& hintRejected = search->hintRejected;
 
   report_.tolerance = tol;
   report_.nodeDistance.assign(N, kInf);
@@ -1078,74 +1081,72 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   }
   std::vector<std::int32_t> elemFace(E, -1);
   // In parallel (the distances of several faces to an element's nodes and centroid may need
-  // global projections): 1 marks an element put on a face its nodes are each within the
-  // tolerance of, 2 one on no face (an error, reported below for the first).
-  std::vector<unsigned char> elemStatus(E, 0);
-  {
-    parallelFor(E, projectors, [&](std::size_t e, Projector& pr) {
-      std::vector<int> common, tmp;
-      const std::int32_t* nd = input.conn.data() + offsets[e];
-      const int nn = static_cast<int>(offsets[e + 1] - offsets[e]);
-      common = nodeFaces[static_cast<std::size_t>(nd[0])];
-      for (int k = 1; k < nn && !common.empty(); ++k) {
+  // global projections). offFace marks an element put on a face its nodes are each within the
+  // tolerance of; one left on no face (elemFace −1) is an error, reported below for the first.
+  std::vector<unsigned char> offFace(E, 0);
+  parallelFor(E, projectors, [&](std::size_t e, Projector& pr) {
+    std::vector<int> common, tmp;
+    const std::int32_t* nd = input.conn.data() + offsets[e];
+    const int nn = static_cast<int>(offsets[e + 1] - offsets[e]);
+    common = nodeFaces[static_cast<std::size_t>(nd[0])];
+    for (int k = 1; k < nn && !common.empty(); ++k) {
+      const auto& f = nodeFaces[static_cast<std::size_t>(nd[k])];
+      tmp.clear();
+      std::set_intersection(common.begin(), common.end(), f.begin(), f.end(),
+                            std::back_inserter(tmp));
+      common.swap(tmp);
+    }
+    if (common.empty()) {
+      // No face is among every node's nearest ones: next to a CAD edge whose tolerance is as
+      // large as the elements, the mesher's nodes may sit off both faces, some nearer to
+      // one, some to the other. The element goes on the face of its nodes' candidates
+      // farthest from none of them by more than the tolerance (nearest in its worst node).
+      tmp.clear();
+      for (int k = 0; k < nn; ++k) {
         const auto& f = nodeFaces[static_cast<std::size_t>(nd[k])];
-        tmp.clear();
-        std::set_intersection(common.begin(), common.end(), f.begin(), f.end(),
-                              std::back_inserter(tmp));
-        common.swap(tmp);
+        tmp.insert(tmp.end(), f.begin(), f.end());
       }
-      if (common.empty()) {
-        // No face is among every node's nearest ones: next to a CAD edge whose tolerance is as
-        // large as the elements, the mesher's nodes may sit off both faces, some nearer to
-        // one, some to the other. The element goes on the face of its nodes' candidates
-        // farthest from none of them by more than the tolerance (nearest in its worst node).
-        tmp.clear();
-        for (int k = 0; k < nn; ++k) {
-          const auto& f = nodeFaces[static_cast<std::size_t>(nd[k])];
-          tmp.insert(tmp.end(), f.begin(), f.end());
-        }
-        std::sort(tmp.begin(), tmp.end());
-        tmp.erase(std::unique(tmp.begin(), tmp.end()), tmp.end());
-        double bestWorst = kInf;
-        for (int f : tmp) {
-          double worst = 0.0;
-          for (int k = 0; k < nn && worst <= tol; ++k)
-            worst = std::max(
-                worst, pr.faceDistance(f, input.nodes[static_cast<std::size_t>(nd[k])], tol).dist);
-          if (worst <= tol && worst < bestWorst) {
-            bestWorst = worst;
-            elemFace[e] = f;
-          }
-        }
-        elemStatus[e] = elemFace[e] >= 0 ? 1 : 2;
-        return;
-      }
-      if (common.size() == 1) {
-        elemFace[e] = common[0];
-        return;
-      }
-      // Several faces qualify (small elements at an edge, faces tangent to each other, thin
-      // walls): the face nearest to the element's nodes and to its centroid.
-      Vec3 c = Vec3::Zero();
-      for (int k = 0; k < nn; ++k) c += input.nodes[static_cast<std::size_t>(nd[k])];
-      c /= nn;
-      double best = kInf;
-      for (int f : common) {
-        double d = pr.faceDistance(f, c, kInf).dist;
-        for (int k = 0; k < nn; ++k)
-          for (const FaceHit& h : hits[static_cast<std::size_t>(nd[k])])
-            if (h.face == f) d += h.dist;
-        if (d < best) {
-          best = d;
+      std::sort(tmp.begin(), tmp.end());
+      tmp.erase(std::unique(tmp.begin(), tmp.end()), tmp.end());
+      double bestWorst = kInf;
+      for (int f : tmp) {
+        double worst = 0.0;
+        for (int k = 0; k < nn && worst <= tol; ++k)
+          worst = std::max(
+              worst, pr.faceDistance(f, input.nodes[static_cast<std::size_t>(nd[k])], tol).dist);
+        if (worst <= tol && worst < bestWorst) {
+          bestWorst = worst;
           elemFace[e] = f;
         }
       }
-      if (elemFace[e] < 0) elemFace[e] = common[0];
-    });
-  }
+      offFace[e] = elemFace[e] >= 0;
+      return;
+    }
+    if (common.size() == 1) {
+      elemFace[e] = common[0];
+      return;
+    }
+    // Several faces qualify (small elements at an edge, faces tangent to each other, thin
+    // walls): the face nearest to the element's nodes and to its centroid.
+    Vec3 c = Vec3::Zero();
+    for (int k = 0; k < nn; ++k) c += input.nodes[static_cast<std::size_t>(nd[k])];
+    c /= nn;
+    double best = kInf;
+    for (int f : common) {
+      double d = pr.faceDistance(f, c, kInf).dist;
+      for (int k = 0; k < nn; ++k)
+        for (const FaceHit& h : hits[static_cast<std::size_t>(nd[k])])
+          if (h.face == f) d += h.dist;
+      if (d < best) {
+        best = d;
+        elemFace[e] = f;
+      }
+    }
+    if (elemFace[e] < 0) elemFace[e] = common[0];
+  });
   std::size_t offFaceElements = 0, firstOffFace = 0;
   for (std::size_t e = 0; e < E; ++e) {
-    if (elemStatus[e] == 2) {
+    if (elemFace[e] < 0) {
       const std::int32_t* nd = input.conn.data() + offsets[e];
       const int nn = static_cast<int>(offsets[e + 1] - offsets[e]);
       std::ostringstream os;
@@ -1156,7 +1157,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
       os << ". The mesh must conform to the B-rep faces (no element across a CAD edge).";
       fail(os.str());
     }
-    if (elemStatus[e] == 1 && offFaceElements++ == 0) firstOffFace = e;
+    if (offFace[e] && offFaceElements++ == 0) firstOffFace = e;
   }
   if (offFaceElements)
     report_.warnings.push_back(
