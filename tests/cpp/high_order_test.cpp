@@ -412,6 +412,77 @@ TEST(HighOrderMeasure, DerivativesOnTorusConvergeAtRateTwoForCornerEdgeAndInteri
               rateSeen);
 }
 
+TEST(HighOrderMeasure, EtaWithoutDeltaFromTheSamePassEqualsASeparateEvaluation) {
+  // elementDistortion(…, eta0) gives η at δ = 0 from the Jacobians of the δ > 0 evaluation
+  // (what untangling sweeps need for the quality cache): it must be the δ = 0 evaluation's η,
+  // +∞ for a tangled element, with or without the derivatives of a free node. And the
+  // validity check of the nodes (jacobianValidity) must give jacobianDistortion's minSigma.
+  const TorusSurface torus(10, 4);
+  const Vec2 valid[3] = {{0.31, 1.2}, {0.45, 1.25}, {0.36, 1.42}};
+  const Vec2 flipped[3] = {{0.31, 1.2}, {0.36, 1.42}, {0.45, 1.25}};
+  std::vector<ElementType> types(std::begin(kHighOrder), std::end(kHighOrder));
+  types.push_back(ElementType::Tri3);
+  types.push_back(ElementType::Quad4);
+  int finite = 0, infinite = 0;
+  for (ElementType type : types) {
+    const int p = type == ElementType::Quad4 ? 1 : elementOrder(type);
+    for (int variant = 0; variant < 2; ++variant) {
+      std::vector<Vec2> uv;
+      if (type == ElementType::Quad4) {
+        uv = {{0.31, 1.2}, {0.45, 1.21}, {0.47, 1.36}, {0.30, 1.33}};
+        if (variant == 1) std::swap(uv[1], uv[3]);
+      } else {
+        uv = curvedElementUV(p, variant == 1 ? flipped : valid, 0.04 / (p * p), 3 + p);
+      }
+      std::vector<Vec3> x(uv.size());
+      for (std::size_t i = 0; i < uv.size(); ++i) x[i] = torus.value(uv[i].x(), uv[i].y());
+      const Vec3 n = torus.normal(uv[0].x(), uv[0].y());
+      for (const auto& name : measureNames()) {
+        const PlanarMeasure& m = measureByName(name);
+        const ElementEval ref = elementDistortion(m, type, x.data(), n, 0.0);
+        for (double delta : {0.0, 0.05}) {
+          for (int k : {-1, 0, static_cast<int>(uv.size()) - 1}) {
+            Vec3 g;
+            Mat3 H;
+            double eta0 = -1.0;
+            const ElementEval e =
+                elementDistortion(m, type, x.data(), n, delta, k, k >= 0 ? &g : nullptr,
+                                  k >= 0 ? &H : nullptr, &eta0);
+            const std::string what = std::string(elementTypeName(type)) + " " + name + " delta " +
+                                     std::to_string(delta) + " node " + std::to_string(k);
+            EXPECT_EQ(e.tangled, variant == 1) << what;
+            EXPECT_NEAR(e.minSigma, ref.minSigma, 1e-14) << what;  // tri3: relabelled corners
+            if (std::isfinite(ref.eta)) {
+              ++finite;
+              EXPECT_NEAR(eta0, ref.eta, 1e-14 * ref.eta) << what;
+            } else {
+              ++infinite;
+              EXPECT_TRUE(std::isinf(eta0)) << what;
+            }
+          }
+        }
+      }
+    }
+  }
+  EXPECT_GT(finite, 30);
+  EXPECT_GT(infinite, 30);
+  // Validity alone, at random Jacobians (both orientations, nearly degenerate ones).
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int t = 0; t < 200; ++t) {
+    Jacobian32 J;
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 2; ++c) J(r, c) = u(rng);
+    if (t % 10 == 0) J.col(1) = J.col(0) * 0.5;  // degenerate
+    const Vec3 n(u(rng), u(rng), u(rng));
+    const ElementEval full = jacobianDistortion(measureByName("shape"), J, equilateralWinv(), n,
+                                                0.0, nullptr, nullptr, nullptr);
+    const ElementEval v = jacobianValidity(J, equilateralWinv(), n);
+    EXPECT_EQ(v.minSigma, full.minSigma);
+    EXPECT_EQ(v.tangled, full.tangled);
+  }
+}
+
 // ---- optimization -----------------------------------------------------------------------------
 
 TEST(HighOrderOptimize, CubicMeshOnTorusIsUntangledWithNodesOnTheSurface) {

@@ -51,7 +51,7 @@ Jacobian32 jacobianAt(const Vec3* x, const Eigen::Vector2d* grad, int n) {
 
 ElementEval highOrderTriangleDistortion(const PlanarMeasure& m, ElementType type, const Vec3* x,
                                         const Vec3& n, double delta, int freeLocal, Vec3* grad,
-                                        Mat3* hess) {
+                                        Mat3* hess, double* eta0) {
   if (type == ElementType::Quad4)
     throw std::invalid_argument("highOrderTriangleDistortion: quad4 is not a triangle");
   const HighOrderTriangleRule& rule = highOrderTriangleRule(elementOrder(type));
@@ -68,14 +68,16 @@ ElementEval highOrderTriangleDistortion(const PlanarMeasure& m, ElementType type
   for (int k = 0; k < nn; ++k) {
     const Jacobian32 J =
         jacobianAt(x, rule.gradAtNode.data() + static_cast<std::size_t>(k) * nn, nn);
-    const ElementEval e = jacobianDistortion(m, J, Winv, n, delta, nullptr, nullptr, nullptr);
+    const ElementEval e = jacobianValidity(J, Winv, n);
     r.minSigma = std::min(r.minSigma, e.minSigma);
     r.tangled = r.tangled || e.tangled;
   }
 
   // Mean of η² over the reference triangle.
   const TriangleQuadrature& quad = *rule.quadrature;
-  double sum = 0.0;
+  double sum = 0.0, sum0 = 0.0;  // Σ w η² (with δ, and with δ = 0 when eta0 is asked)
+  double e0 = kInf;
+  double* e0p = eta0 ? &e0 : nullptr;
   Vec3 gsum = Vec3::Zero();
   Mat3 Hsum = Mat3::Zero();
   for (std::size_t q = 0; q < quad.points.size(); ++q) {
@@ -84,15 +86,17 @@ ElementEval highOrderTriangleDistortion(const PlanarMeasure& m, ElementType type
     Vec3 g = Vec3::Zero();
     Mat3 H = Mat3::Zero();
     const ElementEval e =
-        derivs ? jacobianDistortion(m, J, Winv, n, delta, gq + freeLocal, &g, hess ? &H : nullptr)
-               : jacobianDistortion(m, J, Winv, n, delta, nullptr, nullptr, nullptr);
+        derivs
+            ? jacobianDistortion(m, J, Winv, n, delta, gq + freeLocal, &g, hess ? &H : nullptr, e0p)
+            : jacobianDistortion(m, J, Winv, n, delta, nullptr, nullptr, nullptr, e0p);
     r.minSigma = std::min(r.minSigma, e.minSigma);
     r.tangled = r.tangled || e.tangled;
+    const double w = quad.weights[q];
+    if (eta0) sum0 += w * e0 * e0;
     if (!std::isfinite(e.eta)) {
       infinite = true;
       continue;
     }
-    const double w = quad.weights[q];
     sum += w * e.eta * e.eta;
     if (derivs) {
       gsum += w * e.eta * g;
@@ -100,6 +104,7 @@ ElementEval highOrderTriangleDistortion(const PlanarMeasure& m, ElementType type
     }
   }
 
+  if (eta0) *eta0 = (r.tangled || !std::isfinite(sum0)) ? kInf : std::sqrt(sum0);
   if (infinite || (r.tangled && delta == 0.0) || !std::isfinite(sum)) {
     r.eta = kInf;
     r.tangled = true;

@@ -14,10 +14,32 @@ Mat3 crossMatrix(const Vec3& w) {
 constexpr double kInf = std::numeric_limits<double>::infinity();
 }  // namespace
 
+ElementEval jacobianValidity(const Jacobian32& J, const Mat2& Winv, const Vec3& n) {
+  // The first lines of jacobianDistortion, the same operations (the same minSigma).
+  ElementEval r;
+  const Jacobian32 K = J * Winv;
+  const double F = K.squaredNorm();
+  const Vec3 c = J.col(0).cross(J.col(1));
+  const double cn = c.norm();
+  if (!std::isfinite(F) || !std::isfinite(cn) || !(F > 0.0)) {
+    r.minSigma = -1.0;
+    r.tangled = true;
+    return r;
+  }
+  const double orient = c.dot(n);
+  const bool regular = cn > 1e-14 * F && orientationDefined(orient, cn * cn, n.squaredNorm());
+  const double gamma = (regular && orient > 0.0) ? 1.0 : -1.0;
+  const double sigma = regular ? gamma * cn * Winv.determinant() : 0.0;
+  r.minSigma = 2.0 * sigma / F;
+  r.tangled = !(sigma > 0.0);
+  return r;
+}
+
 ElementEval jacobianDistortion(const PlanarMeasure& m, const Jacobian32& J, const Mat2& Winv,
                                const Vec3& n, double delta, const Eigen::Vector2d* b, Vec3* grad,
-                               Mat3* hess) {
+                               Mat3* hess, double* eta0) {
   ElementEval r;
+  if (eta0) *eta0 = kInf;
   const Jacobian32 K = J * Winv;
   const double F = K.squaredNorm();
   const Vec3 c = J.col(0).cross(J.col(1));
@@ -44,10 +66,16 @@ ElementEval jacobianDistortion(const PlanarMeasure& m, const Jacobian32& J, cons
     if (hess) hess->setZero();
     return r;
   }
+  if (!(b && (grad || hess))) {  // the value alone: no partial derivatives
+    r.eta = m.invariantValue(F, sigma, regularizedSigmaValue(sigma, delta));
+    if (eta0 && !r.tangled) *eta0 = delta == 0.0 ? r.eta : m.invariantValue(F, sigma, sigma);
+    return r;
+  }
   const RegularizedSigma rs = regularizedSigma(sigma, delta);
   const InvariantDerivs d = m.invariants(F, sigma, rs);
   r.eta = d.h;
-  if (b && (grad || hess)) {
+  if (eta0 && !r.tangled) *eta0 = delta == 0.0 ? d.h : m.invariantValue(F, sigma, sigma);
+  {
     const Eigen::Vector2d beta = Winv.transpose() * (*b);
     const Vec3 gF = 2.0 * K * beta;
     // c is affine in x: dc = w × dx with w = b1 J₁ − b0 J₂ (J taken without the free node's
@@ -89,29 +117,39 @@ ElementEval triangleDistortion(const PlanarMeasure& m, const Vec3& x0, const Vec
 }
 
 ElementEval elementDistortion(const PlanarMeasure& m, ElementType type, const Vec3* x,
-                              const Vec3& n, double delta, int freeLocal, Vec3* grad, Mat3* hess) {
+                              const Vec3& n, double delta, int freeLocal, Vec3* grad, Mat3* hess,
+                              double* eta0) {
   switch (type) {
     case ElementType::Tri3: {
-      if (freeLocal < 0 || (!grad && !hess))
-        return triangleDistortion(m, x[0], x[1], x[2], n, delta, equilateralWinv());
-      // Cyclic relabeling keeps the orientation; the equilateral ideal makes η invariant.
-      const int k = freeLocal;
-      return triangleDistortion(m, x[k], x[(k + 1) % 3], x[(k + 2) % 3], n, delta,
-                                equilateralWinv(), grad, hess);
+      ElementEval r;
+      if (freeLocal < 0 || (!grad && !hess)) {
+        r = triangleDistortion(m, x[0], x[1], x[2], n, delta, equilateralWinv());
+      } else {
+        // Cyclic relabeling keeps the orientation; the equilateral ideal makes η invariant.
+        const int k = freeLocal;
+        r = triangleDistortion(m, x[k], x[(k + 1) % 3], x[(k + 2) % 3], n, delta, equilateralWinv(),
+                               grad, hess);
+      }
+      if (eta0)
+        *eta0 = r.tangled ? kInf
+                : delta == 0.0
+                    ? r.eta
+                    : triangleDistortion(m, x[0], x[1], x[2], n, 0.0, equilateralWinv()).eta;
+      return r;
     }
     case ElementType::Quad4:
-      return quadDistortion(m, x, n, delta, freeLocal, grad, hess);
+      return quadDistortion(m, x, n, delta, freeLocal, grad, hess, eta0);
     default:
-      return highOrderTriangleDistortion(m, type, x, n, delta, freeLocal, grad, hess);
+      return highOrderTriangleDistortion(m, type, x, n, delta, freeLocal, grad, hess, eta0);
   }
 }
 
 ElementEval quadDistortion(const PlanarMeasure& m, const Vec3* x, const Vec3& n, double delta,
-                           int freeLocal, Vec3* grad, Mat3* hess) {
+                           int freeLocal, Vec3* grad, Mat3* hess, double* eta0) {
   // Knupp: the corner k triangle (x_k, x_{k+1}, x_{k−1}) with the square corner as ideal.
   // η = (¼ Σ η_k²)^½ ; tangled when any corner is.
   const bool derivs = freeLocal >= 0 && (grad || hess);
-  double sum = 0.0;
+  double sum = 0.0, sum0 = 0.0;  // Σ η_k² (with δ, and with δ = 0)
   ElementEval r;
   r.minSigma = kInf;
   Vec3 gsum = Vec3::Zero();
@@ -125,6 +163,8 @@ ElementEval quadDistortion(const PlanarMeasure& m, const Vec3* x, const Vec3& n,
     Vec3 g = Vec3::Zero();
     Mat3 H = Mat3::Zero();
     bool involved = false;
+    double e0 = kInf;
+    double* e0p = eta0 ? &e0 : nullptr;
     if (derivs) {
       Eigen::Vector2d b(0.0, 0.0);
       if (freeLocal == i0) b = Eigen::Vector2d(-1.0, -1.0);
@@ -132,12 +172,13 @@ ElementEval quadDistortion(const PlanarMeasure& m, const Vec3* x, const Vec3& n,
       if (freeLocal == i2) b = Eigen::Vector2d(0.0, 1.0);
       involved = freeLocal == i0 || freeLocal == i1 || freeLocal == i2;
       if (involved)
-        e = jacobianDistortion(m, J, squareCornerWinv(), n, delta, &b, &g, &H);
+        e = jacobianDistortion(m, J, squareCornerWinv(), n, delta, &b, &g, &H, e0p);
       else
-        e = jacobianDistortion(m, J, squareCornerWinv(), n, delta, nullptr, nullptr, nullptr);
+        e = jacobianDistortion(m, J, squareCornerWinv(), n, delta, nullptr, nullptr, nullptr, e0p);
     } else {
-      e = jacobianDistortion(m, J, squareCornerWinv(), n, delta, nullptr, nullptr, nullptr);
+      e = jacobianDistortion(m, J, squareCornerWinv(), n, delta, nullptr, nullptr, nullptr, e0p);
     }
+    sum0 += e0 * e0;
     r.minSigma = std::min(r.minSigma, e.minSigma);
     r.tangled = r.tangled || e.tangled;
     if (!std::isfinite(e.eta)) {
@@ -150,6 +191,7 @@ ElementEval quadDistortion(const PlanarMeasure& m, const Vec3* x, const Vec3& n,
       Hsum += 2.0 * (g * g.transpose() + e.eta * H);
     }
   }
+  if (eta0) *eta0 = (r.tangled || !std::isfinite(sum0)) ? kInf : std::sqrt(0.25 * sum0);
   if (!std::isfinite(r.eta)) {
     if (grad) grad->setZero();
     if (hess) hess->setZero();

@@ -574,20 +574,14 @@ struct State {
     const int cnt = mesh.elementSize(e);
     for (int k = 0; k < cnt; ++k) xs[k] = (k == local) ? x : xyz[static_cast<std::size_t>(nd[k])];
     const Vec3 nu = n.normalized();
-    const ElementEval ev =
-        elementDistortion(measure, mesh.elemType[e], xs, nu, delta, local, grad, hess);
+    double eta0 = kInf;  // η with δ = 0, from the same pass over the element
+    const ElementEval ev = elementDistortion(measure, mesh.elemType[e], xs, nu, delta, local, grad,
+                                             hess, wantEta0 ? &eta0 : nullptr);
     ElemOut r;
     r.eta = ev.eta;
     r.minSigma = ev.minSigma;
     r.tangled = ev.tangled;
-    if (wantEta0) {
-      if (delta == 0.0 || ev.tangled) {
-        r.eta0 = ev.tangled ? kInf : ev.eta;
-      } else {
-        const ElementEval e0 = elementDistortion(measure, mesh.elemType[e], xs, nu, 0.0);
-        r.eta0 = std::isfinite(e0.eta) ? e0.eta : kInf;
-      }
-    }
+    if (wantEta0) r.eta0 = (ev.tangled || !std::isfinite(eta0)) ? kInf : eta0;
     return r;
   }
 

@@ -62,9 +62,15 @@ using Jacobian32 = Eigen::Matrix<double, 3, 2>;
 /// ∂²η/∂x² (exact; the Hessian term ∝ 1/‖J₁ × J₂‖ is dropped for degenerate J, where the
 /// in-surface direction n is used for the orientation instead).
 /// `minSigma` of the result is the signed shape quality 2σ/F ∈ [−1, 1] (≤ 0: tangled).
+/// `eta0`, when non-null, receives η with δ = 0 at the same J (+∞ when tangled): what an
+/// untangling sweep also needs, without a second evaluation.
 ElementEval jacobianDistortion(const PlanarMeasure& m, const Jacobian32& J, const Mat2& Winv,
                                const Vec3& n, double delta, const Eigen::Vector2d* b, Vec3* grad,
-                               Mat3* hess);
+                               Mat3* hess, double* eta0 = nullptr);
+
+/// The validity part of jacobianDistortion alone (no measure evaluated): `minSigma` and
+/// `tangled` as there, `eta` left at 1.
+ElementEval jacobianValidity(const Jacobian32& J, const Mat2& Winv, const Vec3& n);
 
 /// Distortion of the linear triangle (x0, x1, x2) with reference normal n (any length > 0),
 /// ideal element given by Winv. When grad/hess are non-null, also the gradient (3) and Hessian
@@ -82,17 +88,19 @@ ElementEval triangleDistortion(const PlanarMeasure& m, const Vec3& x0, const Vec
 ///                η = (¼ Σ_k η_k²)^½, tangled when any corner is;
 ///   Tri6…Tri21 — paper Definition 4: η̂ = (∫ η² / |t|)^½ by quadrature over the element,
 ///                tangled when det S ≤ 0 at any quadrature point.
+/// `eta0`, when non-null, receives the element's η with δ = 0 (+∞ when tangled), for Quad4 and
+/// high-order triangles from the same Jacobians as η (one pass instead of two).
 ElementEval elementDistortion(const PlanarMeasure& m, ElementType type, const Vec3* x,
                               const Vec3& n, double delta, int freeLocal = -1, Vec3* grad = nullptr,
-                              Mat3* hess = nullptr);
+                              Mat3* hess = nullptr, double* eta0 = nullptr);
 
 /// Quad4 implementation of elementDistortion (see above).
 ElementEval quadDistortion(const PlanarMeasure& m, const Vec3* x, const Vec3& n, double delta,
-                           int freeLocal, Vec3* grad, Mat3* hess);
+                           int freeLocal, Vec3* grad, Mat3* hess, double* eta0 = nullptr);
 /// High-order triangle implementation of elementDistortion (see above).
 ElementEval highOrderTriangleDistortion(const PlanarMeasure& m, ElementType type, const Vec3* x,
                                         const Vec3& n, double delta, int freeLocal, Vec3* grad,
-                                        Mat3* hess);
+                                        Mat3* hess, double* eta0 = nullptr);
 
 /// Carries a gradient g (3) and Hessian H (3×3) in x to the surface parameters (u,v) through
 /// x = φ(u,v): g_u = Jᵀ g, H_u = Jᵀ H J + Σ_m g_m ∇²φ_m, with J = [φ_u φ_v].
