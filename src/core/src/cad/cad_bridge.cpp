@@ -171,6 +171,12 @@ class Projector {
     bool ready = false;
   };
 
+  /// Forgets the last foot point of every face (the start of the next local search there), so
+  /// that what a run of queries finds does not depend on the queries made before it.
+  void forgetStarts() {
+    for (FaceTools& ft : tools_) ft.hasLast = false;
+  }
+
   FaceTools& tools(int f) {
     FaceTools& ft = tools_[static_cast<std::size_t>(f)];
     if (ft.ready) return ft;
@@ -616,7 +622,9 @@ struct ProjectorPool {
 };
 
 /// Runs body(i, projector) for i in [0, n) on up to pool.size() threads, each with its own
-/// Projector.
+/// Projector. The indices go in fixed chunks, each started with no foot point from earlier
+/// queries (Projector::forgetStarts): which thread takes a chunk changes nothing, so the
+/// recovery gives the same (u,v) to the last bit from run to run and for any thread count.
 template <class Body>
 void parallelFor(std::size_t n, ProjectorPool& pool, Body body) {
   const std::size_t chunk = 256;
@@ -630,6 +638,7 @@ void parallelFor(std::size_t n, ProjectorPool& pool, Body body) {
         const std::size_t begin = next.fetch_add(chunk);
         if (begin >= n) break;
         const std::size_t end = std::min(n, begin + chunk);
+        proj.forgetStarts();
         for (std::size_t i = begin; i < end; ++i) body(i, proj);
       }
     } catch (...) {
