@@ -94,6 +94,7 @@ void bind_optimize(MeshClass& cls) {
         d["moved_nodes"] = r.movedNodes;
         d["threads"] = r.threadsUsed;
         d["patch_untanglings"] = r.patchUntanglings;
+        d["straightened_elements"] = r.straightenedElements;
         d["tangled_unmovable"] = r.tangledUnmovable;
         d["tangled_movable"] = r.tangledMovable;
         d["warnings"] = r.warnings;
@@ -113,6 +114,8 @@ void bind_optimize(MeshClass& cls) {
       "after every sweep; returning False cancels (reason 'cancelled', mesh unchanged). "
       "Returns a dict: before, after (stats), sweeps, seconds, reason, moved_nodes, threads, "
       "patch_untanglings (escapes of stuck tangled elements by joint relaxation tried), "
+      "straightened_elements (tangled high-order triangles untangled by straight sides in "
+      "(u,v)), "
       "tangled_unmovable / tangled_movable (ids of the elements left tangled without / with a "
       "movable node) and warnings (a line for each non-empty list). before: the stats dict of "
       "measure(measure) on the mesh as it is, when the caller has it (not measured again).");

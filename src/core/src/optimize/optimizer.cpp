@@ -1,6 +1,7 @@
 #include "surfmesh/optimize/optimizer.h"
 
 #include "surfmesh/measures/element_measure.h"
+#include "surfmesh/measures/lagrange_triangle.h"
 
 #include <algorithm>
 #include <atomic>
@@ -455,6 +456,7 @@ struct State {
   };
   std::unordered_map<std::size_t, RelaxBackoff> relaxBackoff;
   std::size_t patchUntanglings = 0;  // elements whose patches were relaxed (per escape)
+  std::size_t straightened = 0;      // elements untangled by straightenHighOrder
   std::int32_t clock = 0;            // advanced once per color
   std::int32_t validFrom = 1;        // a node last visited before this clock is revisited
 
@@ -856,6 +858,102 @@ class NodeUpdater {
         b.epsilonLevel = epsilonLevel;
       }
     }
+    return gained;
+  }
+
+  /// Straightens tangled high-order triangles in (u,v): a curved triangle whose corner
+  /// triangle is valid but whose edge or interior nodes fold it (a mesher's second-order nodes
+  /// projected across a thin or strongly curved face) gets its movable edge and interior
+  /// nodes — Face nodes of the element's face — at the parametric interpolation of its corners
+  /// (straight sides in (u,v), as the paper's initial high-order meshes). Kept only when fewer
+  /// elements around the moved nodes are tangled than before — strict progress, like every
+  /// escape. Returns the number of elements untangled.
+  /// With `cached`, only the elements the element cache holds tangled are looked at.
+  std::size_t straightenHighOrder(const std::vector<unsigned char>& frozen, bool cached) {
+    std::size_t gained = 0;
+    std::vector<std::size_t> moved, elems;
+    std::vector<Vec2> uvSave;
+    std::vector<Vec3> xyzSave, nSave;
+    for (std::size_t e = 0; e < s_.mesh.elementCount(); ++e) {
+      const ElementType type = s_.mesh.elemType[e];
+      if (frozen[e] || type == ElementType::Tri3 || type == ElementType::Quad4) continue;
+      if ((cached && s_.minSigma[e] > 0.0) || !s_.evalWhole(e, 0.0).tangled) continue;
+      const int face = s_.mesh.elemFace[e];
+      const Surface& surf = *w_.geo.surfaces[static_cast<std::size_t>(face)];
+      const double orient = static_cast<double>(
+          s_.mesh.faceOrientation[static_cast<std::size_t>(face)] * surf.normalSign());
+      const std::int32_t* nd = s_.mesh.elementNodes(e);
+      const Vec3 n = s_.elementNormal(e, -1, Vec3::Zero(), Vec3::Zero());
+      Jacobian32 J;
+      J.col(0) = s_.xyz[static_cast<std::size_t>(nd[1])] - s_.xyz[static_cast<std::size_t>(nd[0])];
+      J.col(1) = s_.xyz[static_cast<std::size_t>(nd[2])] - s_.xyz[static_cast<std::size_t>(nd[0])];
+      if (jacobianValidity(J, equilateralWinv(), n).tangled) continue;  // the corners first
+      Vec2 c[3];
+      c[0] = cornerOnFace(e, 0, face, surf,
+                          s_.mesh.cornerUV[static_cast<std::size_t>(s_.mesh.elemOffset[e])]);
+      c[1] = cornerOnFace(e, 1, face, surf, c[0]);
+      c[2] = cornerOnFace(e, 2, face, surf, c[0]);
+      const LagrangeTriangle& lt = lagrangeTriangle(elementOrder(type));
+      moved.clear();
+      uvSave.clear();
+      xyzSave.clear();
+      nSave.clear();
+      bool ok = true;
+      for (int k = 3; k < s_.mesh.elementSize(e) && ok; ++k) {
+        const std::size_t j = static_cast<std::size_t>(nd[k]);
+        if (s_.mesh.nodeKind[j] != NodeKind::Face || s_.mesh.nodeFace[j] != face) continue;
+        const Eigen::Vector2d xi = lt.nodes()[static_cast<std::size_t>(k)];
+        const Vec2 target =
+            surf.wrap((1.0 - xi.x() - xi.y()) * c[0] + xi.x() * c[1] + xi.y() * c[2]);
+        if (!target.allFinite() || !surf.contains(target.x(), target.y())) {
+          ok = false;
+          break;
+        }
+        const SurfaceD1 d = surf.d1(target.x(), target.y());
+        if (isDegenerate(d)) {
+          ok = false;
+          break;
+        }
+        moved.push_back(j);
+        uvSave.push_back(s_.uv[j]);
+        xyzSave.push_back(s_.xyz[j]);
+        nSave.push_back(s_.nodeNormal[j]);
+        s_.uv[j] = target;
+        s_.xyz[j] = d.p;
+        const Vec3 cr = d.du.cross(d.dv);
+        s_.nodeNormal[j] = (orient / cr.norm()) * cr;
+      }
+      if (moved.empty()) continue;
+      elems.clear();
+      for (std::size_t j : moved)
+        for (std::int64_t p = s_.begin(j); p < s_.end(j); ++p)
+          elems.push_back(static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]));
+      std::sort(elems.begin(), elems.end());
+      elems.erase(std::unique(elems.begin(), elems.end()), elems.end());
+      auto countTangled = [&]() {
+        std::size_t t = 0;
+        for (std::size_t q : elems)
+          if (s_.evalWhole(q, 0.0).tangled) ++t;
+        return t;
+      };
+      const std::size_t t1 = ok ? countTangled() : 0;
+      // Put back to count the elements tangled before (and for good unless this gains).
+      std::vector<Vec2> uvNew;
+      std::vector<Vec3> xyzNew, nNew;
+      for (std::size_t q = 0; q < moved.size(); ++q) {
+        uvNew.push_back(s_.uv[moved[q]]);
+        xyzNew.push_back(s_.xyz[moved[q]]);
+        nNew.push_back(s_.nodeNormal[moved[q]]);
+      }
+      restore(moved, uvSave, xyzSave, nSave);
+      if (!ok) continue;
+      const std::size_t t0 = countTangled();
+      if (t1 < t0) {
+        restore(moved, uvNew, xyzNew, nNew);
+        gained += t0 - t1;
+      }
+    }
+    s_.straightened += gained;
     return gained;
   }
 
@@ -1720,6 +1818,9 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
       s.deltaScale[e] /= nc;
     }
   }
+  // Tangled high-order triangles with valid corners: straight sides in (u,v) first.
+  if (!s.allTri3 && movable > 0 && opt.maxSweeps > 0)
+    NodeUpdater(s, *workers[0]).straightenHighOrder(frozen, false);
   GlobalEval g = fullEval(0.0);
   s.deltaHat = chooseDelta(g);
   res.initialObjective = s.deltaHat > 0.0 ? fullEval(s.deltaHat).objective : g.objective0;
@@ -1834,10 +1935,12 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
     }
     // Sweeps in a row that left more tangled elements than the best so far.
     stuckSweeps = (g.tangled > 0 && g.tangled >= bestTangled) ? stuckSweeps + 1 : 0;
-    if (stuckSweeps > 0 &&
-        NodeUpdater(s, *workers[0])
-                .escapeTangledElements(frozen, stuckSweeps >= 3, sweep, epsilonLevel) > 0)
-      g = fullEval(s.deltaHat);  // a stuck element untangled by moving its nodes together
+    if (stuckSweeps > 0) {
+      NodeUpdater up(s, *workers[0]);
+      std::size_t gained = s.allTri3 ? 0 : up.straightenHighOrder(frozen, true);
+      gained += up.escapeTangledElements(frozen, stuckSweeps >= 3, sweep, epsilonLevel);
+      if (gained > 0) g = fullEval(s.deltaHat);  // stuck elements untangled by joint moves
+    }
     if (g.tangled < fewestTangled) {
       fewestTangled = g.tangled;
       lastProgress = sweep;
@@ -1928,6 +2031,7 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
   }
   res.movedNodes = moved;
   res.patchUntanglings = s.patchUntanglings;
+  res.straightenedElements = s.straightened;
   std::vector<Vec3> xyz = std::move(s.xyz);
   std::vector<Vec2> uv = std::move(s.uv);
   std::vector<double> t = std::move(s.t);
@@ -2010,6 +2114,7 @@ OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
   res.before = held.before;
   res.sweeps += held.sweeps;
   res.patchUntanglings += held.patchUntanglings;
+  res.straightenedElements += held.straightenedElements;
   res.initialObjective = held.initialObjective;
   if (res.reason == StopReason::NothingToDo) res.reason = held.reason;
   res.movedNodes = 0;

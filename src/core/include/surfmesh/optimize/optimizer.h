@@ -21,7 +21,9 @@
 // sweep would repeat it (a fixed point, even with tangled elements left).
 //
 // Escapes from local minima while elements stay tangled (each accepted only when it leaves
-// fewer tangled elements among those it changes — strict progress, so nothing cycles): a Face
+// fewer tangled elements among those it changes — strict progress, so nothing cycles): a
+// tangled high-order triangle with a valid corner triangle gets straight sides in (u,v)
+// (before the first sweep and between stalled sweeps, see straightenedElements); a Face
 // node whose Newton step fails or only creeps tries the centre of its kernel in (u,v) and the
 // centroid of its neighbours; a sliding node scans its interval on the edge; between sweeps
 // without progress, the Face nodes of a stuck element and of up to three rings around it are
@@ -135,6 +137,11 @@ struct OptimizeResult {
   /// after 1, 2, 4, then every deltaStallSweeps sweeps, and when ε changes level: a few
   /// escapes per ε level, not one per stalled sweep.
   std::size_t patchUntanglings = 0;
+  /// Tangled high-order triangles untangled by straightening: an element whose corner
+  /// triangle is valid gets its movable edge and interior nodes at the parametric
+  /// interpolation of its corners (straight sides in (u,v)), kept when fewer elements around
+  /// them are tangled. Tried before the first sweep and between stalled sweeps.
+  std::size_t straightenedElements = 0;
   /// Elements tangled after the run none of whose nodes may move (all on CAD vertices, on
   /// fixed CAD edges or poles): no node motion can repair them.
   std::vector<std::int32_t> tangledUnmovable;
