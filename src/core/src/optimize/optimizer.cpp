@@ -455,6 +455,11 @@ struct State {
     int epsilonLevel = 0;
   };
   std::unordered_map<std::size_t, RelaxBackoff> relaxBackoff;
+  // The same backoff for the harmonic layout alone (the escapes of the first stalled sweeps,
+  // before the joint untangling is allowed): it does not depend on δ, only on the positions,
+  // so retrying it at every stalled sweep mostly repeats a failure (hundreds of stuck
+  // elements made it cost more than the sweep on a second-order mesh).
+  std::unordered_map<std::size_t, RelaxBackoff> harmonicBackoff;
   std::size_t patchUntanglings = 0;  // elements whose patches were relaxed (per escape)
   std::size_t straightened = 0;      // elements untangled by straightenHighOrder
   std::int32_t clock = 0;            // advanced once per color
@@ -711,6 +716,9 @@ class NodeUpdater {
       const bool relaxHere = relax && (backoff == s_.relaxBackoff.end() ||
                                        backoff->second.epsilonLevel != epsilonLevel ||
                                        sweep >= backoff->second.nextSweep);
+      auto hBackoff = s_.harmonicBackoff.find(e);
+      if (!relaxHere && hBackoff != s_.harmonicBackoff.end() && sweep < hBackoff->second.nextSweep)
+        continue;
       bool kept = false, relaxed = false;
       for (int ring = 0; ring <= 3 && !kept; ++ring) {
         if (ring > 0) {  // grow by one ring of Face nodes of this face
@@ -849,6 +857,13 @@ class NodeUpdater {
         }
       }
       if (kept && backoff != s_.relaxBackoff.end()) s_.relaxBackoff.erase(backoff);
+      if (kept && hBackoff != s_.harmonicBackoff.end()) s_.harmonicBackoff.erase(hBackoff);
+      if (!kept && !relaxed) {
+        State::RelaxBackoff& b = s_.harmonicBackoff[e];
+        ++b.fails;
+        const int wait = 1 << std::min(b.fails - 1, 20);
+        b.nextSweep = sweep + std::min(wait, std::max(1, s_.opt.deltaStallSweeps));
+      }
       if (relaxed) ++s_.patchUntanglings;
       if (!kept && relaxed) {
         State::RelaxBackoff& b = s_.relaxBackoff[e];

@@ -32,7 +32,8 @@
 // more elements while the objective drops, δ stepped down from 4× to 1/16 of the sweep's,
 // projected areas in place of signed ones so that thin elements standing across a curved
 // surface can turn over; an element that stays stuck is untangled jointly again only after a
-// backoff of 1, 2, 4, then deltaStallSweeps sweeps, or when ε changes level — see
+// backoff of 1, 2, 4, then deltaStallSweeps sweeps, or when ε changes level, and its
+// harmonic layout alone is retried after the same backoff — see
 // OptimizeResult::patchUntanglings). Tangled elements without a movable node cannot change:
 // they do not keep δ > 0 and are reported (OptimizeResult::warnings). Neither do, after
 // 6 × deltaStallSweeps sweeps without fewer tangled elements than ever before (each level of
