@@ -237,12 +237,15 @@ class GmshCase(unittest.TestCase):
             self.assertEqual(res.reason, "max_sweeps")
             self.assertGreater(len(res.tangled_movable), 0)
             warn = next(w for w in res.warnings if "some of their nodes may move" in w)
-            runs[sweeps] = (seen, warn)
-        seen, warn = runs[2]
-        self.assertLess(seen[-1], seen[0])  # still dropping at the end
+            runs[sweeps] = (seen, warn, res.before.stats["tangled"], res.straightened_elements)
+        seen, warn, before, straightened = runs[2]
+        self.assertLess(seen[-1], before)  # dropped within the last 24 sweeps
         self.assertIn("try more sweeps", warn)
-        seen, warn = runs[40]
-        last_drop = max(i for i in range(1, len(seen)) if seen[i] < min(seen[:i]))
+        # Gmsh's second-order nodes fold some elements whose corners are fine: they get
+        # straight sides in (u,v) before the first sweep.
+        self.assertGreater(straightened, 0)
+        seen, warn, before, straightened = runs[40]
+        last_drop = max([0] + [i for i in range(1, len(seen)) if seen[i] < min(seen[:i])])
         quiet = len(seen) - 1 - last_drop
         self.assertGreaterEqual(quiet, 24)
         self.assertNotIn("try more sweeps", warn)

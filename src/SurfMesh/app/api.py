@@ -110,6 +110,9 @@ class OptimizeResult:
     reason: str  # "converged", "max_sweeps", "nothing_to_do"
     moved_nodes: int = 0
     threads: int = 1
+    # Tangled second- and higher-order triangles untangled by straight sides in (u,v): a
+    # mesher's edge nodes folded across an element whose corners are fine.
+    straightened_elements: int = 0
     options: dict = dataclasses.field(default_factory=dict)
     bridge: dict = dataclasses.field(default_factory=dict)
     # Elements still tangled after the run, by their ids (FEM element ids; 0-based indices of
@@ -142,6 +145,7 @@ class OptimizeResult:
             "reason": self.reason,
             "moved_nodes": self.moved_nodes,
             "threads": self.threads,
+            "straightened_elements": self.straightened_elements,
             "tangled_unmovable": list(self.tangled_unmovable),
             "tangled_movable": list(self.tangled_movable),
             "warnings": list(self.warnings),
@@ -539,6 +543,7 @@ def optimize(
         reason=str(r["reason"]),
         moved_nodes=int(r.get("moved_nodes", 0)),
         threads=int(r.get("threads", 1)),
+        straightened_elements=int(r.get("straightened_elements", 0)),
         options=dict(opts, measure=measure, boundary=boundary),
         bridge=bridge,
         tangled_unmovable=unmovable,
