@@ -485,11 +485,18 @@ TEST(HighOrderMeasure, EtaWithoutDeltaFromTheSamePassEqualsASeparateEvaluation) 
 
 // ---- optimization -----------------------------------------------------------------------------
 
+/// A 24 × 10 periodic grid of the whole torus elevated to order p (2 or 3), nodes at their
+/// straight (u,v) positions.
+SurfaceMesh torusMeshOfOrder(const TorusSurface& torus, int p) {
+  const GridMesh lin = periodicGridMesh(24, 10, 0, 2 * kPi, 0, 2 * kPi, true);
+  const GridMesh g = elevate(torus, lin, p);
+  return makeSingleSurfaceMesh(torus, g.uv, p == 2 ? ElementType::Tri6 : ElementType::Tri10, g.conn,
+                               g.fixed);
+}
+
 TEST(HighOrderOptimize, CubicMeshOnTorusIsUntangledWithNodesOnTheSurface) {
   const TorusSurface torus(10, 4);
-  const GridMesh lin = periodicGridMesh(24, 10, 0, 2 * kPi, 0, 2 * kPi, true);
-  const GridMesh g = elevate(torus, lin, 3);
-  SurfaceMesh m = makeSingleSurfaceMesh(torus, g.uv, ElementType::Tri10, g.conn, g.fixed);
+  SurfaceMesh m = torusMeshOfOrder(torus, 3);
   const QualityStats unperturbed = measureQuality(m, measureByName("shape")).stats;
   EXPECT_EQ(unperturbed.tangled, 0u);
   perturbAll(m, torus, 120, 7);
@@ -511,9 +518,7 @@ TEST(HighOrderOptimize, FoldedSecondOrderNodesAreStraightenedInParameterSpace) {
   // midpoints of its corners (straight sides in (u,v)) when that leaves fewer elements
   // tangled around them.
   const TorusSurface torus(10, 4);
-  const GridMesh lin = periodicGridMesh(24, 10, 0, 2 * kPi, 0, 2 * kPi, true);
-  const GridMesh g = elevate(torus, lin, 2);
-  SurfaceMesh m = makeSingleSurfaceMesh(torus, g.uv, ElementType::Tri6, g.conn, g.fixed);
+  SurfaceMesh m = torusMeshOfOrder(torus, 2);
   const QualityStats straight = measureQuality(m, measureByName("shape")).stats;
   ASSERT_EQ(straight.tangled, 0u);
   // Throw the edge nodes of every other element across it: towards and past the opposite

@@ -697,8 +697,6 @@ class NodeUpdater {
       if (frozen[e] || s_.minSigma[e] > 0.0) continue;
       const int face = s_.mesh.elemFace[e];
       const Surface& surf = *w_.geo.surfaces[static_cast<std::size_t>(face)];
-      const double orient = static_cast<double>(
-          s_.mesh.faceOrientation[static_cast<std::size_t>(face)] * surf.normalSign());
       auto inPatch = [&](std::size_t j) {
         return std::find(patch.begin(), patch.end(), j) != patch.end();
       };
@@ -735,18 +733,8 @@ class NodeUpdater {
             }
           if (patch.size() == n0 || patch.size() > 256) break;
         }
-        elems.clear();
-        for (std::size_t j : patch)
-          for (std::int64_t p = s_.begin(j); p < s_.end(j); ++p)
-            elems.push_back(static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]));
-        std::sort(elems.begin(), elems.end());
-        elems.erase(std::unique(elems.begin(), elems.end()), elems.end());
-        auto countTangled = [&]() {
-          std::size_t t = 0;
-          for (std::size_t q : elems)
-            if (s_.evalWhole(q, 0.0).tangled) ++t;
-          return t;
-        };
+        elementsAround(patch, &elems);
+        auto countTangled = [&]() { return tangledAmong(elems); };
         const std::size_t t0 = countTangled();
         if (t0 == 0) continue;  // nothing to gain here (the cache is from the last sweep)
         // Neighbour lists of the patch nodes (corners of their elements).
@@ -791,34 +779,9 @@ class NodeUpdater {
           if (change == 0.0) break;
         }
         // Place, count, keep or put back.
-        uvSave.clear();
-        xyzSave.clear();
-        nSave.clear();
-        for (std::size_t j : patch) {
-          uvSave.push_back(s_.uv[j]);
-          xyzSave.push_back(s_.xyz[j]);
-          nSave.push_back(s_.nodeNormal[j]);
-        }
-        bool ok = true;
-        for (std::size_t q = 0; q < patch.size() && ok; ++q) {
-          const Vec2 w = surf.wrap(iter[q]);
-          if (!w.allFinite() || !surf.contains(w.x(), w.y())) {
-            ok = false;
-            break;
-          }
-          const SurfaceD1 d = surf.d1(w.x(), w.y());
-          if (isDegenerate(d)) {
-            ok = false;
-            break;
-          }
-          const std::size_t j = patch[q];
-          s_.uv[j] = w;
-          s_.xyz[j] = d.p;
-          const Vec3 c = d.du.cross(d.dv);
-          s_.nodeNormal[j] = (orient / c.norm()) * c;
-        }
+        save(patch, &uvSave, &xyzSave, &nSave);
+        const bool ok = placeAll(patch, iter, face, surf);
         const std::size_t t1 = ok ? countTangled() : t0;
-        for (std::size_t j : patch) s_.d2Valid[j] = 0;
         if (ok && t1 < t0) {
           kept = true;
           gained += t0 - t1;
@@ -887,7 +850,7 @@ class NodeUpdater {
   std::size_t straightenHighOrder(const std::vector<unsigned char>& frozen, bool cached) {
     std::size_t gained = 0;
     std::vector<std::size_t> moved, elems;
-    std::vector<Vec2> uvSave;
+    std::vector<Vec2> uvSave, target;
     std::vector<Vec3> xyzSave, nSave;
     for (std::size_t e = 0; e < s_.mesh.elementCount(); ++e) {
       const ElementType type = s_.mesh.elemType[e];
@@ -895,8 +858,6 @@ class NodeUpdater {
       if ((cached && s_.minSigma[e] > 0.0) || !s_.evalWhole(e, 0.0).tangled) continue;
       const int face = s_.mesh.elemFace[e];
       const Surface& surf = *w_.geo.surfaces[static_cast<std::size_t>(face)];
-      const double orient = static_cast<double>(
-          s_.mesh.faceOrientation[static_cast<std::size_t>(face)] * surf.normalSign());
       const std::int32_t* nd = s_.mesh.elementNodes(e);
       const Vec3 n = s_.elementNormal(e, -1, Vec3::Zero(), Vec3::Zero());
       Jacobian32 J;
@@ -910,63 +871,26 @@ class NodeUpdater {
       c[2] = cornerOnFace(e, 2, face, surf, c[0]);
       const LagrangeTriangle& lt = lagrangeTriangle(elementOrder(type));
       moved.clear();
-      uvSave.clear();
-      xyzSave.clear();
-      nSave.clear();
+      target.clear();
       bool ok = true;
       for (int k = 3; k < s_.mesh.elementSize(e) && ok; ++k) {
         const std::size_t j = static_cast<std::size_t>(nd[k]);
         if (s_.mesh.nodeKind[j] != NodeKind::Face || s_.mesh.nodeFace[j] != face) continue;
         const Eigen::Vector2d xi = lt.nodes()[static_cast<std::size_t>(k)];
-        const Vec2 target =
-            surf.wrap((1.0 - xi.x() - xi.y()) * c[0] + xi.x() * c[1] + xi.y() * c[2]);
-        if (!target.allFinite() || !surf.contains(target.x(), target.y())) {
-          ok = false;
-          break;
-        }
-        const SurfaceD1 d = surf.d1(target.x(), target.y());
-        if (isDegenerate(d)) {
-          ok = false;
-          break;
-        }
+        const Vec2 t = surf.wrap((1.0 - xi.x() - xi.y()) * c[0] + xi.x() * c[1] + xi.y() * c[2]);
+        ok = t.allFinite() && surf.contains(t.x(), t.y());
         moved.push_back(j);
-        uvSave.push_back(s_.uv[j]);
-        xyzSave.push_back(s_.xyz[j]);
-        nSave.push_back(s_.nodeNormal[j]);
-        s_.uv[j] = target;
-        s_.xyz[j] = d.p;
-        const Vec3 cr = d.du.cross(d.dv);
-        s_.nodeNormal[j] = (orient / cr.norm()) * cr;
+        target.push_back(t);
       }
-      if (moved.empty()) continue;
-      elems.clear();
-      for (std::size_t j : moved)
-        for (std::int64_t p = s_.begin(j); p < s_.end(j); ++p)
-          elems.push_back(static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]));
-      std::sort(elems.begin(), elems.end());
-      elems.erase(std::unique(elems.begin(), elems.end()), elems.end());
-      auto countTangled = [&]() {
-        std::size_t t = 0;
-        for (std::size_t q : elems)
-          if (s_.evalWhole(q, 0.0).tangled) ++t;
-        return t;
-      };
-      const std::size_t t1 = ok ? countTangled() : 0;
-      // Put back to count the elements tangled before (and for good unless this gains).
-      std::vector<Vec2> uvNew;
-      std::vector<Vec3> xyzNew, nNew;
-      for (std::size_t q = 0; q < moved.size(); ++q) {
-        uvNew.push_back(s_.uv[moved[q]]);
-        xyzNew.push_back(s_.xyz[moved[q]]);
-        nNew.push_back(s_.nodeNormal[moved[q]]);
-      }
-      restore(moved, uvSave, xyzSave, nSave);
-      if (!ok) continue;
-      const std::size_t t0 = countTangled();
-      if (t1 < t0) {
-        restore(moved, uvNew, xyzNew, nNew);
+      if (!ok || moved.empty()) continue;
+      elementsAround(moved, &elems);
+      const std::size_t t0 = tangledAmong(elems);
+      save(moved, &uvSave, &xyzSave, &nSave);
+      const std::size_t t1 = placeAll(moved, target, face, surf) ? tangledAmong(elems) : t0;
+      if (t1 < t0)
         gained += t0 - t1;
-      }
+      else
+        restore(moved, uvSave, xyzSave, nSave);
     }
     s_.straightened += gained;
     return gained;
@@ -979,6 +903,59 @@ class NodeUpdater {
 
  private:
   int relaxTries_ = 0;
+
+  /// The elements around `nodes`, sorted and without repeats.
+  void elementsAround(const std::vector<std::size_t>& nodes,
+                      std::vector<std::size_t>* elems) const {
+    elems->clear();
+    for (std::size_t j : nodes)
+      for (std::int64_t p = s_.begin(j); p < s_.end(j); ++p)
+        elems->push_back(static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]));
+    std::sort(elems->begin(), elems->end());
+    elems->erase(std::unique(elems->begin(), elems->end()), elems->end());
+  }
+
+  /// How many of `elems` are tangled at the current positions (δ = 0).
+  std::size_t tangledAmong(const std::vector<std::size_t>& elems) const {
+    std::size_t t = 0;
+    for (std::size_t q : elems)
+      if (s_.evalWhole(q, 0.0).tangled) ++t;
+    return t;
+  }
+
+  void save(const std::vector<std::size_t>& nodes, std::vector<Vec2>* uv, std::vector<Vec3>* xyz,
+            std::vector<Vec3>* normal) const {
+    uv->clear();
+    xyz->clear();
+    normal->clear();
+    for (std::size_t j : nodes) {
+      uv->push_back(s_.uv[j]);
+      xyz->push_back(s_.xyz[j]);
+      normal->push_back(s_.nodeNormal[j]);
+    }
+  }
+
+  /// Puts Face nodes `nodes` of `face` at the (wrapped) parameters `uv`: position, parameters
+  /// and reference normal. False (some already placed) when a parameter is outside the
+  /// trimmed face or at a degenerate point.
+  bool placeAll(const std::vector<std::size_t>& nodes, const std::vector<Vec2>& uv, int face,
+                const Surface& surf) {
+    const double orient = static_cast<double>(
+        s_.mesh.faceOrientation[static_cast<std::size_t>(face)] * surf.normalSign());
+    for (std::size_t q = 0; q < nodes.size(); ++q) {
+      const Vec2 w = surf.wrap(uv[q]);
+      if (!w.allFinite() || !surf.contains(w.x(), w.y())) return false;
+      const SurfaceD1 d = surf.d1(w.x(), w.y());
+      if (isDegenerate(d)) return false;
+      const std::size_t j = nodes[q];
+      s_.uv[j] = w;
+      s_.xyz[j] = d.p;
+      const Vec3 c = d.du.cross(d.dv);
+      s_.nodeNormal[j] = (orient / c.norm()) * c;
+      s_.d2Valid[j] = 0;
+    }
+    return true;
+  }
 
   void restore(const std::vector<std::size_t>& patch, const std::vector<Vec2>& uvSave,
                const std::vector<Vec3>& xyzSave, const std::vector<Vec3>& nSave) {
