@@ -79,12 +79,8 @@ void bind_bridge(py::module_& m) {
          const std::string& boundary, int threads, bool tolerance_hints, bool keep_node_search,
          const py::object& same_nodes_as, const py::object& left_out_nodes) {
         if (!shape) throw std::invalid_argument("shape is None");
-        const CadMesh* previous = nullptr;
-        if (!same_nodes_as.is_none()) {
-          const auto& other = same_nodes_as.cast<const MeshHandle&>();
-          if (other.source == "cad" && other.owner)
-            previous = static_cast<const CadMesh*>(other.owner.get());
-        }
+        const CadMesh* previous =
+            same_nodes_as.is_none() ? nullptr : same_nodes_as.cast<const MeshHandle&>().cadMesh();
         // ---- validate everything before the core sees it (GIL held) ----
         checkShape2D(nodes, 3, "nodes");
         const py::ssize_t n = nodes.shape(0);

@@ -115,15 +115,14 @@ MeshClass bind_mesh(py::module_& m) {
       .def(
           "release_node_search",
           [](MeshHandle& h) {
-            if (h.source == "cad" && h.owner)
-              static_cast<CadMesh*>(h.owner.get())->releaseNodeSearch();
+            if (CadMesh* cm = h.cadMesh()) cm->releaseNodeSearch();
           },
           "Frees the per-node face search kept by cad_mesh(keep_node_search=True)")
       .def_property_readonly(
           "keeps_node_search",
           [](const MeshHandle& h) {
-            return h.source == "cad" && h.owner &&
-                   static_cast<const CadMesh*>(h.owner.get())->keepsNodeSearch();
+            const CadMesh* cm = h.cadMesh();
+            return cm && cm->keepsNodeSearch();
           },
           "Whether the per-node face search is kept (cad_mesh(keep_node_search=True))")
       .def(

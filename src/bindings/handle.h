@@ -8,6 +8,10 @@
 #include <memory>
 #include <string>
 
+namespace surfmesh {
+class CadMesh;
+}
+
 namespace surfmesh::bindings {
 
 namespace py = pybind11;
@@ -21,6 +25,10 @@ struct MeshHandle {
   std::string source;           ///< "cad" or "surface"
 
   SurfaceMesh& get() const;
+  /// The CadMesh that owns the mesh (source "cad"), else null.
+  CadMesh* cadMesh() const {
+    return source == "cad" && owner ? static_cast<CadMesh*>(owner.get()) : nullptr;
+  }
 };
 
 using MeshClass = py::class_<MeshHandle, std::shared_ptr<MeshHandle>>;

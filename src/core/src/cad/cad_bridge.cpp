@@ -1094,7 +1094,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   // tolerance of; one left on no face (elemFace −1) is an error, reported below for the first.
   std::vector<unsigned char> offFace(E, 0);
   parallelFor(E, projectors, [&](std::size_t e, Projector& pr) {
-    std::vector<int> common, tmp;
+    thread_local std::vector<int> common, tmp;  // kept from element to element (no allocation)
     const std::int32_t* nd = input.conn.data() + offsets[e];
     const int nn = static_cast<int>(offsets[e + 1] - offsets[e]);
     common = nodeFaces[static_cast<std::size_t>(nd[0])];

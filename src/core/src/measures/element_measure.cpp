@@ -14,24 +14,41 @@ Mat3 crossMatrix(const Vec3& w) {
 constexpr double kInf = std::numeric_limits<double>::infinity();
 }  // namespace
 
-ElementEval jacobianValidity(const Jacobian32& J, const Mat2& Winv, const Vec3& n) {
-  // The first lines of jacobianDistortion, the same operations (the same minSigma).
-  ElementEval r;
-  const Jacobian32 K = J * Winv;
-  const double F = K.squaredNorm();
-  const Vec3 c = J.col(0).cross(J.col(1));
-  const double cn = c.norm();
-  if (!std::isfinite(F) || !std::isfinite(cn) || !(F > 0.0)) {
-    r.minSigma = -1.0;
-    r.tangled = true;
-    return r;
+namespace {
+
+/// What η and the validity share at a Jacobian J: K = J W⁻¹, F = ‖K‖², the normal c of the
+/// plane of J and σ = γ‖c‖ det W⁻¹ oriented by n (σ = 0 for a degenerate or perpendicular
+/// element).
+struct JacobianPlane {
+  Jacobian32 K;
+  double F, detWinv;
+  Vec3 c;
+  double cn;
+  bool finite = false, regular = false;
+  double gamma = -1.0, sigma = 0.0;
+
+  JacobianPlane(const Jacobian32& J, const Mat2& Winv, const Vec3& n)
+      : K(J * Winv), F(K.squaredNorm()), detWinv(Winv.determinant()), c(J.col(0).cross(J.col(1))) {
+    cn = c.norm();
+    finite = std::isfinite(F) && std::isfinite(cn) && F > 0.0;
+    if (!finite) return;
+    const double orient = c.dot(n);
+    regular = cn > 1e-14 * F && orientationDefined(orient, cn * cn, n.squaredNorm());
+    gamma = (regular && orient > 0.0) ? 1.0 : -1.0;
+    sigma = regular ? gamma * cn * detWinv : 0.0;
   }
-  const double orient = c.dot(n);
-  const bool regular = cn > 1e-14 * F && orientationDefined(orient, cn * cn, n.squaredNorm());
-  const double gamma = (regular && orient > 0.0) ? 1.0 : -1.0;
-  const double sigma = regular ? gamma * cn * Winv.determinant() : 0.0;
-  r.minSigma = 2.0 * sigma / F;
-  r.tangled = !(sigma > 0.0);
+  /// r's minSigma (2σ/F, −1 for a non-finite or zero J) and tangled (σ ≤ 0).
+  void validity(ElementEval* r) const {
+    r->minSigma = finite ? 2.0 * sigma / F : -1.0;
+    r->tangled = !finite || !(sigma > 0.0);
+  }
+};
+
+}  // namespace
+
+ElementEval jacobianValidity(const Jacobian32& J, const Mat2& Winv, const Vec3& n) {
+  ElementEval r;
+  JacobianPlane(J, Winv, n).validity(&r);
   return r;
 }
 
@@ -40,26 +57,18 @@ ElementEval jacobianDistortion(const PlanarMeasure& m, const Jacobian32& J, cons
                                Mat3* hess, double* eta0) {
   ElementEval r;
   if (eta0) *eta0 = kInf;
-  const Jacobian32 K = J * Winv;
-  const double F = K.squaredNorm();
-  const Vec3 c = J.col(0).cross(J.col(1));
-  const double cn = c.norm();
-  const double detWinv = Winv.determinant();
-  if (!std::isfinite(F) || !std::isfinite(cn) || !(F > 0.0)) {
+  const JacobianPlane pl(J, Winv, n);
+  pl.validity(&r);
+  if (!pl.finite) {
     r.eta = kInf;
-    r.minSigma = -1.0;
-    r.tangled = true;
     if (grad) grad->setZero();
     if (hess) hess->setZero();
     return r;
   }
-  const double orient = c.dot(n);
-  const bool regular = cn > 1e-14 * F && orientationDefined(orient, cn * cn, n.squaredNorm());
-  const double gamma = (regular && orient > 0.0) ? 1.0 : -1.0;
-  // σ = γ‖c‖ det W⁻¹ ; a degenerate or perpendicular element has σ ≤ 0.
-  const double sigma = regular ? gamma * cn * detWinv : 0.0;
-  r.minSigma = 2.0 * sigma / F;
-  r.tangled = !(sigma > 0.0);
+  const Jacobian32& K = pl.K;
+  const Vec3& c = pl.c;
+  const double F = pl.F, detWinv = pl.detWinv, cn = pl.cn, gamma = pl.gamma, sigma = pl.sigma;
+  const bool regular = pl.regular;
   if (delta == 0.0 && r.tangled) {
     r.eta = kInf;
     if (grad) grad->setZero();
@@ -105,15 +114,15 @@ ElementEval jacobianDistortion(const PlanarMeasure& m, const Jacobian32& J, cons
 
 ElementEval triangleDistortion(const PlanarMeasure& m, const Vec3& x0, const Vec3& x1,
                                const Vec3& x2, const Vec3& n, double delta, const Mat2& Winv,
-                               Vec3* grad, Mat3* hess) {
+                               Vec3* grad, Mat3* hess, double* eta0) {
   Jacobian32 J;
   J.col(0) = x1 - x0;
   J.col(1) = x2 - x0;
   if (grad || hess) {
     const Eigen::Vector2d b(-1.0, -1.0);  // J = [x1, x2] − x0 (1, 1)
-    return jacobianDistortion(m, J, Winv, n, delta, &b, grad, hess);
+    return jacobianDistortion(m, J, Winv, n, delta, &b, grad, hess, eta0);
   }
-  return jacobianDistortion(m, J, Winv, n, delta, nullptr, nullptr, nullptr);
+  return jacobianDistortion(m, J, Winv, n, delta, nullptr, nullptr, nullptr, eta0);
 }
 
 ElementEval elementDistortion(const PlanarMeasure& m, ElementType type, const Vec3* x,
@@ -121,21 +130,13 @@ ElementEval elementDistortion(const PlanarMeasure& m, ElementType type, const Ve
                               double* eta0) {
   switch (type) {
     case ElementType::Tri3: {
-      ElementEval r;
-      if (freeLocal < 0 || (!grad && !hess)) {
-        r = triangleDistortion(m, x[0], x[1], x[2], n, delta, equilateralWinv());
-      } else {
-        // Cyclic relabeling keeps the orientation; the equilateral ideal makes η invariant.
-        const int k = freeLocal;
-        r = triangleDistortion(m, x[k], x[(k + 1) % 3], x[(k + 2) % 3], n, delta, equilateralWinv(),
-                               grad, hess);
-      }
-      if (eta0)
-        *eta0 = r.tangled ? kInf
-                : delta == 0.0
-                    ? r.eta
-                    : triangleDistortion(m, x[0], x[1], x[2], n, 0.0, equilateralWinv()).eta;
-      return r;
+      if (freeLocal < 0 || (!grad && !hess))
+        return triangleDistortion(m, x[0], x[1], x[2], n, delta, equilateralWinv(), nullptr,
+                                  nullptr, eta0);
+      // Cyclic relabeling keeps the orientation; the equilateral ideal makes η invariant.
+      const int k = freeLocal;
+      return triangleDistortion(m, x[k], x[(k + 1) % 3], x[(k + 2) % 3], n, delta,
+                                equilateralWinv(), grad, hess, eta0);
     }
     case ElementType::Quad4:
       return quadDistortion(m, x, n, delta, freeLocal, grad, hess, eta0);

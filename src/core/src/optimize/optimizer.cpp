@@ -453,6 +453,12 @@ struct State {
     int fails = 0;
     int nextSweep = 0;
     int epsilonLevel = 0;
+    /// One more failure at `sweep`: the next try waits min(2^(fails−1), stallSweeps) sweeps.
+    void failed(int sweep, int stallSweeps) {
+      ++fails;
+      const int wait = 1 << std::min(fails - 1, 20);
+      nextSweep = sweep + std::min(wait, std::max(1, stallSweeps));
+    }
   };
   std::unordered_map<std::size_t, RelaxBackoff> relaxBackoff;
   // The same backoff for the harmonic layout alone (the escapes of the first stalled sweeps,
@@ -821,18 +827,11 @@ class NodeUpdater {
       }
       if (kept && backoff != s_.relaxBackoff.end()) s_.relaxBackoff.erase(backoff);
       if (kept && hBackoff != s_.harmonicBackoff.end()) s_.harmonicBackoff.erase(hBackoff);
-      if (!kept && !relaxed) {
-        State::RelaxBackoff& b = s_.harmonicBackoff[e];
-        ++b.fails;
-        const int wait = 1 << std::min(b.fails - 1, 20);
-        b.nextSweep = sweep + std::min(wait, std::max(1, s_.opt.deltaStallSweeps));
-      }
+      if (!kept && !relaxed) s_.harmonicBackoff[e].failed(sweep, s_.opt.deltaStallSweeps);
       if (relaxed) ++s_.patchUntanglings;
       if (!kept && relaxed) {
         State::RelaxBackoff& b = s_.relaxBackoff[e];
-        ++b.fails;
-        const int wait = 1 << std::min(b.fails - 1, 20);
-        b.nextSweep = sweep + std::min(wait, std::max(1, s_.opt.deltaStallSweeps));
+        b.failed(sweep, s_.opt.deltaStallSweeps);
         b.epsilonLevel = epsilonLevel;
       }
     }

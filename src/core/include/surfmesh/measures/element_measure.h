@@ -78,7 +78,7 @@ ElementEval jacobianValidity(const Jacobian32& J, const Mat2& Winv, const Vec3& 
 /// tangled; with δ > 0 it still gets a finite value and derivatives.
 ElementEval triangleDistortion(const PlanarMeasure& m, const Vec3& x0, const Vec3& x1,
                                const Vec3& x2, const Vec3& n, double delta, const Mat2& Winv,
-                               Vec3* grad = nullptr, Mat3* hess = nullptr);
+                               Vec3* grad = nullptr, Mat3* hess = nullptr, double* eta0 = nullptr);
 
 /// Distortion of any supported element. `x` holds the element's node positions (Gmsh order),
 /// `n` its reference normal (see elementReferenceNormal()). When `freeLocal`
@@ -88,8 +88,8 @@ ElementEval triangleDistortion(const PlanarMeasure& m, const Vec3& x0, const Vec
 ///                η = (¼ Σ_k η_k²)^½, tangled when any corner is;
 ///   Tri6…Tri21 — paper Definition 4: η̂ = (∫ η² / |t|)^½ by quadrature over the element,
 ///                tangled when det S ≤ 0 at any quadrature point.
-/// `eta0`, when non-null, receives the element's η with δ = 0 (+∞ when tangled), for Quad4 and
-/// high-order triangles from the same Jacobians as η (one pass instead of two).
+/// `eta0`, when non-null, receives the element's η with δ = 0 (+∞ when tangled), from the same
+/// Jacobians as η (one pass instead of two).
 ElementEval elementDistortion(const PlanarMeasure& m, ElementType type, const Vec3* x,
                               const Vec3& n, double delta, int freeLocal = -1, Vec3* grad = nullptr,
                               Mat3* hess = nullptr, double* eta0 = nullptr);
