@@ -11,6 +11,9 @@
 #include <BRepTopAdaptor_FClass2d.hxx>
 #include <BRep_Tool.hxx>
 #include <Geom2d_Curve.hxx>
+#include <GeomAPI_ProjectPointOnSurf.hxx>
+#include <GeomAdaptor_Surface.hxx>
+#include <Geom_Surface.hxx>
 #include <Poly_Triangulation.hxx>
 #include <TopExp.hxx>
 #include <TopExp_Explorer.hxx>
@@ -26,6 +29,7 @@
 #include <cmath>
 #include <functional>
 #include <iostream>
+#include <limits>
 #include <memory>
 #include <random>
 #include <sstream>
@@ -131,6 +135,86 @@ TEST(OccFaceSurface, DerivativesMatchFiniteDifferencesOnBSplineFaces) {
     }
   }
   EXPECT_EQ(tested, 4);
+}
+
+// The recovery skips the projection on a face when these boxes put it too far away, so they
+// must never cut through the surface: every point of the surface over the face's (u,v) box
+// lies in a box (distance 0), and off the surface the bound is at most the distance that
+// OCC's projection (GeomAPI_ProjectPointOnSurf over the same range) or the offset along the
+// normal gives, and at least that minus one box diagonal.
+TEST(OccFaceSurface, PatchBoxesBoundTheDistanceToTheSurfaceFromBelow) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  int faces = 0;
+  std::size_t offPoints = 0, positive = 0;
+  for (const char* part : {"occt_propeller.brep", "occt_crankarm.brep", "occt_bottle.brep",
+                           "occt_housing_bottom.brep", "nist_pmi_1.step", "nist_pmi_2.step"}) {
+    auto shape = load(part);
+    int tested = 0;
+    for (int f = 0; f < shape->faceCount() && tested < 12; ++f) {
+      const std::string type = shape->faceType(f);
+      if (type == "Plane" || type == "Cylinder" || type == "Cone" || type == "Sphere" ||
+          type == "Torus")
+        continue;
+      ++tested;
+      const ParamBounds b = shape->surface(f).faceUVBounds();
+      const Handle(Geom_Surface) g = BRep_Tool::Surface(shape->face(f));
+      const GeomAdaptor_Surface ad(g);
+      const std::vector<Box3> boxes = surfacePatchBoxes(ad, b, 16, 0.0);
+      ASSERT_EQ(boxes.size(), 256u) << part << " face " << f;
+      auto lower = [&](const Vec3& p) {
+        double d = std::numeric_limits<double>::infinity();
+        for (const Box3& x : boxes) d = std::min(d, boxDistance(x, p));
+        return d;
+      };
+      double maxDiag = 0.0;
+      Box3 all = boxes[0];
+      for (const Box3& x : boxes) {
+        maxDiag = std::max(maxDiag, Vec3(x[3] - x[0], x[4] - x[1], x[5] - x[2]).norm());
+        for (std::size_t k = 0; k < 3; ++k) {
+          all[k] = std::min(all[k], x[k]);
+          all[k + 3] = std::max(all[k + 3], x[k + 3]);
+        }
+      }
+      const double size = Vec3(all[3] - all[0], all[4] - all[1], all[5] - all[2]).norm();
+      // On the surface, off the sampling lattice.
+      int outside = 0;
+      for (int i = 0; i < 41; ++i)
+        for (int j = 0; j < 41; ++j) {
+          const double u = b.umin + (b.umax - b.umin) * (i + 0.37) / 41.0;
+          const double v = b.vmin + (b.vmax - b.vmin) * (j + 0.71) / 41.0;
+          const gp_Pnt q = ad.Value(u, v);
+          if (lower(Vec3(q.X(), q.Y(), q.Z())) > 0.0) ++outside;
+        }
+      EXPECT_EQ(outside, 0) << part << " face " << f << " (" << type << ")";
+      // Off the surface.
+      for (int k = 0; k < 40; ++k) {
+        const double u = b.umin + (b.umax - b.umin) * unit(rng);
+        const double v = b.vmin + (b.vmax - b.vmin) * unit(rng);
+        gp_Pnt q;
+        gp_Vec du, dv;
+        ad.D1(u, v, q, du, dv);
+        const gp_Vec n = du.Crossed(dv);
+        if (n.Magnitude() < 1e-12 * du.Magnitude() * dv.Magnitude() || n.Magnitude() == 0.0)
+          continue;
+        const double t = (unit(rng) - 0.5) * 0.6 * size;
+        const gp_Pnt P = q.Translated(n.Normalized() * t);
+        double ref = std::abs(t);
+        GeomAPI_ProjectPointOnSurf proj(P, g, b.umin, b.umax, b.vmin, b.vmax);
+        if (proj.NbPoints() > 0) ref = std::min(ref, proj.LowerDistance());
+        const double lb = lower(Vec3(P.X(), P.Y(), P.Z()));
+        ++offPoints;
+        if (lb > 0.0) ++positive;
+        EXPECT_LE(lb, ref + 1e-12 * size) << part << " face " << f << " t " << t;
+        EXPECT_GE(lb, ref - maxDiag - 1e-12 * size) << part << " face " << f << " t " << t;
+      }
+    }
+    EXPECT_GT(tested, 0) << part;
+    faces += tested;
+  }
+  EXPECT_GE(faces, 30);
+  // Not a vacuous bound: most points a fair way off their face are put some way off it.
+  EXPECT_GT(positive, offPoints / 2);
 }
 
 TEST(OccFaceSurface, NormalSignPointsOutOfTheSolid) {

@@ -35,25 +35,13 @@ namespace {
 constexpr double kInf = std::numeric_limits<double>::infinity();
 const double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-using Box = std::array<double, 6>;  // xmin, ymin, zmin, xmax, ymax, zmax
+using Box = Box3;
 
 Box toBox(const Bnd_Box& b) {
   if (b.IsVoid()) return {kInf, kInf, kInf, -kInf, -kInf, -kInf};
   Box r;
   b.Get(r[0], r[1], r[2], r[3], r[4], r[5]);
   return r;
-}
-
-double boxDistance(const Box& b, const Vec3& p) {
-  if (b[0] > b[3]) return kInf;
-  double d2 = 0.0;
-  for (int i = 0; i < 3; ++i) {
-    const double lo = b[static_cast<std::size_t>(i)] - p[i];
-    const double hi = p[i] - b[static_cast<std::size_t>(i) + 3];
-    const double d = std::max({lo, hi, 0.0});
-    d2 += d * d;
-  }
-  return std::sqrt(d2);
 }
 
 gp_Pnt toPnt(const Vec3& v) { return gp_Pnt(v.x(), v.y(), v.z()); }
@@ -166,19 +154,40 @@ class Projector {
     std::vector<Vec3> samples;
     std::vector<Vec2> sampleUV;
     std::vector<unsigned char> sampleDegenerate;
+    std::vector<Box> cells;  // boxes enclosing the surface over the face's (u,v) range
     Vec2 last = Vec2::Zero();
+    Vec2 rest = Vec2::Zero();  // where the evaluation caches are reset (see forgetStarts)
     bool hasLast = false;
     bool ready = false;
+    bool used = false;
   };
 
-  /// Forgets the last foot point of every face (the start of the next local search there), so
-  /// that what a run of queries finds does not depend on the queries made before it.
+  /// Forgets the last foot point of every face used since the last call (the start of the
+  /// next local search there) and puts its evaluators back in one state, so that what a run of
+  /// queries finds does not depend on the queries made before it. (A B-spline adaptor caches
+  /// one span; a point on a knot is evaluated in the cached span if it bounds it, which moves
+  /// the result in the last bits.)
   void forgetStarts() {
-    for (FaceTools& ft : tools_) ft.hasLast = false;
+    for (int f : used_) {
+      FaceTools& ft = tools_[static_cast<std::size_t>(f)];
+      ft.hasLast = false;
+      ft.used = false;
+      rest(ft);
+    }
+    used_.clear();
+  }
+
+  static void rest(FaceTools& ft) {
+    if (ft.ad) ft.ad->Value(ft.rest.x(), ft.rest.y());
+    if (ft.sas && ft.loc) ft.sas->Adaptor3d()->Value(ft.rest.x(), ft.rest.y());
   }
 
   FaceTools& tools(int f) {
     FaceTools& ft = tools_[static_cast<std::size_t>(f)];
+    if (!ft.used) {
+      ft.used = true;
+      used_.push_back(f);
+    }
     if (ft.ready) return ft;
     ft.ready = true;
     ft.g = Handle(Geom_Surface)::DownCast(BRep_Tool::Surface(s_.face(f))->Copy());
@@ -220,7 +229,27 @@ class Projector {
                           Vec3(dv.X(), dv.Y(), dv.Z())};
         ft.sampleDegenerate.push_back(isDegenerate(d) ? 1 : 0);
       }
+    // Boxes around the surface over the face's (u,v) range: lower bounds on distances.
+    ft.cells = surfacePatchBoxes(*ft.ad, fb, K - 1, 1e-9 * s_.diagonal());
+    // Inside a span of any knot vector but a contrived one.
+    ft.rest = Vec2(fb.umin + 0.3819660112501051 * (fb.umax - fb.umin),
+                   fb.vmin + 0.6180339887498949 * (fb.vmax - fb.vmin));
+    rest(ft);
     return ft;
+  }
+
+  /// A lower bound on the distance from p to face f: the nearest of its cell boxes (free-form
+  /// faces), never less than the distance to the face's bounding box.
+  double lowerBound(int f, const Vec3& p) {
+    const double box = boxDistance(faceBoxes_[static_cast<std::size_t>(f)], p);
+    const FaceTools& ft = tools(f);
+    if (ft.cells.empty() || box > 0.0) return box;
+    double best = kInf;
+    for (const Box& b : ft.cells) {
+      best = std::min(best, boxDistance(b, p));
+      if (best == 0.0) break;
+    }
+    return std::max(box, best);
   }
 
   /// Distance from p to edge e and the curve parameter of the nearest point.
@@ -348,7 +377,10 @@ class Projector {
       return;
     }
     // Not on the surface as far as the local searches tell: the global search.
-    if (!ft.sas) ft.sas = std::make_unique<ShapeAnalysis_Surface>(ft.g);
+    if (!ft.sas) {
+      ft.sas = std::make_unique<ShapeAnalysis_Surface>(ft.g);
+      rest(ft);
+    }
     const gp_Pnt2d g = ft.sas->ValueOfUV(P, preci_);
     if (ft.sas->Gap() < bestGap || !std::isfinite(bestGap)) {
       *uv = g;
@@ -564,12 +596,36 @@ class Projector {
 
   /// Every face within tol of p. Faces are searched near p first (the radius the per-face
   /// slack needs once a face at distance ~0 is found), then out to tol if none is that close.
-  void facesNear(const Vec3& p, double tol, std::vector<FaceHit>* out) {
+  /// With `keep` > 0, faces farther than the nearest one plus max(keep, their slack) may be
+  /// left out (the caller drops them): near p, faces are then visited nearest lower bound
+  /// first, and a face whose lower bound is beyond that is not projected on.
+  void facesNear(const Vec3& p, double tol, std::vector<FaceHit>* out, double keep = 0.0) {
     out->clear();
     const double r1 = std::min(tol, 2.0 * maxSlack_);
     double dmin = kInf;
     std::vector<unsigned char>& seen = seen_;
     seen.assign(faceBoxes_.size(), 0);
+    if (keep > 0.0) {
+      auto& order = order_;
+      order.clear();
+      for (std::size_t f = 0; f < faceBoxes_.size(); ++f) {
+        if (boxDistance(faceBoxes_[f], p) > r1) continue;
+        seen[f] = 1;
+        order.emplace_back(lowerBound(static_cast<int>(f), p), static_cast<int>(f));
+      }
+      std::sort(order.begin(), order.end());
+      for (const auto& [lb, f] : order) {
+        if (lb > tol) break;
+        if (lb > dmin + std::max(keep, faceSlack_[static_cast<std::size_t>(f)])) continue;
+        FaceHit h = faceDistance(f, p, tol);
+        if (h.dist <= tol) {
+          dmin = std::min(dmin, h.dist);
+          out->push_back(h);
+        }
+      }
+      std::sort(out->begin(), out->end(),
+                [](const FaceHit& a, const FaceHit& b) { return a.face < b.face; });
+    }
     auto scan = [&](double radius) {
       for (std::size_t f = 0; f < faceBoxes_.size(); ++f) {
         if (seen[f] || boxDistance(faceBoxes_[f], p) > radius) continue;
@@ -581,7 +637,7 @@ class Projector {
         }
       }
     };
-    scan(r1);
+    if (keep <= 0.0) scan(r1);
     if (dmin <= maxSlack_ || r1 >= tol) return;
     scan(std::isfinite(dmin) ? std::min(tol, dmin + maxSlack_) : tol);
   }
@@ -593,6 +649,8 @@ class Projector {
   const std::vector<double>& faceSlack_;
   std::vector<FaceTools> tools_;
   std::vector<unsigned char> seen_;
+  std::vector<std::pair<double, int>> order_;
+  std::vector<int> used_;
   double maxSlack_ = 0.0;
   std::vector<std::unique_ptr<BRepAdaptor_Curve>> curves_;
   std::vector<std::unique_ptr<Surface>> surfaceCopies_;
@@ -1001,13 +1059,13 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
         forced[n] = Forced::None;
         h.clear();
       }
-      pr.facesNear(p, tol, &h);
+      const double base = 1e-6 * diag;
+      pr.facesNear(p, tol, &h, base);
       // Keep the faces as close as the nearest one up to the tolerance of their boundary near
       // the node (a node near a tangent edge, or on a thin wall, is within `tol` of the
       // neighbouring face too, but not on it).
       double dmin = kInf;
       for (const FaceHit& x : h) dmin = std::min(dmin, x.dist);
-      const double base = 1e-6 * diag;
       h.erase(std::remove_if(h.begin(), h.end(),
                              [&](const FaceHit& x) {
                                if (x.dist <= dmin + base) return false;

@@ -31,6 +31,8 @@ namespace surfmesh {
 
 namespace {
 
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
 Vec3 toVec(const gp_Pnt& p) { return Vec3(p.X(), p.Y(), p.Z()); }
 Vec3 toVec(const gp_Vec& v) { return Vec3(v.X(), v.Y(), v.Z()); }
 
@@ -99,6 +101,61 @@ double segmentDistance2(double ax, double ay, double bx, double by, double px, d
 }
 
 }  // namespace
+
+std::vector<Box3> surfacePatchBoxes(const Adaptor3d_Surface& s, const ParamBounds& b, int cells,
+                                    double grow) {
+  std::vector<Box3> out;
+  if (cells < 1) return out;
+  const int m = 2 * cells + 1;
+  std::vector<Vec3> grid(static_cast<std::size_t>(m * m));
+  for (int i = 0; i < m; ++i)
+    for (int j = 0; j < m; ++j) {
+      const double u = b.umin + (b.umax - b.umin) * i / (m - 1);
+      const double v = b.vmin + (b.vmax - b.vmin) * j / (m - 1);
+      const gp_Pnt q = s.Value(u, v);
+      const Vec3 x(q.X(), q.Y(), q.Z());
+      if (!x.allFinite()) return out;
+      grid[static_cast<std::size_t>(i * m + j)] = x;
+    }
+  out.reserve(static_cast<std::size_t>(cells * cells));
+  for (int ci = 0; ci < cells; ++ci)
+    for (int cj = 0; cj < cells; ++cj) {
+      auto at = [&](int a, int c) -> const Vec3& {
+        return grid[static_cast<std::size_t>((2 * ci + a) * m + 2 * cj + c)];
+      };
+      Box3 box = {kInf, kInf, kInf, -kInf, -kInf, -kInf};
+      for (int a = 0; a < 3; ++a)
+        for (int c = 0; c < 3; ++c)
+          for (std::size_t k = 0; k < 3; ++k) {
+            const double x = at(a, c)[static_cast<int>(k)];
+            box[k] = std::min(box[k], x);
+            box[k + 3] = std::max(box[k + 3], x);
+          }
+      double bulge = (at(1, 1) - 0.25 * (at(0, 0) + at(2, 0) + at(0, 2) + at(2, 2))).norm();
+      for (int k = 0; k < 3; ++k) {
+        bulge = std::max(bulge, (at(1, k) - 0.5 * (at(0, k) + at(2, k))).norm());
+        bulge = std::max(bulge, (at(k, 1) - 0.5 * (at(k, 0) + at(k, 2))).norm());
+      }
+      for (std::size_t k = 0; k < 3; ++k) {
+        box[k] -= bulge + grow;
+        box[k + 3] += bulge + grow;
+      }
+      out.push_back(box);
+    }
+  return out;
+}
+
+double boxDistance(const Box3& b, const Vec3& p) {
+  if (b[0] > b[3]) return kInf;
+  double d2 = 0.0;
+  for (int i = 0; i < 3; ++i) {
+    const double lo = b[static_cast<std::size_t>(i)] - p[i];
+    const double hi = p[i] - b[static_cast<std::size_t>(i) + 3];
+    const double d = std::max({lo, hi, 0.0});
+    d2 += d * d;
+  }
+  return std::sqrt(d2);
+}
 
 std::string occSurfaceTypeName(const TopoDS_Face& face) {
   BRepAdaptor_Surface ad(face, Standard_False);

@@ -31,12 +31,14 @@
 #include "surfmesh/geometry/curve.h"
 #include "surfmesh/geometry/surface.h"
 
+#include <Adaptor3d_Surface.hxx>
 #include <BRepAdaptor_Curve.hxx>
 #include <BRepAdaptor_Surface.hxx>
 #include <Geom2d_Curve.hxx>
 #include <TopoDS_Edge.hxx>
 #include <TopoDS_Face.hxx>
 
+#include <array>
 #include <memory>
 #include <string>
 #include <vector>
@@ -47,6 +49,23 @@ namespace surfmesh {
 /// "Torus", "BezierSurface", "BSplineSurface", "SurfaceOfRevolution", "SurfaceOfExtrusion",
 /// "OffsetSurface", "OtherSurface".
 std::string occSurfaceTypeName(const TopoDS_Face& face);
+
+/// Axis-aligned box: xmin, ymin, zmin, xmax, ymax, zmax.
+using Box3 = std::array<double, 6>;
+
+/// Boxes that enclose surface `s` over the (u,v) rectangle `b`, one per cell of a
+/// cells × cells grid: each is the box of its cell's corners, edge midpoints and centre, grown
+/// by the largest gap between one of those midpoints and the middle of its chord, plus `grow`.
+/// That is about four times what a surface smooth at the scale of a cell can bulge out of
+/// the nine points' box, so every point of the surface over `b` lies in one of the boxes and
+/// min over the boxes of their distance to p is a lower bound on p's distance to that part of
+/// the surface (and the boxes are close: a box holds surface points, so the bound is at most
+/// one box diagonal below the distance). Empty when an evaluation is not finite.
+std::vector<Box3> surfacePatchBoxes(const Adaptor3d_Surface& s, const ParamBounds& b, int cells,
+                                    double grow);
+
+/// Distance from p to box b (0 inside; +inf for an empty box).
+double boxDistance(const Box3& b, const Vec3& p);
 
 /// A TopoDS_Face as a Surface (see the file comment for the conventions).
 class OccFaceSurface final : public Surface {
