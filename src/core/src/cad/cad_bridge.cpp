@@ -44,6 +44,17 @@ Box toBox(const Bnd_Box& b) {
   return r;
 }
 
+/// Squared distance from p to box b.
+double boxDistance2(const Box& b, const Vec3& p) {
+  double d2 = 0.0;
+  for (int i = 0; i < 3; ++i) {
+    const double d = std::max(
+        {b[static_cast<std::size_t>(i)] - p[i], p[i] - b[static_cast<std::size_t>(i) + 3], 0.0});
+    d2 += d * d;
+  }
+  return d2;
+}
+
 gp_Pnt toPnt(const Vec3& v) { return gp_Pnt(v.x(), v.y(), v.z()); }
 
 /// The boxes that contain a point, through a uniform grid over their union (cells registered
@@ -154,7 +165,8 @@ class Projector {
     std::vector<Vec3> samples;
     std::vector<Vec2> sampleUV;
     std::vector<unsigned char> sampleDegenerate;
-    std::vector<Box> cells;  // boxes enclosing the surface over the face's (u,v) range
+    std::vector<Box> cells;   // boxes enclosing the surface over the face's (u,v) range
+    std::vector<Box> blocks;  // the boxes of kBlock × kBlock cells
     Vec2 last = Vec2::Zero();
     Vec2 rest = Vec2::Zero();  // where the evaluation caches are reset (see forgetStarts)
     bool hasLast = false;
@@ -213,7 +225,7 @@ class Projector {
     if (Precision::IsInfinite(v1)) v1 = fb.vmax + mv;
     ft.ad = std::make_unique<GeomAdaptor_Surface>(ft.g, u0, u1, v0, v1);
     ft.loc = std::make_unique<Extrema_GenLocateExtPS>(*ft.ad);
-    constexpr int K = 17;
+    constexpr int K = kCells + 1;
     ft.samples.reserve(K * K);
     ft.sampleUV.reserve(K * K);
     for (int i = 0; i < K; ++i)
@@ -230,7 +242,20 @@ class Projector {
         ft.sampleDegenerate.push_back(isDegenerate(d) ? 1 : 0);
       }
     // Boxes around the surface over the face's (u,v) range: lower bounds on distances.
-    ft.cells = surfacePatchBoxes(*ft.ad, fb, K - 1, 1e-9 * s_.diagonal());
+    ft.cells = surfacePatchBoxes(*ft.ad, fb, kCells, 1e-9 * s_.diagonal());
+    if (!ft.cells.empty()) {
+      constexpr int nb = kCells / kBlock;
+      ft.blocks.assign(nb * nb, Box{kInf, kInf, kInf, -kInf, -kInf, -kInf});
+      for (int i = 0; i < kCells; ++i)
+        for (int j = 0; j < kCells; ++j) {
+          Box& b = ft.blocks[static_cast<std::size_t>((i / kBlock) * nb + j / kBlock)];
+          const Box& c = ft.cells[static_cast<std::size_t>(i * kCells + j)];
+          for (std::size_t k = 0; k < 3; ++k) {
+            b[k] = std::min(b[k], c[k]);
+            b[k + 3] = std::max(b[k + 3], c[k + 3]);
+          }
+        }
+    }
     // Inside a span of any knot vector but a contrived one.
     ft.rest = Vec2(fb.umin + 0.3819660112501051 * (fb.umax - fb.umin),
                    fb.vmin + 0.6180339887498949 * (fb.vmax - fb.vmin));
@@ -244,12 +269,17 @@ class Projector {
     const double box = boxDistance(faceBoxes_[static_cast<std::size_t>(f)], p);
     const FaceTools& ft = tools(f);
     if (ft.cells.empty() || box > 0.0) return box;
-    double best = kInf;
-    for (const Box& b : ft.cells) {
-      best = std::min(best, boxDistance(b, p));
-      if (best == 0.0) break;
+    constexpr int nb = kCells / kBlock;
+    double best2 = kInf;
+    for (int g = 0; g < nb * nb && best2 > 0.0; ++g) {
+      if (boxDistance2(ft.blocks[static_cast<std::size_t>(g)], p) >= best2) continue;
+      const int i0 = (g / nb) * kBlock, j0 = (g % nb) * kBlock;
+      for (int i = i0; i < i0 + kBlock; ++i)
+        for (int j = j0; j < j0 + kBlock; ++j)
+          best2 =
+              std::min(best2, boxDistance2(ft.cells[static_cast<std::size_t>(i * kCells + j)], p));
     }
-    return std::max(box, best);
+    return std::max(box, std::sqrt(best2));
   }
 
   /// Distance from p to edge e and the curve parameter of the nearest point.
@@ -643,6 +673,9 @@ class Projector {
   }
 
  private:
+  static constexpr int kCells = 16;  // sampling grid of a free-form face: kCells² cells
+  static constexpr int kBlock = 4;   // cells per block side in lowerBound's search
+
   const CadShape& s_;
   const std::vector<Box>& faceBoxes_;
   const std::vector<Box>& edgeBoxes_;
