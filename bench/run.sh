@@ -9,7 +9,9 @@
 #    engine block of ../shared/data/cad at 1×, 10×, 100× the elements);
 # 3. every CAD part of ../shared/data/cad, two perturbations each (bench/parts_compare.py) and
 #    the paper's Table 3 on a crank shaft and a gear-box housing (bench/paper_table3.py);
-# 4. FreeCAD conversion cost vs optimization (bench/python/bench_conversion.py, freecadcmd).
+# 4. FreeCAD conversion cost vs optimization (bench/python/bench_conversion.py, freecadcmd);
+# 5. (not in quick) FreeCAD's Gmsh second-order meshes of four parts, Face nodes perturbed in
+#    (u,v), through SurfMesh.optimize (bench/python/perturbed_fem.py, freecadcmd).
 set -e
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
 BUILD=${BUILD:-$ROOT/build-bench}
@@ -50,4 +52,9 @@ echo
 echo "## FreeCAD conversion vs optimization"
 if [ -f "$ROOT/bench/python/bench_conversion.py" ]; then
   freecadcmd "$ROOT/bench/python/bench_conversion.py" 2>&1 | grep -E '^\||^#|rror' || true
+fi
+if [ "$1" != "quick" ]; then
+  echo
+  echo "## Perturbed FreeCAD Gmsh second-order meshes"
+  freecadcmd "$ROOT/bench/python/perturbed_fem.py" 2>&1 | grep -E '^\||rror' || true
 fi

@@ -1,0 +1,124 @@
+"""SurfMesh on perturbed FreeCAD Gmsh FEM meshes (second order by default).
+
+Meshes each part with FreeCAD's Gmsh mesher (``examples.make_gmsh_mesh``, the mesh FreeCAD's
+FEM users get), moves every node SurfMesh classifies as a Face node to a random (u,v) on its
+face, ``amp`` × its local element size away (kept only when inside the face's trimmed domain:
+``Face.isPartOfDomain``), then runs ``SurfMesh.optimize`` with its defaults and prints one
+Markdown table row per run: tangled elements before → after (how many of those left have a
+movable node), min / mean quality, sweeps, time, and the largest distance of a moved node
+to its CAD face measured by FreeCAD (``Face.distToShape`` on up to 300 moved nodes).
+
+    freecadcmd bench/python/perturbed_fem.py
+
+Options by environment (freecadcmd takes no script options): SURFMESH_PF_PARTS (comma list of
+files in SURFMESH_PF_CAD_DIR, default ../shared/data/cad), SURFMESH_PF_DIV (element size =
+diagonal / DIV, 25), SURFMESH_PF_ORDER (2nd or 1st), SURFMESH_PF_AMPS (0.3,0.6),
+SURFMESH_PF_SEEDS (1,2).
+"""
+
+import argparse  # Namespace only
+import os
+import sys
+import time
+
+import numpy as np
+
+import FreeCAD
+import Part
+import SurfMesh
+from SurfMesh.app import api, conversion, examples
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def local_sizes(data, w):
+    """Per node: the smallest mean corner-edge length of its elements."""
+    size = np.full(len(data.nodes), np.inf)
+    for e in range(len(w.types)):
+        nd = w.conn[w.offsets[e]:w.offsets[e + 1]]
+        c = data.nodes[nd[:3]]
+        le = (np.linalg.norm(c[0] - c[1]) + np.linalg.norm(c[1] - c[2])
+              + np.linalg.norm(c[2] - c[0])) / 3.0
+        size[nd] = np.minimum(size[nd], le)
+    return size
+
+
+def perturbed(data, shape, kinds, faces, uv, size, amp, seed):
+    """Node positions with the Face nodes moved in (u,v) of their face; the moved indices."""
+    rng = np.random.default_rng(seed)
+    nodes = data.nodes.copy()
+    moved = []
+    for i in np.nonzero(kinds == 1)[0]:
+        f = shape.Faces[int(faces[i])]
+        u0, v0 = float(uv[i][0]), float(uv[i][1])
+        du, dv = f.derivative1At(u0, v0)
+        xi = rng.standard_normal(2)
+        u = u0 + amp * size[i] * xi[0] / max(du.Length, 1e-300)
+        v = v0 + amp * size[i] * xi[1] / max(dv.Length, 1e-300)
+        if not f.isPartOfDomain(u, v):
+            continue
+        p = f.Surface.value(u, v)
+        nodes[i] = (p.x, p.y, p.z)
+        moved.append(i)
+    return nodes, np.asarray(moved, dtype=np.int64)
+
+
+def main():
+    env = os.environ.get
+    a = argparse.Namespace(
+        parts=env("SURFMESH_PF_PARTS",
+                  "occt_crankarm.brep,nist_pmi_1.step,occt_screw.step,gmsh_rod_revolution.brep"),
+        div=float(env("SURFMESH_PF_DIV", "25")),
+        order=env("SURFMESH_PF_ORDER", "2nd"),
+        amps=env("SURFMESH_PF_AMPS", "0.3,0.6"),
+        seeds=env("SURFMESH_PF_SEEDS", "1,2"),
+        cad_dir=env("SURFMESH_PF_CAD_DIR",
+                    os.path.join(HERE, "..", "..", "..", "shared", "data", "cad")),
+    )
+    print("| part | mesh | amp | seed | Face nodes moved | tangled before → after (movable) "
+          "| min q after | mean q after | sweeps | optimize s | max distance to CAD |")
+    print("|---|---|---:|---:|---:|---|---:|---:|---:|---:|---:|")
+    for name in a.parts.split(","):
+        doc = FreeCAD.newDocument("perturbed_fem")
+        part = doc.addObject("Part::Feature", "Part")
+        part.Shape = Part.read(os.path.join(a.cad_dir, name))
+        doc.recompute()
+        shape = part.Shape
+        diag = shape.BoundBox.DiagonalLength
+        t = time.perf_counter()
+        mesh = examples.make_gmsh_mesh(doc, part, diag / a.div, order=a.order)
+        t_gmsh = time.perf_counter() - t
+        data, handle = api.prepare(mesh, shape)
+        w = data if data.kept is None else data.subset(data.kept)
+        kinds = np.asarray(handle.node_kinds())
+        faces = np.asarray(handle.node_faces())
+        uv = np.asarray(handle.uv())
+        size = local_sizes(data, w)
+        label = f"tria{'6' if a.order == '2nd' else '3'} diag/{a.div:g} ({w.element_count} el., " \
+                f"Gmsh {t_gmsh:.0f} s)"
+        for amp in (float(x) for x in a.amps.split(",")):
+            for seed in (int(x) for x in a.seeds.split(",")):
+                nodes, moved = perturbed(data, shape, kinds, faces, uv, size, amp, seed)
+                trial = conversion.MeshData(**{**data.__dict__, "nodes": nodes})
+                try:
+                    r = SurfMesh.optimize(trial, shape, hints="none")
+                except Exception as err:  # one failing run must not hide the others
+                    print(f"| {name} | {label} | {amp} | {seed} | {len(moved)} | error: "
+                          f"{str(err)[:200]} | | | | | |", flush=True)
+                    continue
+                rng = np.random.default_rng(0)
+                sample = moved if len(moved) <= 300 else rng.choice(moved, 300, replace=False)
+                dist = 0.0
+                for i in sample:
+                    p = FreeCAD.Vector(*map(float, r.nodes[i]))
+                    f = shape.Faces[int(faces[i])]
+                    dist = max(dist, f.distToShape(Part.Vertex(p))[0])
+                movable = len(r.tangled_movable)
+                print(f"| {name} | {label} | {amp} | {seed} | {len(moved)} | "
+                      f"{r.before.stats['tangled']} → {r.after.stats['tangled']} ({movable}) | "
+                      f"{r.after.stats['min']:.4f} | {r.after.stats['mean']:.4f} | {r.sweeps} | "
+                      f"{r.seconds:.1f} | {dist / diag:.1e} × diag |", flush=True)
+        FreeCAD.closeDocument(doc.Name)
+
+
+main()
