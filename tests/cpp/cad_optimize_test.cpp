@@ -14,7 +14,6 @@
 #include <GeomAPI_ProjectPointOnSurf.hxx>
 #include <Geom_Curve.hxx>
 #include <Geom_Surface.hxx>
-#include <Precision.hxx>
 #include <gp_Pnt.hxx>
 #include <gp_Pnt2d.hxx>
 #include <gtest/gtest.h>
@@ -64,9 +63,8 @@ OnShapeCheck checkMovedNodes(const CadShape& shape, const SurfaceMesh& m,
       c.worstSurface = std::max(c.worstSurface, (Vec3(q.X(), q.Y(), q.Z()) - p).norm());
       GeomAPI_ProjectPointOnSurf pr(gp_Pnt(p.x(), p.y(), p.z()), g);
       if (pr.NbPoints() > 0) c.worstProjection = std::max(c.worstProjection, pr.LowerDistance());
-      // On the face itself, not up to its tolerance beyond an edge.
       BRepClass_FaceClassifier cl(shape.face(f), gp_Pnt2d(m.uv[n].x(), m.uv[n].y()),
-                                  Precision::PConfusion());
+                                  shape.surface(f).uvTolerance());
       if (cl.State() != TopAbs_IN && cl.State() != TopAbs_ON) ++c.outside;
     } else if (m.nodeKind[n] == NodeKind::Edge) {
       double a = 0, b = 0;

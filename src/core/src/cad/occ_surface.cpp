@@ -1,7 +1,6 @@
 // SurfMesh — OpenCASCADE face and edge adapters (see occ_surface.h).
 #include "surfmesh/cad/occ_surface.h"
 
-#include <BRepClass_FaceClassifier.hxx>
 #include <BRepTools.hxx>
 #include <BRepTopAdaptor_FClass2d.hxx>
 #include <BRep_Tool.hxx>
@@ -591,46 +590,22 @@ bool OccFaceSurface::containsWithinBand(double u, double v) const {
 }
 
 bool OccFaceSurface::classifyWithClassifier(double u, double v, bool band) const {
-  TopAbs_State st = TopAbs_OUT;
-  if (band) {
-    TrimShared& t = *classifierShared();
-    const Standard_Boolean recadre =
-        uTurn_ == 0.0 && vTurn_ == 0.0 ? Standard_True : Standard_False;
-    std::lock_guard<std::mutex> lock(t.classifierMutex);
-    st = t.classifier->TestOnRestriction(gp_Pnt2d(u, v), uvTol_, recadre);
-  } else {
-    st = classifierState(u, v);
-  }
-  return st == TopAbs_IN || st == TopAbs_ON;
-}
-
-TopAbs_State OccFaceSurface::classifierState(double u, double v) const {
-  TrimShared& t = *classifierShared();
-  const Standard_Boolean recadre = uTurn_ == 0.0 && vTurn_ == 0.0 ? Standard_True : Standard_False;
-  std::lock_guard<std::mutex> lock(t.classifierMutex);
-  return t.classifier->Perform(gp_Pnt2d(u, v), recadre);
-}
-
-OccFaceSurface::TrimShared* OccFaceSurface::classifierShared() const {
   TrimShared& t = *trim_;
   std::call_once(t.classifierOnce, [&]() {
     t.classifier = std::make_unique<BRepTopAdaptor_FClass2d>(face_, uvTol_);
   });
-  return &t;
+  const Standard_Boolean recadre = uTurn_ == 0.0 && vTurn_ == 0.0 ? Standard_True : Standard_False;
+  std::lock_guard<std::mutex> lock(t.classifierMutex);
+  const TopAbs_State st = band ? t.classifier->TestOnRestriction(gp_Pnt2d(u, v), uvTol_, recadre)
+                               : t.classifier->Perform(gp_Pnt2d(u, v), recadre);
+  return st == TopAbs_IN || st == TopAbs_ON;
 }
 
 bool OccFaceSurface::contains(double u, double v) const {
   const int known = containsFast(u, v);
   if (known >= 0) return known == 1;
   const Vec2 w = wrap(Vec2(u, v));
-  const TopAbs_State st = classifierState(w.x(), w.y());
-  if (st != TopAbs_ON) return st == TopAbs_IN;
-  try {
-    BRepClass_FaceClassifier exact(face_, gp_Pnt2d(w.x(), w.y()), Precision::PConfusion());
-    return exact.State() == TopAbs_IN || exact.State() == TopAbs_ON;
-  } catch (const Standard_Failure&) {
-    return false;
-  }
+  return classifyWithClassifier(w.x(), w.y(), false);
 }
 
 int OccFaceSurface::containsFast(double u, double v) const {

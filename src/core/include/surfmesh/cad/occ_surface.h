@@ -35,7 +35,6 @@
 #include <BRepAdaptor_Curve.hxx>
 #include <BRepAdaptor_Surface.hxx>
 #include <Geom2d_Curve.hxx>
-#include <TopAbs_State.hxx>
 #include <TopoDS_Edge.hxx>
 #include <TopoDS_Face.hxx>
 
@@ -85,10 +84,7 @@ class OccFaceSurface final : public Surface {
   double uPeriod() const override { return uPeriod_; }
   double vPeriod() const override { return vPeriod_; }
   int normalSign() const override { return normalSign_; }
-  /// Inside the trimmed domain (ON the boundary counts as inside). A point the classifier
-  /// puts ON a trimming loop (within the face's tolerance of it) must also be inside by
-  /// BRepClass_FaceClassifier on the exact pcurves with tolerance Precision::PConfusion(): a
-  /// node moved there lies on the face, not up to the face's tolerance beyond its edge.
+  /// Inside the trimmed domain (ON the boundary counts as inside).
   bool contains(double u, double v) const override;
   /// contains() where it needs no classifier query at (u,v) itself: 1 inside, 0 outside
   /// (outside the face's parameter box, in a periodic direction modulo the period; in a
@@ -147,10 +143,6 @@ class OccFaceSurface final : public Surface {
   /// use, shared by the copies, its queries serialized) at a wrapped (u,v): Perform, or with
   /// `band` TestOnRestriction. IN and ON count as inside.
   bool classifyWithClassifier(double u, double v, bool band) const;
-  /// The shared classifier's state at (u,v) (BRepTopAdaptor_FClass2d::Perform).
-  TopAbs_State classifierState(double u, double v) const;
-  /// The shared part, its classifier built.
-  TrimShared* classifierShared() const;
 };
 
 /// One face adjacent to an edge, with the edge's pcurve(s) on it.
