@@ -44,17 +44,6 @@ Box toBox(const Bnd_Box& b) {
   return r;
 }
 
-/// Squared distance from p to box b.
-double boxDistance2(const Box& b, const Vec3& p) {
-  double d2 = 0.0;
-  for (int i = 0; i < 3; ++i) {
-    const double d = std::max(
-        {b[static_cast<std::size_t>(i)] - p[i], p[i] - b[static_cast<std::size_t>(i) + 3], 0.0});
-    d2 += d * d;
-  }
-  return d2;
-}
-
 gp_Pnt toPnt(const Vec3& v) { return gp_Pnt(v.x(), v.y(), v.z()); }
 
 /// The boxes that contain a point, through a uniform grid over their union (cells registered
@@ -263,12 +252,12 @@ class Projector {
     return ft;
   }
 
-  /// A lower bound on the distance from p to face f: the nearest of its cell boxes (free-form
-  /// faces), never less than the distance to the face's bounding box.
-  double lowerBound(int f, const Vec3& p) {
-    const double box = boxDistance(faceBoxes_[static_cast<std::size_t>(f)], p);
+  /// A lower bound on the distance from p to face f, whose bounding box is `box` away: the
+  /// nearest of its cell boxes (free-form faces), never less than `box`.
+  double lowerBound(int f, const Vec3& p, double box) {
+    if (box > 0.0) return box;
     const FaceTools& ft = tools(f);
-    if (ft.cells.empty() || box > 0.0) return box;
+    if (ft.cells.empty()) return box;
     constexpr int nb = kCells / kBlock;
     double best2 = kInf;
     for (int g = 0; g < nb * nb && best2 > 0.0; ++g) {
@@ -635,23 +624,26 @@ class Projector {
     double dmin = kInf;
     std::vector<unsigned char>& seen = seen_;
     seen.assign(faceBoxes_.size(), 0);
+    auto project = [&](int f) {
+      FaceHit h = faceDistance(f, p, tol);
+      if (h.dist <= tol) {
+        dmin = std::min(dmin, h.dist);
+        out->push_back(h);
+      }
+    };
     if (keep > 0.0) {
       auto& order = order_;
       order.clear();
       for (std::size_t f = 0; f < faceBoxes_.size(); ++f) {
-        if (boxDistance(faceBoxes_[f], p) > r1) continue;
+        const double box = boxDistance(faceBoxes_[f], p);
+        if (box > r1) continue;
         seen[f] = 1;
-        order.emplace_back(lowerBound(static_cast<int>(f), p), static_cast<int>(f));
+        order.emplace_back(lowerBound(static_cast<int>(f), p, box), static_cast<int>(f));
       }
       std::sort(order.begin(), order.end());
       for (const auto& [lb, f] : order) {
         if (lb > tol) break;
-        if (lb > dmin + std::max(keep, faceSlack_[static_cast<std::size_t>(f)])) continue;
-        FaceHit h = faceDistance(f, p, tol);
-        if (h.dist <= tol) {
-          dmin = std::min(dmin, h.dist);
-          out->push_back(h);
-        }
+        if (lb <= dmin + std::max(keep, faceSlack_[static_cast<std::size_t>(f)])) project(f);
       }
       std::sort(out->begin(), out->end(),
                 [](const FaceHit& a, const FaceHit& b) { return a.face < b.face; });
@@ -660,11 +652,7 @@ class Projector {
       for (std::size_t f = 0; f < faceBoxes_.size(); ++f) {
         if (seen[f] || boxDistance(faceBoxes_[f], p) > radius) continue;
         seen[f] = 1;
-        FaceHit h = faceDistance(static_cast<int>(f), p, tol);
-        if (h.dist <= tol) {
-          dmin = std::min(dmin, h.dist);
-          out->push_back(h);
-        }
+        project(static_cast<int>(f));
       }
     };
     if (keep <= 0.0) scan(r1);

@@ -145,7 +145,7 @@ std::vector<Box3> surfacePatchBoxes(const Adaptor3d_Surface& s, const ParamBound
   return out;
 }
 
-double boxDistance(const Box3& b, const Vec3& p) {
+double boxDistance2(const Box3& b, const Vec3& p) {
   if (b[0] > b[3]) return kInf;
   double d2 = 0.0;
   for (int i = 0; i < 3; ++i) {
@@ -154,8 +154,10 @@ double boxDistance(const Box3& b, const Vec3& p) {
     const double d = std::max({lo, hi, 0.0});
     d2 += d * d;
   }
-  return std::sqrt(d2);
+  return d2;
 }
+
+double boxDistance(const Box3& b, const Vec3& p) { return std::sqrt(boxDistance2(b, p)); }
 
 std::string occSurfaceTypeName(const TopoDS_Face& face) {
   BRepAdaptor_Surface ad(face, Standard_False);

@@ -64,6 +64,9 @@ using Box3 = std::array<double, 6>;
 std::vector<Box3> surfacePatchBoxes(const Adaptor3d_Surface& s, const ParamBounds& b, int cells,
                                     double grow);
 
+/// Squared distance from p to box b (0 inside; +inf for an empty box).
+double boxDistance2(const Box3& b, const Vec3& p);
+
 /// Distance from p to box b (0 inside; +inf for an empty box).
 double boxDistance(const Box3& b, const Vec3& p);
 
