@@ -11,7 +11,9 @@
 #    the paper's Table 3 on a crank shaft and a gear-box housing (bench/paper_table3.py);
 # 4. FreeCAD conversion cost vs optimization (bench/python/bench_conversion.py, freecadcmd);
 # 5. (not in quick) FreeCAD's Gmsh second-order meshes of four parts, Face nodes perturbed in
-#    (u,v), through SurfMesh.optimize (bench/python/perturbed_fem.py, freecadcmd).
+#    (u,v), through SurfMesh.optimize (bench/python/perturbed_fem.py, freecadcmd);
+# 6. (not in quick) FreeCAD's MeshPart meshes (standard and Mefisto) of every CAD part, as
+#    they come, fixed and sliding boundary (bench/python/meshpart_parts.py, freecadcmd).
 set -e
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
 BUILD=${BUILD:-$ROOT/build-bench}
@@ -57,4 +59,9 @@ if [ "$1" != "quick" ]; then
   echo
   echo "## Perturbed FreeCAD Gmsh second-order meshes"
   freecadcmd "$ROOT/bench/python/perturbed_fem.py" 2>&1 | grep -E '^\||rror' || true
+fi
+if [ "$1" != "quick" ]; then
+  echo
+  echo "## FreeCAD MeshPart meshes of every CAD part"
+  freecadcmd "$ROOT/bench/python/meshpart_parts.py" 2>&1 | grep -E '^\||rror' || true
 fi

@@ -62,6 +62,23 @@ bool insideByOcc(BRepTopAdaptor_FClass2d& ref, const OccFaceSurface& s, const Ve
   return st == TopAbs_IN || st == TopAbs_ON;
 }
 
+/// contains()'s reference for (u,v) of face s: an independent classifier's Perform says IN
+/// (ON, within the face's (u,v) tolerance of a loop on either side, counts as outside), and
+/// (u,v) lies in the range of the face's underlying surface (Geom_Surface::Bounds) in the
+/// directions that are not periodic.
+bool strictlyInsideByOcc(BRepTopAdaptor_FClass2d& ref, const OccFaceSurface& s, const Vec2& p,
+                         bool recadre = true) {
+  const Vec2 w = s.wrap(p);
+  const Handle(Geom_Surface) g = BRep_Tool::Surface(s.face());
+  double u0 = 0, u1 = 0, v0 = 0, v1 = 0;
+  g->Bounds(u0, u1, v0, v1);
+  if (!s.isUPeriodic() && s.uTurnPeriod() == 0.0 && !g->IsUPeriodic() && (w.x() < u0 || w.x() > u1))
+    return false;
+  if (!s.isVPeriodic() && s.vTurnPeriod() == 0.0 && !g->IsVPeriodic() && (w.y() < v0 || w.y() > v1))
+    return false;
+  return ref.Perform(gp_Pnt2d(w.x(), w.y()), recadre ? Standard_True : Standard_False) == TopAbs_IN;
+}
+
 /// Interior (u,v) points of a face: the nodes of its BRepMesh triangulation that are not on
 /// an edge polygon.
 std::vector<Vec2> interiorUV(const TopoDS_Face& face, double deflection) {
@@ -323,8 +340,7 @@ TEST(OccFaceSurface, ContainsAgreesWithTheOccClassifierEverywhere) {
         if (!s.isVPeriodic() &&
             (w.y() < b.vmin - s.uvTolerance() || w.y() > b.vmax + s.uvTolerance()))
           continue;
-        const TopAbs_State st = ref.Perform(gp_Pnt2d(w.x(), w.y()), recadre);
-        const bool expected = st == TopAbs_IN || st == TopAbs_ON;
+        const bool expected = strictlyInsideByOcc(ref, s, p, recadre);
         const bool got = s.contains(p.x(), p.y());
         ++checked;
         inside += expected ? 1 : 0;
@@ -356,7 +372,7 @@ TEST(OccFaceSurface, TheCopiesShareTheClassifierAndTheGrid) {
     const std::unique_ptr<Surface> copy = s.clone();
     BRepTopAdaptor_FClass2d ref(face, s.uvTolerance());
     for (const Vec2& p : uvLattice(s.faceUVBounds(), 29)) {
-      const bool expected = insideByOcc(ref, s, p);
+      const bool expected = strictlyInsideByOcc(ref, s, p);
       EXPECT_EQ(copy->contains(p.x(), p.y()), expected) << "face " << f << " at " << p.transpose();
       EXPECT_EQ(s.contains(p.x(), p.y()), expected) << "face " << f << " at " << p.transpose();
       ++checked;
@@ -508,7 +524,7 @@ TEST(OccFaceSurface, PreparedCopiesOnTwoThreadsAgreeWithTheClassifier) {
     const std::unique_ptr<Surface> third = s->clone();
     BRepTopAdaptor_FClass2d ref(s->face(), s->uvTolerance());
     for (const Vec2& p : uvLattice(s->faceUVBounds(), 17)) {
-      EXPECT_EQ(third->contains(p.x(), p.y()), insideByOcc(ref, *s, p))
+      EXPECT_EQ(third->contains(p.x(), p.y()), strictlyInsideByOcc(ref, *s, p))
           << "face " << s->faceId() << " at " << p.transpose();
       ++checked;
     }
@@ -555,8 +571,7 @@ TEST(OccFaceSurface, CopiesOnTwoThreadsAgreeWithTheClassifierNextToHoles) {
                                                      w.x() <= b.umax + original.uvTolerance())) &&
                          (original.isVPeriodic() || (w.y() >= b.vmin - original.uvTolerance() &&
                                                      w.y() <= b.vmax + original.uvTolerance()));
-      const TopAbs_State st = ref.Perform(gp_Pnt2d(w.x(), w.y()), recadre);
-      expected[k] = inBox && (st == TopAbs_IN || st == TopAbs_ON);
+      expected[k] = inBox && strictlyInsideByOcc(ref, original, pts[k], recadre);
     }
     std::vector<char> got[2];
     std::vector<std::unique_ptr<Surface>> copies;
@@ -581,6 +596,70 @@ TEST(OccFaceSurface, CopiesOnTwoThreadsAgreeWithTheClassifierNextToHoles) {
   }
   std::cout << faces << " faces with holes, " << checked << " points\n";
   EXPECT_GE(faces, 3u);
+}
+
+// contains() is strict where OCC's tolerances would let a node off the face: a point within
+// the classifier's tolerance band of a trimming loop (OCC says ON) is outside, and so is a
+// point beyond the range of a B-spline face's surface (OCC's classifier, whose loop may run
+// along that border, says ON or IN; the surface there is an extrapolation). Points of both
+// kinds next to every pcurve of the crank arm, whose B-spline faces span their surfaces.
+TEST(OccFaceSurface, ContainsExcludesTheToleranceBandAndTheSurfacesOutside) {
+  auto shape = load("occt_crankarm.brep");
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  std::size_t onBand = 0, beyondRange = 0, inner = 0;
+  for (int f = 0; f < shape->faceCount(); ++f) {
+    const TopoDS_Face& face = shape->face(f);
+    const OccFaceSurface& s = shape->surface(f);
+    BRepTopAdaptor_FClass2d ref(face, s.uvTolerance());
+    const Handle(Geom_Surface) g = BRep_Tool::Surface(face);
+    double u0 = 0, u1 = 0, v0 = 0, v1 = 0;
+    g->Bounds(u0, u1, v0, v1);
+    const double tol = s.uvTolerance();
+    for (TopExp_Explorer ex(face, TopAbs_EDGE); ex.More(); ex.Next()) {
+      double a = 0, c = 0;
+      const auto pc = BRep_Tool::CurveOnSurface(TopoDS::Edge(ex.Current()), face, a, c);
+      if (pc.IsNull()) continue;
+      for (int k = 0; k < 8; ++k) {
+        gp_Pnt2d q;
+        gp_Vec2d d;
+        pc->D1(a + (c - a) * (0.05 + 0.9 * U(rng)), q, d);
+        if (d.Magnitude() == 0.0) continue;
+        const gp_Vec2d nrm(-d.Y() / d.Magnitude(), d.X() / d.Magnitude());
+        for (const double side : {-1.0, 1.0}) {
+          // Half the band away from the loop: ON for OCC, outside for contains().
+          const Vec2 p(q.X() + side * 0.5 * tol * nrm.X(), q.Y() + side * 0.5 * tol * nrm.Y());
+          if (ref.Perform(gp_Pnt2d(p.x(), p.y()), Standard_True) == TopAbs_ON) {
+            EXPECT_FALSE(s.contains(p.x(), p.y())) << "face " << f << " ON at " << p.transpose();
+            ++onBand;
+          }
+          // Beyond the surface's range in u or v, where OCC's classifier still lets it in.
+          for (const Vec2 r : {Vec2(u0 - 0.5 * tol, q.Y()), Vec2(u1 + 0.5 * tol, q.Y()),
+                               Vec2(q.X(), v0 - 0.5 * tol), Vec2(q.X(), v1 + 0.5 * tol)}) {
+            if (s.isUPeriodic() || s.isVPeriodic() || g->IsUPeriodic() || g->IsVPeriodic()) break;
+            if (std::abs(r.x() - q.X()) > tol && std::abs(r.y() - q.Y()) > tol) continue;
+            const TopAbs_State st = ref.Perform(gp_Pnt2d(r.x(), r.y()), Standard_True);
+            if (st != TopAbs_IN && st != TopAbs_ON) continue;
+            EXPECT_FALSE(s.contains(r.x(), r.y()))
+                << "face " << f << " beyond at " << r.transpose();
+            ++beyondRange;
+          }
+          // Three bands inside the loop: IN for OCC and for contains().
+          const Vec2 in(q.X() + side * 3.0 * tol * nrm.X(), q.Y() + side * 3.0 * tol * nrm.Y());
+          if (in.x() >= u0 && in.x() <= u1 && in.y() >= v0 && in.y() <= v1 &&
+              ref.Perform(gp_Pnt2d(in.x(), in.y()), Standard_True) == TopAbs_IN) {
+            EXPECT_TRUE(s.contains(in.x(), in.y())) << "face " << f << " IN at " << in.transpose();
+            ++inner;
+          }
+        }
+      }
+    }
+  }
+  std::cout << onBand << " points ON a loop, " << beyondRange << " beyond a surface's range, "
+            << inner << " just inside\n";
+  EXPECT_GT(onBand, 100u);
+  EXPECT_GT(beyondRange, 20u);
+  EXPECT_GT(inner, 100u);
 }
 
 TEST(OccFaceSurface, PeriodicFacesWrapAroundTheirOwnRange) {

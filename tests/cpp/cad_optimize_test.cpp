@@ -63,9 +63,20 @@ OnShapeCheck checkMovedNodes(const CadShape& shape, const SurfaceMesh& m,
       c.worstSurface = std::max(c.worstSurface, (Vec3(q.X(), q.Y(), q.Z()) - p).norm());
       GeomAPI_ProjectPointOnSurf pr(gp_Pnt(p.x(), p.y(), p.z()), g);
       if (pr.NbPoints() > 0) c.worstProjection = std::max(c.worstProjection, pr.LowerDistance());
+      // Strictly inside: within the surface's range (a B-spline is extrapolated beyond its
+      // knots) and IN by OCC's exact classifier (ON, within the tolerance of a loop, would
+      // let Face.distToShape measure the node to the loop's 3D edge).
+      const OccFaceSurface& s = shape.surface(f);
+      double u0 = 0, u1 = 0, v0 = 0, v1 = 0;
+      g->Bounds(u0, u1, v0, v1);
+      const Vec2 w = s.wrap(m.uv[n]);
+      const bool inRange = (s.isUPeriodic() || s.uTurnPeriod() != 0.0 || g->IsUPeriodic() ||
+                            (w.x() >= u0 && w.x() <= u1)) &&
+                           (s.isVPeriodic() || s.vTurnPeriod() != 0.0 || g->IsVPeriodic() ||
+                            (w.y() >= v0 && w.y() <= v1));
       BRepClass_FaceClassifier cl(shape.face(f), gp_Pnt2d(m.uv[n].x(), m.uv[n].y()),
-                                  shape.surface(f).uvTolerance());
-      if (cl.State() != TopAbs_IN && cl.State() != TopAbs_ON) ++c.outside;
+                                  s.uvTolerance());
+      if (!inRange || cl.State() != TopAbs_IN) ++c.outside;
     } else if (m.nodeKind[n] == NodeKind::Edge) {
       double a = 0, b = 0;
       const Handle(Geom_Curve) g = BRep_Tool::Curve(shape.edge(m.nodeEdge[n]), a, b);

@@ -225,20 +225,63 @@ class BadInputApi(unittest.TestCase):
         self.expect_error(arrays(self.nodes, one), "repeat a node")
 
     def test_duplicate_nodes(self):
-        # Element 0 gets its own copy of node k: a crack.
+        # Element 0 gets its own copy of node k: a crack. duplicates="error" refuses it.
         i = interior_node(self.nodes)
         tris = self.tris.copy()
         e = int(np.nonzero((tris == i).any(axis=1))[0][0])
         nodes = np.vstack([self.nodes, self.nodes[i]])
         tris[e][tris[e] == i] = len(self.nodes)
         copy_id = len(self.nodes)
-        self.expect_error(arrays(nodes, tris), "1 duplicate node", f"{i} and {copy_id}")
+        self.expect_error(arrays(nodes, tris), "1 duplicate node", f"{i} and {copy_id}",
+                          duplicates="error")
         # FEM: the message names FEM node ids.
         self.expect_error(
             make_fem(nodes, tris),
             "duplicate node",
             f"{FEM_NODE_ID0 + i} and {FEM_NODE_ID0 + copy_id}",
+            duplicates="error",
         )
+        self.expect_error(arrays(self.nodes, self.tris), "duplicates", duplicates="merge")
+
+    def test_duplicate_nodes_are_glued_by_default(self):
+        """The crack's two nodes move as one: the run gives what the same mesh without the
+        crack gives, and both copies end at that node's place."""
+        i = interior_node(self.nodes)
+        moved = self.nodes.copy()
+        d = next(d for d in range(3) if moved[i][d] in (0.0, 10.0))  # the face's normal axis
+        step = np.zeros(3)
+        step[(d + 1) % 3] = 1.4  # within the face, far enough to spoil the grid
+        moved[i] += step
+        tris = self.tris.copy()
+        es = np.nonzero((tris == i).any(axis=1))[0][:2]
+        copy_id = len(moved)
+        for e in es:
+            tris[e][tris[e] == i] = copy_id
+        cracked = np.vstack([moved, moved[i]])
+        ref = SurfMesh.optimize(arrays(moved, self.tris), self.shape)
+        self.assertGreater(np.linalg.norm(ref.nodes[i] - moved[i]), 0.5)  # the node did move
+        for make, ids in ((arrays, (i, copy_id)),
+                          (make_fem, (FEM_NODE_ID0 + i, FEM_NODE_ID0 + copy_id))):
+            with self.subTest(input=make.__name__):
+                res = SurfMesh.optimize(make(cracked, tris), self.shape)
+                np.testing.assert_allclose(res.nodes[:copy_id], ref.nodes, rtol=0, atol=1e-12)
+                np.testing.assert_array_equal(res.nodes[copy_id], res.nodes[i])
+                for k in ("min", "mean", "max", "tangled"):
+                    self.assertAlmostEqual(res.after.stats[k], ref.after.stats[k], places=12)
+                self.assertEqual(res.bridge["glued_nodes"], 1)
+                self.assertEqual(res.bridge["unused_nodes"], 0)
+                self.assertFalse(any("no element" in w for w in res.bridge["warnings"]))
+                glued = [w for w in res.bridge["warnings"] if w.startswith("glued 1 node")]
+                self.assertEqual(len(glued), 1, res.bridge["warnings"])
+                self.assertIn(f"nodes {ids[0]} and {ids[1]}", glued[0])
+                if make is make_fem:  # the new FemMesh: both ids at the node's new place
+                    a = res.mesh.getNodeById(ids[0])
+                    b = res.mesh.getNodeById(ids[1])
+                    self.assertEqual((a.x, a.y, a.z), (b.x, b.y, b.z))
+                    np.testing.assert_allclose([a.x, a.y, a.z], ref.nodes[i], atol=1e-12)
+        rep = SurfMesh.measure(arrays(cracked, tris), self.shape)
+        ref_rep = SurfMesh.measure(arrays(moved, self.tris), self.shape)
+        np.testing.assert_allclose(rep.quality, ref_rep.quality, rtol=0, atol=1e-14)
 
     def test_degenerate_elements_are_tangled_and_get_untangled(self):
         # An element inside a face (no node on the box's edges): one of its nodes moved onto
@@ -519,11 +562,13 @@ class DocumentUnchanged(unittest.TestCase):
         n = nodes.copy()
         n[i, 0] = math.nan
         cases.append(("nan", make_fem(n, tris), ["non-finite", str(FEM_NODE_ID0 + i)]))
+        strict = {"duplicates": "error"}  # the default glues coincident nodes
         e = int(np.nonzero((tris == i).any(axis=1))[0][0])
         t2 = tris.copy()
         t2[e][t2[e] == i] = len(nodes)
         cases.append(("duplicate", make_fem(np.vstack([nodes, nodes[i]]), t2),
-                      ["duplicate node", f"{FEM_NODE_ID0 + i} and {FEM_NODE_ID0 + len(nodes)}"]))
+                      ["duplicate node", f"{FEM_NODE_ID0 + i} and {FEM_NODE_ID0 + len(nodes)}"],
+                      strict))
         a, b, c = (int(k) for k in tris[e])
         axis = next(d for d in range(3) if nodes[i][d] in (0.0, 10.0))
         far = next(k for k in range(len(nodes)) if nodes[k][axis] == nodes[i][axis]
@@ -545,7 +590,8 @@ class DocumentUnchanged(unittest.TestCase):
                                                + [list(t) for t in tris[1:]]),
                       ["mixes element orders"]))
         cases.append(("empty", Fem.FemMesh(), ["no face elements"]))
-        for name, fem, fragments in cases:
+        cases = [c if len(c) == 4 else c + ({},) for c in cases]
+        for name, fem, fragments, kw in cases:
             obj = self.doc.addObject("Fem::FemMeshObject", "Bad")
             obj.FemMesh = fem
             self.doc.recompute()
@@ -555,7 +601,7 @@ class DocumentUnchanged(unittest.TestCase):
             for fn in (SurfMesh.measure_object, SurfMesh.optimize_object):
                 with self.subTest(case=name, fn=fn.__name__):
                     with self.assertRaises(ValueError) as cm:
-                        fn(obj, self.part)
+                        fn(obj, self.part, **kw)
                     for f in fragments:
                         self.assertIn(f.lower(), str(cm.exception).lower())
                     self.assertEqual(self.snapshot(), before)
@@ -701,11 +747,11 @@ class BadInputCli(unittest.TestCase):
         write_msh(path, nodes, elems, **kw)
         return path
 
-    def expect_both_fail(self, path, fragments):
+    def expect_both_fail(self, path, fragments, extra=()):
         before = open(path, "rb").read()
         for command in ("measure", "optimize"):
             with self.subTest(command=command, file=os.path.basename(path)):
-                args = [command, self.box, path, "--report", "{report}"]
+                args = [command, self.box, path, "--report", "{report}", *extra]
                 if command == "optimize":
                     args += ["-o", "{msh}"]
                 p, out, report = self.run_cli(*args)
@@ -763,7 +809,21 @@ class BadInputCli(unittest.TestCase):
         nodes2 = np.vstack([nodes, nodes[i]])
         elems[e][elems[e].index(i)] = len(nodes)
         path = self.bad_msh("duplicate_nodes", nodes2, elems)
-        self.expect_both_fail(path, ["duplicate node", f"{i + 1} and {len(nodes) + 1}"])
+        self.expect_both_fail(path, ["duplicate node", f"{i + 1} and {len(nodes) + 1}"],
+                              extra=("--duplicates", "error"))
+        # By default the two nodes are glued: the run works and they stay together.
+        p, out, report = self.run_cli("optimize", self.box, path, "-o", "{msh}", "--report",
+                                      "{report}")
+        self.assertEqual(p.returncode, 0, (p.stdout + p.stderr)[-2000:])
+        self.assertIn("glued 1 node", p.stdout + p.stderr)
+        import json
+
+        with open(report) as f:
+            self.assertEqual(json.load(f)["bridge"]["glued_nodes"], 1)
+        from SurfMesh.app import fileio
+
+        out_nodes = fileio.read_mesh(out).data.nodes
+        np.testing.assert_array_equal(out_nodes[len(nodes)], out_nodes[i])
 
     def test_catalogue_degenerate_element_is_tangled_and_untangled(self):
         nodes, tris = box_grid()

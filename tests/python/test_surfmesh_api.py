@@ -74,6 +74,49 @@ class TestMeasure(ApiCase):
 
 
 class TestOptimize(ApiCase):
+    def test_standard_mesh_with_cracks_along_cad_edges_is_glued(self):
+        """FreeCAD's standard mesher meshes some faces apart: along those CAD edges each node
+        has a twin at the same position (a crack). The twins move together, so the mesh
+        stays closed (FreeCAD's own merge of coincident points gives a solid before and
+        after), and every moved node stays on the part."""
+        import MeshPart
+        import Part
+
+        path = T.find_part("occt_housing_bottom.brep")
+        if path is None:
+            self.skipTest("occt_housing_bottom.brep not found")
+        shape = Part.read(path)
+        diag = shape.BoundBox.DiagonalLength
+        mesh = MeshPart.meshFromShape(Shape=shape, LinearDeflection=diag / 500,
+                                      AngularDeflection=0.35, Relative=False)
+        pts0 = np.array([[p.x, p.y, p.z] for p in mesh.Points])
+        _, group, counts = np.unique(pts0, axis=0, return_inverse=True, return_counts=True)
+        group = group.reshape(-1)
+        twins = np.nonzero(counts[group] > 1)[0]
+        self.assertGreater(len(twins), 0, "the standard mesh has no crack any more")
+        merged = mesh.copy()
+        merged.removeDuplicatedPoints()
+        self.assertTrue(merged.isSolid())
+        with self.assertRaisesRegex(ValueError, "duplicate node"):
+            SurfMesh.measure(mesh, shape, duplicates="error")
+        res = SurfMesh.optimize(mesh, shape, boundary="slide")
+        self.assertEqual(res.bridge["glued_nodes"], len(twins) - int((counts > 1).sum()))
+        pts = np.array([[p.x, p.y, p.z] for p in res.mesh.Points])
+        for g in np.unique(group[twins]):
+            idx = np.nonzero(group == g)[0]
+            np.testing.assert_array_equal(pts[idx], np.repeat(pts[idx[:1]], len(idx), axis=0))
+        moved = np.nonzero(np.any(pts != pts0, axis=1))[0]
+        moved_twins = np.intersect1d(moved, twins)
+        self.assertGreater(len(moved_twins), 0, "no glued node slid along its edge")
+        merged = res.mesh.copy()
+        merged.removeDuplicatedPoints()
+        self.assertTrue(merged.isSolid(), "the optimization opened a crack")
+        self.assertEqual(res.after.stats["tangled"], 0)
+        self.assertGreater(res.after.stats["mean"], res.before.stats["mean"])
+        sample = np.concatenate([moved_twins[:60], moved[:: max(1, len(moved) // 60)]])
+        # Mesh.Mesh stores float32 points: on the part to that precision
+        self.assertLess(T.distance_to_shape(shape, pts[sample]).max(), 1e-6 * diag)
+
     def test_fem_untangled_on_surface_ids_kept_input_untouched(self):
         tor, mesh = T.torus_fem(self.doc, tangled=True)
         before = T.fem_snapshot(mesh.FemMesh)

@@ -175,7 +175,8 @@ def _core_shape(shape):
     return core().CadShape.from_brep_string(shapes.brep_string(shape))
 
 
-def prepare(mesh, shape, boundary="fixed", tolerance=None, hints="auto", collapsed="skip"):
+def prepare(mesh, shape, boundary="fixed", tolerance=None, hints="auto", collapsed="skip",
+            duplicates="glue"):
     """Reads ``mesh`` and ``shape`` and builds the core's surface mesh.
 
     Returns ``(data, handle)``: the :class:`~SurfMesh.app.conversion.MeshData` read from the
@@ -197,12 +198,38 @@ def prepare(mesh, shape, boundary="fixed", tolerance=None, hints="auto", collaps
     of measuring and optimizing (reported in ``skipped`` and in the
     bridge warnings; their nodes stay where they are); "error" raises ValueError naming the
     first collapsed element (flat boundary elements are then measured as tangled).
+
+    duplicates: what to do with nodes used by elements at exactly the same position as another
+    such node (a crack: FreeCAD's standard mesher leaves them along CAD edges where it meshed
+    two faces apart). "glue" (default) measures and optimizes the mesh as if they were one
+    node and moves them together, so the crack stays closed (``data.glued`` maps each node to
+    the one it moves with; the bridge report gives ``glued_nodes`` and a warning names a
+    pair); "error" raises ValueError naming a pair.
     """
-    data, handle, _ = _prepare(mesh, shape, boundary, tolerance, hints, collapsed)
+    data, handle, _ = _prepare(mesh, shape, boundary, tolerance, hints, collapsed, duplicates)
     return data, handle
 
 
-def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, timings=None):
+def _glue_coincident(data):
+    """``data`` with its coincident nodes glued (see :func:`prepare`), and the warning to give
+    (None when no nodes coincide)."""
+    rep = data.coincident_nodes()
+    if rep is None:
+        return data, None
+    moved = np.nonzero(rep != np.arange(rep.size))[0]
+    a = int(moved[0])
+    b = int(rep[a])
+    x, y, z = (float(c) for c in data.nodes[a])
+    note = (
+        f"glued {moved.size} node(s) to another node at the same position (the mesh has a "
+        f"crack there, e.g. nodes {int(data.node_ids[b])} and {int(data.node_ids[a])} at "
+        f"({x:.9g}, {y:.9g}, {z:.9g})): they are measured as one node and move together"
+    )
+    return dataclasses.replace(data, conn=rep[data.conn], glued=rep), (moved.size, note)
+
+
+def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, duplicates="glue",
+             timings=None):
     """:func:`prepare`, and the "shape" measure of the returned handle when it was taken on
     the way (else None): measuring it again would give the same result. ``timings`` (a dict),
     when given, receives the seconds of reading the mesh ("read") and of the rest ("recovery").
@@ -213,6 +240,8 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, timings=None):
         raise ValueError(f"tolerance must be a positive number, got {tolerance!r}")
     if collapsed not in ("skip", "error"):
         raise ValueError(f"collapsed must be 'skip' or 'error', got {collapsed!r}")
+    if duplicates not in ("glue", "error"):
+        raise ValueError(f"duplicates must be 'glue' or 'error', got {duplicates!r}")
     data = conversion.read_mesh(mesh)
     t_read = time.perf_counter()
     part_shape = shapes.shape_of(shape) if not _is_core_shape(shape) else None
@@ -223,6 +252,9 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, timings=None):
     if data.kind == "fem" and hints == "all" and part_shape is not None:
         conversion.fem_hints(data, part_shape, faces=True)
     tolerance_hints = data.kind == "fem" and hints == "auto"
+    glue = None
+    if duplicates == "glue":
+        data, glue = _glue_coincident(data)
     bad = data.collapsed_elements()
     dup = data.duplicate_elements() & ~bad
     work = data
@@ -303,12 +335,32 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, timings=None):
             f"left out {' and '.join(reasons)}: ids {shown}"
         ]
         report["skipped_elements"] = [int(i) for i in ids]
+    if glue is not None:
+        # The core sees the glued nodes as nodes of no element: they are not counted as such.
+        report = handle.report
+        report["glued_nodes"] = glue[0]
+        unused = max(0, int(report.get("unused_nodes", 0)) - glue[0])
+        report["unused_nodes"] = unused
+        if "fixed_nodes" in report:  # a glued node is fixed when the node it moves with is
+            glued = np.nonzero(data.glued != np.arange(data.glued.size))[0]
+            kinds = np.asarray(handle.node_kinds())
+            report["fixed_nodes"] = int(report["fixed_nodes"]) - glued.size + int(
+                np.count_nonzero(kinds[data.glued[glued]] == 0))
+        warnings = []
+        for w in report.get("warnings", []):
+            if _UNUSED_NODES.match(w):
+                if not unused:
+                    continue
+                w = _UNUSED_NODES.sub(f"{unused} nodes belong", w, count=1)
+            warnings.append(w)
+        report["warnings"] = warnings + [glue[1]]
     if timings is not None:
         timings["read"] = t_read - t0
         timings["recovery"] = time.perf_counter() - t_read
     return data, handle, shape_measure
 
 
+_UNUSED_NODES = re.compile(r"^\d+ nodes belong(?= to no element)")
 _NODE_REF = re.compile(r"\b(nodes?|row) (\d+)((?:,| and) (\d+))?")
 _ELEMENT_REF = re.compile(r"\b(elements?) (\d+)((?:,| and) (\d+))?")
 
@@ -414,7 +466,7 @@ def _report(data, handle, name, bridge=None, measured=None) -> QualityReport:
 
 
 def measure(mesh, shape, measure="shape", *, tolerance=None, hints="auto",
-            collapsed="skip") -> QualityReport:
+            collapsed="skip", duplicates="glue") -> QualityReport:
     """Quality of every element of ``mesh`` on ``shape`` with the named measure.
 
     Args:
@@ -423,13 +475,14 @@ def measure(mesh, shape, measure="shape", *, tolerance=None, hints="auto",
         measure: a name of :func:`measure_names` ("shape": Knupp's shape measure, "oddy").
         tolerance: distance under which a node counts as lying on the shape (default: chosen
             by the core from the shape's size and its tolerances).
-        hints, collapsed: see :func:`prepare`.
+        hints, collapsed, duplicates: see :func:`prepare`.
 
     Returns:
         QualityReport with ``quality`` (1/η, 0 tangled), ``tangled``, ``stats``.
     """
     _check_measure(measure)
-    data, handle, measured = _prepare(mesh, shape, "fixed", tolerance, hints, collapsed)
+    data, handle, measured = _prepare(mesh, shape, "fixed", tolerance, hints, collapsed,
+                                      duplicates)
     return _report(data, handle, measure, measured=measured if measure == "shape" else None)
 
 
@@ -442,13 +495,14 @@ def optimize(
     tolerance=None,
     hints="auto",
     collapsed="skip",
+    duplicates="glue",
     progress: Optional[Callable[[dict], Optional[bool]]] = None,
     **options,
 ) -> OptimizeResult:
     """Smooths and untangles ``mesh`` on ``shape``; the input is not modified.
 
     Args:
-        mesh, shape, measure, tolerance, hints, collapsed: as in :func:`measure`.
+        mesh, shape, measure, tolerance, hints, collapsed, duplicates: as in :func:`measure`.
         boundary: "fixed" (nodes on CAD edges and vertices stay) or "slide" (nodes on CAD edges
             slide along their edge; vertices stay).
         progress: called after every sweep with a dict (sweep, max_sweeps, objective, tangled,
@@ -473,7 +527,7 @@ def optimize(
     t_start = time.perf_counter()
     timings = {}
     data, handle, measured = _prepare(
-        mesh, shape, boundary, tolerance, hints, collapsed, timings=timings
+        mesh, shape, boundary, tolerance, hints, collapsed, duplicates, timings=timings
     )
     bridge = _bridge_report(handle)
     t0 = time.perf_counter()
@@ -494,6 +548,8 @@ def optimize(
     t2 = time.perf_counter()
     seconds = float(r.get("seconds", t2 - t1))
     new_nodes = handle.positions()
+    if data.glued is not None:  # a glued node goes where the node it is glued to went
+        new_nodes = new_nodes[data.glued]
     after = _report(data, handle, measure, bridge)
     t3 = time.perf_counter()
     new_mesh = conversion.rebuild(data, new_nodes) if data.kind in ("mesh", "fem") else None

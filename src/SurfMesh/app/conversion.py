@@ -62,6 +62,9 @@ class MeshData:
     hint_vertex: Optional[np.ndarray] = None
     source: object = None  # the Mesh.Mesh / Fem.FemMesh the arrays were read from
     kept: Optional[np.ndarray] = None  # set by api.prepare when elements were left out
+    # Set by api.prepare when coincident nodes were glued: glued[i] is the node that node i
+    # moves with (i itself for most nodes); ``conn`` then names only those nodes.
+    glued: Optional[np.ndarray] = None
 
     @property
     def node_count(self) -> int:
@@ -90,6 +93,26 @@ class MeshData:
             block = np.sort(self.conn[idx], axis=1)
             out[sel] = np.any(block[:, 1:] == block[:, :-1], axis=1)
         return out
+
+    def coincident_nodes(self):
+        """(N,) int64: for every node used by an element, the lowest-numbered node used by an
+        element at exactly the same position; every other node maps to itself. None when no
+        two used nodes coincide. Such pairs are a crack in the mesh: FreeCAD's standard mesher
+        leaves them along CAD edges where it meshed the two faces apart."""
+        used = np.unique(self.conn)
+        if used.size < 2 or used[0] < 0 or used[-1] >= self.node_count:
+            return None  # out-of-range ids: the core's check names them
+        _, group, counts = np.unique(
+            self.nodes[used], axis=0, return_inverse=True, return_counts=True
+        )
+        group = np.asarray(group).reshape(-1)
+        if not np.any(counts > 1):
+            return None
+        first = np.full(counts.size, np.iinfo(np.int64).max, dtype=np.int64)
+        np.minimum.at(first, group, used)
+        rep = np.arange(self.node_count, dtype=np.int64)
+        rep[used] = first[group]
+        return rep
 
     def duplicate_elements(self):
         """Bool mask of the elements whose corner nodes are those of another element (a pair

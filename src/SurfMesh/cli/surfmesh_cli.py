@@ -50,6 +50,9 @@ def build_parser():
                         help="max. node distance to the shape (default: automatic)")
         sp.add_argument("--shape-object", help="object holding the shape in an FCStd file")
         sp.add_argument("--mesh-object", help="object holding the mesh in an FCStd file")
+        sp.add_argument("--duplicates", default="glue", choices=["glue", "error"],
+                        help="nodes at the same position as another (a crack): move them "
+                        "together (glue, default) or stop with an error")
 
     m = sub.add_parser("measure", help="quality statistics of a mesh on a shape")
     common(m)
@@ -78,7 +81,7 @@ def _mesh_summary(mf):
 def _bridge_summary(bridge):
     keys = ("tolerance", "max_distance", "vertex_nodes", "edge_nodes", "face_nodes",
             "unused_nodes", "pole_nodes", "fixed_nodes", "sliding_nodes", "faces_used",
-            "hints_rejected", "flipped_faces", "warnings", "summary")
+            "hints_rejected", "flipped_faces", "glued_nodes", "warnings", "summary")
     return {k: bridge[k] for k in keys if k in bridge}
 
 
@@ -100,10 +103,12 @@ def run(argv):
            "mesh": _mesh_summary(mf), "measure": args.measure}
     if args.command == "measure":
         rep = sm.measure(mf.data, shape, measure=args.measure, tolerance=args.tolerance,
-                         hints="none")
+                         hints="none", duplicates=args.duplicates)
         print(reports.format_table([(args.measure, os.path.basename(args.mesh), rep.stats)]))
         out["stats"] = rep.stats
         out["bridge"] = _bridge_summary(rep.bridge)
+        for w in rep.bridge.get("warnings", []):
+            print(f"warning: {w}", file=sys.stderr)
     else:
         options = {}
         if args.max_sweeps is not None:
@@ -115,12 +120,13 @@ def run(argv):
         if args.no_monotone:
             options["monotone"] = False
         res = sm.optimize(mf.data, shape, measure=args.measure, boundary=args.boundary,
-                          tolerance=args.tolerance, hints="none", **options)
+                          tolerance=args.tolerance, hints="none", duplicates=args.duplicates,
+                          **options)
         fileio.write_mesh(args.output, mf, res.nodes, msh_version=args.msh_version)
         print(reports.format_table([(args.measure, "Initial", res.before.stats),
                                     (args.measure, "Optimized", res.after.stats)]))
         print(f"{res.sweeps} sweeps, {res.seconds:.2f} s ({res.reason}); wrote {args.output}")
-        for w in res.warnings:
+        for w in list(res.bridge.get("warnings", [])) + list(res.warnings):
             print(f"warning: {w}", file=sys.stderr)
         out.update(res.to_dict())
         out["output"] = os.path.abspath(args.output)

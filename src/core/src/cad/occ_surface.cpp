@@ -6,6 +6,7 @@
 #include <BRep_Tool.hxx>
 #include <Geom2dAdaptor_Curve.hxx>
 #include <Geom2d_Curve.hxx>
+#include <Geom_Surface.hxx>
 #include <Precision.hxx>
 #include <Standard_Failure.hxx>
 #include <TopAbs_State.hxx>
@@ -199,6 +200,19 @@ OccFaceSurface::OccFaceSurface(const TopoDS_Face& face, int faceId)
       bounds_.vmin = (v1 - v0 >= vPeriod_ * (1.0 - ptol)) ? v0 : c - 0.5 * vPeriod_;
       bounds_.vmax = bounds_.vmin + vPeriod_;
     }
+  }
+  // The underlying surface's range in the directions that are not periodic for us.
+  surfaceBounds_ = {-kInf, kInf, -kInf, kInf};
+  TopLoc_Location loc;
+  if (const Handle(Geom_Surface)& g = BRep_Tool::Surface(face_, loc); !g.IsNull()) {
+    double su0 = 0, su1 = 0, sv0 = 0, sv1 = 0;
+    g->Bounds(su0, su1, sv0, sv1);
+    if (!uPeriodic_ && uTurn_ == 0.0 && !g->IsUPeriodic() && std::isfinite(su0) &&
+        std::isfinite(su1) && su0 < su1)
+      surfaceBounds_.umin = su0, surfaceBounds_.umax = su1;
+    if (!vPeriodic_ && vTurn_ == 0.0 && !g->IsVPeriodic() && std::isfinite(sv0) &&
+        std::isfinite(sv1) && sv0 < sv1)
+      surfaceBounds_.vmin = sv0, surfaceBounds_.vmax = sv1;
   }
   normalSign_ = face_.Orientation() == TopAbs_REVERSED ? -1 : 1;
   // (u,v) tolerance of the classifier: the resolution of the face's 3D tolerance.
@@ -591,7 +605,7 @@ bool OccFaceSurface::containsWithinBand(double u, double v) const {
   return classifyWithClassifier(w.x(), w.y(), true);
 }
 
-bool OccFaceSurface::classifyWithClassifier(double u, double v, bool band) const {
+bool OccFaceSurface::classifyWithClassifier(double u, double v, bool band, bool strict) const {
   TrimShared& t = *trim_;
   std::call_once(t.classifierOnce, [&]() {
     t.classifier = std::make_unique<BRepTopAdaptor_FClass2d>(face_, uvTol_);
@@ -600,14 +614,17 @@ bool OccFaceSurface::classifyWithClassifier(double u, double v, bool band) const
   std::lock_guard<std::mutex> lock(t.classifierMutex);
   const TopAbs_State st = band ? t.classifier->TestOnRestriction(gp_Pnt2d(u, v), uvTol_, recadre)
                                : t.classifier->Perform(gp_Pnt2d(u, v), recadre);
-  return st == TopAbs_IN || st == TopAbs_ON;
+  return st == TopAbs_IN || (st == TopAbs_ON && !strict);
 }
 
 bool OccFaceSurface::contains(double u, double v) const {
+  if (!(u >= surfaceBounds_.umin && u <= surfaceBounds_.umax && v >= surfaceBounds_.vmin &&
+        v <= surfaceBounds_.vmax))
+    return false;  // NaN too
   const int known = containsFast(u, v);
   if (known >= 0) return known == 1;
   const Vec2 w = wrap(Vec2(u, v));
-  return classifyWithClassifier(w.x(), w.y(), false);
+  return classifyWithClassifier(w.x(), w.y(), false, true);
 }
 
 int OccFaceSurface::containsFast(double u, double v) const {
@@ -675,6 +692,7 @@ OccFaceSurface::OccFaceSurface(const OccFaceSurface& o)
       adaptor_(o.face_, Standard_True),  // its own evaluation caches (not shared)
       bounds_(o.bounds_),
       faceBounds_(o.faceBounds_),
+      surfaceBounds_(o.surfaceBounds_),
       uPeriodic_(o.uPeriodic_),
       vPeriodic_(o.vPeriodic_),
       uPeriod_(o.uPeriod_),

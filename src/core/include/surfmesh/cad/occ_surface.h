@@ -87,7 +87,12 @@ class OccFaceSurface final : public Surface {
   double uPeriod() const override { return uPeriod_; }
   double vPeriod() const override { return vPeriod_; }
   int normalSign() const override { return normalSign_; }
-  /// Inside the trimmed domain (ON the boundary counts as inside).
+  /// Strictly inside the face: within the parameter range of its underlying surface in the
+  /// non-periodic directions (no tolerance: a B-spline beyond its knots is an extrapolation,
+  /// off the face's geometry) and inside its trimming loops. A point OCC's classifier puts ON
+  /// a loop (within uvTolerance() of it, on either side) counts as outside: a node moved
+  /// only to (u,v) that contains() accepts stays on the face as FreeCAD measures it
+  /// (Face.distToShape), not merely within the face's tolerance of it.
   bool contains(double u, double v) const override;
   /// contains() where it needs no classifier query at (u,v) itself: 1 inside, 0 outside
   /// (outside the face's parameter box, in a periodic direction modulo the period; in a
@@ -133,6 +138,9 @@ class OccFaceSurface final : public Surface {
   int faceId_;
   BRepAdaptor_Surface adaptor_;
   ParamBounds bounds_, faceBounds_;
+  /// Parameter range of the underlying surface (Geom_Surface::Bounds), ±∞ in a periodic or
+  /// unbounded direction.
+  ParamBounds surfaceBounds_;
   bool uPeriodic_ = false, vPeriodic_ = false;
   double uPeriod_ = 0.0, vPeriod_ = 0.0;
   double uTurn_ = 0.0, vTurn_ = 0.0;
@@ -144,8 +152,8 @@ class OccFaceSurface final : public Surface {
   const TrimGrid* trimGrid() const;             // trim_'s grid, built on first use (thread-safe)
   /// The face's OCC classifier (BRepTopAdaptor_FClass2d with uvTolerance(), built on first
   /// use, shared by the copies, its queries serialized) at a wrapped (u,v): Perform, or with
-  /// `band` TestOnRestriction. IN and ON count as inside.
-  bool classifyWithClassifier(double u, double v, bool band) const;
+  /// `band` TestOnRestriction. IN counts as inside, and ON too unless `strict`.
+  bool classifyWithClassifier(double u, double v, bool band, bool strict = false) const;
 };
 
 /// One face adjacent to an edge, with the edge's pcurve(s) on it.
