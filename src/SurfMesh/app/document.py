@@ -158,6 +158,16 @@ def clear_colors(obj):
 # ---- make functions --------------------------------------------------------------------------
 
 
+def _print_warnings(warnings):
+    """The run's warnings (how the mesh was read on the CAD: elements left out, nodes glued;
+    elements left tangled) on FreeCAD's report view."""
+    if warnings:
+        import FreeCAD
+
+        for w in warnings:
+            FreeCAD.Console.PrintWarning(f"SurfMesh: {w}\n")
+
+
 def measure_object(obj, shape=None, measure="shape", color=True, **kwargs):
     """Measures mesh object ``obj`` on ``shape`` (default: its source shape), stores the
     stats on it and colors it. Returns the QualityReport."""
@@ -173,6 +183,7 @@ def measure_object(obj, shape=None, measure="shape", color=True, **kwargs):
         doc.abortTransaction()
         raise
     doc.commitTransaction()
+    _print_warnings(rep.bridge.get("warnings", []))
     return rep
 
 
@@ -221,11 +232,7 @@ def optimize_object(obj, shape=None, measure="shape", boundary="fixed", name=Non
             "reason": res.reason,
             **({"warnings": " | ".join(res.warnings)} if res.warnings else {}),
         }
-        if res.warnings:
-            import FreeCAD
-
-            for w in res.warnings:
-                FreeCAD.Console.PrintWarning(f"SurfMesh: {w}\n")
+        _print_warnings(list(res.bridge.get("warnings", [])) + list(res.warnings))
         store_report(new, res.before, before=True)
         store_report(new, res.after)
         if color:
