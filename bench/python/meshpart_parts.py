@@ -19,10 +19,13 @@ the start of the message.
     freecadcmd bench/python/meshpart_parts.py
 
 Options by environment (freecadcmd takes no script options): SURFMESH_MP_PARTS (comma list
-of files in SURFMESH_MP_CAD_DIR).
+of files in SURFMESH_MP_CAD_DIR); SURFMESH_MP_AMPS (e.g. "0.3,0.6": also runs each mesh SurfMesh
+takes with its Face nodes moved in (u,v) by that many × their element size, as
+perturbed_fem.py does; default none) and SURFMESH_MP_SEEDS (default "1,2").
 """
 
 import os
+import sys
 import time
 
 import numpy as np
@@ -31,8 +34,11 @@ import FreeCAD
 import MeshPart
 import Part
 import SurfMesh
+from SurfMesh.app import api, conversion
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+from perturb import local_sizes, perturbed  # noqa: E402
 CAD = os.environ.get(
     "SURFMESH_MP_CAD_DIR", os.path.normpath(os.path.join(HERE, "..", "..", "..", "shared",
                                                          "data", "cad")))
@@ -78,6 +84,9 @@ def max_moved_distance(shape, before, after, limit=150):
 def main():
     default = sorted(f for f in os.listdir(CAD) if f.endswith((".step", ".stp", ".brep")))
     parts = [p for p in os.environ.get("SURFMESH_MP_PARTS", ",".join(default)).split(",") if p]
+    amps = [float(x) for x in os.environ.get("SURFMESH_MP_AMPS", "").split(",") if x]
+    seeds = [int(x) for x in os.environ.get("SURFMESH_MP_SEEDS", "1,2").split(",") if x]
+    perturbations = [(amp, seed) for amp in amps for seed in seeds]
     print("| part | mesher | triangles | glued nodes | boundary | tangled before → after "
           "(movable) | min q before → after | mean q before → after | sweeps | s | "
           "max distance of moved nodes to the part |")
@@ -91,25 +100,48 @@ def main():
                                               AngularDeflection=0.35, Relative=False)
             else:
                 mesh = MeshPart.meshFromShape(Shape=shape, MaxLength=diag / 30)
-            p0 = points(mesh)
-            for boundary in ("fixed", "slide"):
-                head = f"| {name} | {mesher} | {mesh.CountFacets} |"
-                try:
-                    t = time.perf_counter()
-                    r = SurfMesh.optimize(mesh, shape, boundary=boundary)
-                    dt = time.perf_counter() - t
-                except ValueError as e:
-                    print(f"{head} | {boundary} | refused: {str(e)[:160]} | | | | | |",
-                          flush=True)
-                    continue
-                b, a = r.before.stats, r.after.stats
-                d, n_moved, rechecked = max_moved_distance(shape, p0, points(r.mesh))
-                note = f", {rechecked} by projection" if rechecked else ""
-                print(f"{head} {r.bridge.get('glued_nodes', 0)} | {boundary} | "
-                      f"{b['tangled']} → {a['tangled']} ({len(r.tangled_movable)}) | "
-                      f"{b['min']:.3f} → {a['min']:.3f} | {b['mean']:.3f} → {a['mean']:.3f} | "
-                      f"{r.sweeps} | {dt:.1f} | {d / diag:.1e} × diag ({n_moved} moved{note}) |",
-                      flush=True)
+            runs = [("", mesh, points(mesh))]
+            for amp, seed in perturbations:
+                trial = perturbed_mesh(mesh, shape, amp, seed)
+                if trial is None:
+                    break  # refused: its unperturbed rows say why
+                label = f", Face nodes moved {amp:g} × size (seed {seed})"
+                runs.append((label, trial, trial.nodes.astype(np.float32).astype(np.float64)))
+            for label, m, p0 in runs:
+                for boundary in ("fixed", "slide"):
+                    head = f"| {name} | {mesher}{label} | {mesh.CountFacets} |"
+                    try:
+                        t = time.perf_counter()
+                        r = SurfMesh.optimize(m, shape, boundary=boundary)
+                        dt = time.perf_counter() - t
+                    except ValueError as e:
+                        print(f"{head} | {boundary} | refused: {str(e)[:160]} | | | | | |",
+                              flush=True)
+                        continue
+                    b, a = r.before.stats, r.after.stats
+                    d, n_moved, rechecked = max_moved_distance(shape, p0, points(r.mesh))
+                    note = f", {rechecked} by projection" if rechecked else ""
+                    print(f"{head} {r.bridge.get('glued_nodes', 0)} | {boundary} | "
+                          f"{b['tangled']} → {a['tangled']} ({len(r.tangled_movable)}) | "
+                          f"{b['min']:.3f} → {a['min']:.3f} | {b['mean']:.3f} → "
+                          f"{a['mean']:.3f} | {r.sweeps} | {dt:.1f} | {d / diag:.1e} × diag "
+                          f"({n_moved} moved{note}) |", flush=True)
 
+
+def perturbed_mesh(mesh, shape, amp, seed):
+    """``mesh`` as arrays with its Face nodes moved (see perturb.py); glued twins move with
+    their node. None when SurfMesh refuses the mesh."""
+    try:
+        data, handle = api.prepare(mesh, shape)
+    except ValueError:
+        return None
+    w = data if data.kept is None else data.subset(data.kept)
+    nodes, _ = perturbed(data, shape, np.asarray(handle.node_kinds()),
+                         np.asarray(handle.node_faces()), np.asarray(handle.uv()),
+                         local_sizes(data, w), amp, seed)
+    if data.glued is not None:
+        nodes = nodes[data.glued]
+    raw = conversion.read_mesh(mesh)  # the input's own elements (twins not glued)
+    return conversion.MeshData(**{**raw.__dict__, "nodes": nodes})
 
 main()
