@@ -74,6 +74,76 @@ class TestMeasure(ApiCase):
 
 
 class TestOptimize(ApiCase):
+    def test_small_face_mostly_inverted_keeps_the_winding_of_the_mesh_around_it(self):
+        """On a small face, tangled elements can outnumber the rest. The face is still read
+        as wound like the mesh around it, so SurfMesh counts as tangled exactly the face's
+        elements inverted against FreeCAD's outward face normal, and untangles them all. (A vote of
+        the face's own elements would read it as flipped: the valid ones would count as
+        tangled, and the run would chase the mirror image.)"""
+        import MeshPart
+        import Part
+
+        path = T.find_part("occt_bottle.brep")
+        if path is None:
+            self.skipTest("occt_bottle.brep not found")
+        shape = Part.read(path)
+        diag = shape.BoundBox.DiagonalLength
+        mesh = MeshPart.meshFromShape(Shape=shape, MaxLength=diag / 30)  # Mefisto
+        from SurfMesh.app import api, conversion
+
+        data, handle = api.prepare(mesh, shape)
+        self.assertEqual(handle.report["flipped_faces"], [])
+        kinds = np.asarray(handle.node_kinds())
+        faces = np.asarray(handle.node_faces())
+        tris = np.asarray(data.conn).reshape(-1, 3)
+        nodes = np.asarray(data.nodes)
+
+        def inverted(x, elems, face):
+            """Elements of ``elems`` wound against FreeCAD's outward normal of ``face``."""
+            out = []
+            for e in elems:
+                p, q, r = x[tris[e]]
+                c = FreeCAD.Vector(*((p + q + r) / 3))
+                n = face.normalAt(*face.Surface.parameter(c))
+                if np.dot(np.cross(q - p, r - p), [n.x, n.y, n.z]) < 0:
+                    out.append(int(e))
+            return out
+
+        # The smallest face with at least three Face nodes; its Face nodes moved to random
+        # points of the face until most of its elements are inverted.
+        counts = np.bincount(faces[kinds == 1], minlength=len(shape.Faces))
+        fid = min((int((faces[tris] == f).any(axis=1).sum()), f)
+                  for f in np.nonzero(counts >= 3)[0])[1]
+        face = shape.Faces[int(fid)]
+        elems = np.nonzero((faces[tris] == fid).any(axis=1))[0]
+        inner = np.nonzero((kinds == 1) & (faces == fid))[0]
+        u0, u1, v0, v1 = face.ParameterRange
+        rng = np.random.default_rng(7)
+        for _ in range(2000):
+            x = nodes.copy()
+            for i in inner:
+                while True:
+                    u, v = rng.uniform(u0, u1), rng.uniform(v0, v1)
+                    if face.isPartOfDomain(u, v):
+                        break
+                p = face.Surface.value(u, v)
+                x[i] = (p.x, p.y, p.z)
+            bad = inverted(x, elems, face)
+            if 2 * len(bad) > len(elems):
+                break
+        else:
+            self.fail(f"no placement of Face{fid + 1}'s nodes inverts most of its elements")
+        trial = conversion.from_arrays(x, tris)
+        rep = SurfMesh.measure(trial, shape)
+        self.assertEqual(rep.bridge["flipped_faces"], [])
+        tangled = np.asarray(rep.tangled)
+        self.assertEqual(np.nonzero(tangled[elems])[0].size, len(bad))
+        self.assertEqual(sorted(int(e) for e in elems[tangled[elems]]), bad)
+        res = SurfMesh.optimize(trial, shape)
+        self.assertEqual(res.tangled_movable, [], res.warnings)
+        self.assertEqual(inverted(res.nodes, elems, face), [])
+        self.assertFalse(np.asarray(res.after.tangled)[elems].any())
+
     def test_standard_mesh_with_cracks_along_cad_edges_is_glued(self):
         """FreeCAD's standard mesher meshes some faces apart: along those CAD edges each node
         has a twin at the same position (a crack). The twins move together, so the mesh

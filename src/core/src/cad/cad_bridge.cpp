@@ -766,6 +766,126 @@ ElementEdges elementEdges(ElementType t) {
 
 void fail(const std::string& msg) { throw std::invalid_argument("CadMesh: " + msg); }
 
+/// Winding of each face against its outward normal (+1 as the normal, −1 against it, +1 for
+/// a face without elements), from the per-face element votes `agree` / `disagree` and the
+/// relations between faces across shared mesh edges (see step 5 of CadMesh's constructor).
+std::vector<int> faceWindingSigns(const MeshInput& input, const std::vector<std::int64_t>& offsets,
+                                  const std::vector<std::int32_t>& elemFace, int NF,
+                                  const std::vector<std::int64_t>& agree,
+                                  const std::vector<std::int64_t>& disagree) {
+  const std::size_t F = static_cast<std::size_t>(NF);
+  const std::size_t E = input.types.size();
+  // Corner edges of elements, keyed by their two nodes; `dir` = +1 when the element runs from
+  // the smaller node id to the larger one. Only edges between elements of different faces
+  // matter, and those have both nodes off any face interior; but which ones those are is not
+  // known per edge, so every corner edge is listed (8 bytes + 8 bytes each, freed on return).
+  struct Side {
+    std::uint64_t key;
+    std::int32_t face;
+    std::int32_t dir;
+  };
+  std::vector<Side> sides;
+  sides.reserve(input.conn.size());
+  for (std::size_t e = 0; e < E; ++e) {
+    const int nc = cornerCount(input.types[e]);
+    const std::int32_t* nd = input.conn.data() + offsets[e];
+    for (int k = 0; k < nc; ++k) {
+      const std::uint32_t a = static_cast<std::uint32_t>(nd[k]);
+      const std::uint32_t b = static_cast<std::uint32_t>(nd[(k + 1) % nc]);
+      if (a == b) continue;
+      const std::uint64_t key = a < b ? (std::uint64_t(a) << 32 | b) : (std::uint64_t(b) << 32 | a);
+      sides.push_back({key, elemFace[e], a < b ? 1 : -1});
+    }
+  }
+  std::sort(sides.begin(), sides.end(), [](const Side& p, const Side& q) {
+    return p.key != q.key ? p.key < q.key : p.face < q.face;
+  });
+  // Relations between face pairs: + (same winding) / − votes over their manifold shared edges.
+  struct Pair {
+    std::int32_t f, g;
+    std::int32_t vote;
+  };
+  std::vector<Pair> pairs;
+  for (std::size_t i = 0; i < sides.size();) {
+    std::size_t j = i + 1;
+    while (j < sides.size() && sides[j].key == sides[i].key) ++j;
+    if (j - i == 2 && sides[i].face != sides[i + 1].face)  // a manifold edge between two faces
+      pairs.push_back(
+          {sides[i].face, sides[i + 1].face, sides[i].dir != sides[i + 1].dir ? 1 : -1});
+    i = j;
+  }
+  sides = std::vector<Side>();
+  std::sort(pairs.begin(), pairs.end(),
+            [](const Pair& p, const Pair& q) { return p.f != q.f ? p.f < q.f : p.g < q.g; });
+  // Adjacency with one relation per face pair (ties: no relation).
+  std::vector<std::vector<std::pair<std::int32_t, int>>> adj(F);
+  for (std::size_t i = 0; i < pairs.size();) {
+    std::size_t j = i;
+    int sum = 0;
+    while (j < pairs.size() && pairs[j].f == pairs[i].f && pairs[j].g == pairs[i].g)
+      sum += pairs[j++].vote;
+    if (sum != 0) {
+      const int r = sum > 0 ? 1 : -1;
+      adj[static_cast<std::size_t>(pairs[i].f)].push_back({pairs[i].g, r});
+      adj[static_cast<std::size_t>(pairs[i].g)].push_back({pairs[i].f, r});
+    }
+    i = j;
+  }
+  pairs = std::vector<Pair>();
+  // Connected parts: relative signs by a breadth-first walk, checked on every relation.
+  std::vector<int> rel(F, 0), out(F, 1);
+  std::vector<std::int32_t> part, queue;
+  for (std::size_t root = 0; root < F; ++root) {
+    if (rel[root] != 0) continue;
+    part.clear();
+    queue.assign(1, static_cast<std::int32_t>(root));
+    rel[root] = 1;
+    bool consistent = true;
+    for (std::size_t q = 0; q < queue.size(); ++q) {
+      const std::size_t f = static_cast<std::size_t>(queue[q]);
+      part.push_back(static_cast<std::int32_t>(f));
+      for (const auto& [g, r] : adj[f]) {
+        const std::size_t gi = static_cast<std::size_t>(g);
+        if (rel[gi] == 0) {
+          rel[gi] = rel[f] * r;
+          queue.push_back(g);
+        } else if (rel[gi] != rel[f] * r) {
+          consistent = false;
+        }
+      }
+    }
+    if (!consistent) {  // per-face votes, as without relations
+      for (std::int32_t f : part) {
+        const std::size_t fi = static_cast<std::size_t>(f);
+        out[fi] = disagree[fi] > agree[fi] ? -1 : 1;
+      }
+      continue;
+    }
+    std::int64_t total = 0;
+    for (std::int32_t f : part) {
+      const std::size_t fi = static_cast<std::size_t>(f);
+      total += rel[fi] * (agree[fi] - disagree[fi]);
+    }
+    const int sign = total < 0 ? -1 : 1;
+    // A face whose own elements clearly say otherwise (more than 3 to 1, by at least 3): the
+    // relations do not hold for this part (faces of an open model whose normals are not
+    // oriented alike, joined without a cycle that would show it); per-face votes then.
+    bool contradicted = false;
+    for (std::int32_t f : part) {
+      const std::size_t fi = static_cast<std::size_t>(f);
+      const int o = sign * rel[fi];
+      const std::int64_t with = o > 0 ? agree[fi] : disagree[fi];
+      const std::int64_t against = o > 0 ? disagree[fi] : agree[fi];
+      if (against >= 3 && against > 3 * with) contradicted = true;
+    }
+    for (std::int32_t f : part) {
+      const std::size_t fi = static_cast<std::size_t>(f);
+      out[fi] = contradicted ? (disagree[fi] > agree[fi] ? -1 : 1) : sign * rel[fi];
+    }
+  }
+  return out;
+}
+
 }  // namespace
 
 /// The hint a node's classification was forced by.
@@ -1658,11 +1778,22 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   }
 
   // ---- 5. orientation: faces meshed with the opposite winding ---------------------------------
+  // A face's winding is not decided by its own elements alone: on a small face, tangled
+  // elements can outvote the rest (a perturbed 9-element face with 5 inverted read as flipped,
+  // then untangled towards its mirror image). Two faces meeting along a mesh edge are related
+  // whatever the node positions: if the two elements there run along the edge in opposite
+  // directions (the mesh is wound consistently across it), both faces have the same winding
+  // against their outward normals, else opposite ones. Those relations (a majority over each
+  // pair's shared edges) tie the faces of a connected part of the mesh together, and all the
+  // elements of that part vote once for its winding. A part whose relations contradict each
+  // other (a mesh not wound consistently, or a shell whose faces are not oriented alike) keeps
+  // the per-face votes.
+  std::vector<int> windingSign = faceWindingSigns(input, offsets, elemFace, NF, agree, disagree);
   report_.faceFlipped.assign(static_cast<std::size_t>(NF), 0);
   for (int f = 0; f < NF; ++f) {
     const std::size_t fi = static_cast<std::size_t>(f);
     if (report_.faceElements[fi] > 0) ++report_.facesUsed;
-    if (disagree[fi] > agree[fi]) {
+    if (windingSign[fi] < 0) {
       M.faceOrientation[fi] = -1;
       report_.faceFlipped[fi] = 1;
       report_.flippedFaces.push_back(f);

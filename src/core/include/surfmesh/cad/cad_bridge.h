@@ -36,8 +36,15 @@
 //      no element are Fixed; edge nodes are Fixed (boundary "fixed", the paper's setting) or
 //      slide along their edge (boundary "slide": NodeKind::Edge with nodeEdge / nodeT).
 //   5. Orientation: the reference normal of face f is its outward normal (normalSign · φ_u×φ_v).
-//      When most of f's elements are wound against it, faceOrientation[f] = −1 and f is reported
-//      as flipped, so a consistently oriented mesh is never reported all tangled.
+//      Faces joined by mesh edges have related windings whatever the node positions: the same
+//      against their outward normals where the two elements run along the shared edge in
+//      opposite directions, opposite ones otherwise. Through these relations all elements of a
+//      connected part of the mesh vote once for its winding; a face wound against its outward
+//      normal gets faceOrientation[f] = −1 and is reported as flipped. A consistently oriented
+//      mesh is therefore never reported all tangled, and a small face whose own elements are
+//      mostly tangled keeps the winding of the mesh around it. A part whose relations
+//      contradict each other, or one of whose faces has its own elements clearly against the
+//      result (more than 3 to 1, by at least 3), falls back to one vote per face.
 //
 // Element corners' (u,v) (SurfaceMesh::cornerUV) are computed on the element's face for
 // every node (edge nodes through the edge's pcurve, vertex nodes through the vertex
