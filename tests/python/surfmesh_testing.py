@@ -76,6 +76,13 @@ def reference_tri_quality(nodes, tris, face):
     return q, tangled
 
 
+def coincident_groups(points):
+    """Index arrays of the points that share one position exactly (groups of two or more)."""
+    _, group, counts = np.unique(points, axis=0, return_inverse=True, return_counts=True)
+    group = np.asarray(group).reshape(-1)
+    return [np.nonzero(group == g)[0] for g in np.nonzero(counts > 1)[0]]
+
+
 def distance_to_surface(face, points):
     """Distance of each point to the (untrimmed) surface of ``face``: |p − φ(parameter(p))|."""
     import FreeCAD

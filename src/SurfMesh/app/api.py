@@ -211,8 +211,8 @@ def prepare(mesh, shape, boundary="fixed", tolerance=None, hints="auto", collaps
 
 
 def _glue_coincident(data):
-    """``data`` with its coincident nodes glued (see :func:`prepare`), and the warning to give
-    (None when no nodes coincide)."""
+    """``data`` with its coincident nodes glued (see :func:`prepare`), and (the glued nodes'
+    indices, the warning to give), or None when no nodes coincide."""
     rep = data.coincident_nodes()
     if rep is None:
         return data, None
@@ -225,7 +225,7 @@ def _glue_coincident(data):
         f"crack there, e.g. nodes {int(data.node_ids[b])} and {int(data.node_ids[a])} at "
         f"({x:.9g}, {y:.9g}, {z:.9g})): they are measured as one node and move together"
     )
-    return dataclasses.replace(data, conn=rep[data.conn], glued=rep), (moved.size, note)
+    return dataclasses.replace(data, conn=rep[data.conn], glued=rep), (moved, note)
 
 
 def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, duplicates="glue",
@@ -337,12 +337,12 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, duplicates="glu
         report["skipped_elements"] = [int(i) for i in ids]
     if glue is not None:
         # The core sees the glued nodes as nodes of no element: they are not counted as such.
+        glued, note = glue
         report = handle.report
-        report["glued_nodes"] = glue[0]
-        unused = max(0, int(report.get("unused_nodes", 0)) - glue[0])
+        report["glued_nodes"] = int(glued.size)
+        unused = max(0, int(report.get("unused_nodes", 0)) - glued.size)
         report["unused_nodes"] = unused
         if "fixed_nodes" in report:  # a glued node is fixed when the node it moves with is
-            glued = np.nonzero(data.glued != np.arange(data.glued.size))[0]
             kinds = np.asarray(handle.node_kinds())
             report["fixed_nodes"] = int(report["fixed_nodes"]) - glued.size + int(
                 np.count_nonzero(kinds[data.glued[glued]] == 0))
@@ -353,7 +353,7 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, duplicates="glu
                     continue
                 w = _UNUSED_NODES.sub(f"{unused} nodes belong", w, count=1)
             warnings.append(w)
-        report["warnings"] = warnings + [glue[1]]
+        report["warnings"] = warnings + [note]
     if timings is not None:
         timings["read"] = t_read - t0
         timings["recovery"] = time.perf_counter() - t_read

@@ -775,28 +775,40 @@ std::vector<int> faceWindingSigns(const MeshInput& input, const std::vector<std:
                                   const std::vector<std::int64_t>& disagree) {
   const std::size_t F = static_cast<std::size_t>(NF);
   const std::size_t E = input.types.size();
-  // Corner edges of elements, keyed by their two nodes; `dir` = +1 when the element runs from
-  // the smaller node id to the larger one. Only edges between elements of different faces
-  // matter, and those have both nodes off any face interior; but which ones those are is not
-  // known per edge, so every corner edge is listed (8 bytes + 8 bytes each, freed on return).
+  // Nodes used by elements of more than one face: both ends of any edge between two faces.
+  std::vector<std::int32_t> firstFace(input.nodes.size(), -1);
+  std::vector<unsigned char> shared(input.nodes.size(), 0);
+  for (std::size_t e = 0; e < E; ++e) {
+    const std::int32_t* nd = input.conn.data() + offsets[e];
+    for (int k = 0; k < cornerCount(input.types[e]); ++k) {
+      std::int32_t& f0 = firstFace[static_cast<std::size_t>(nd[k])];
+      if (f0 < 0)
+        f0 = elemFace[e];
+      else if (f0 != elemFace[e])
+        shared[static_cast<std::size_t>(nd[k])] = 1;
+    }
+  }
+  firstFace = std::vector<std::int32_t>();
+  // Those corner edges, keyed by their two nodes; `dir` = +1 when the element runs from the
+  // smaller node id to the larger one.
   struct Side {
     std::uint64_t key;
     std::int32_t face;
     std::int32_t dir;
   };
   std::vector<Side> sides;
-  sides.reserve(input.conn.size());
   for (std::size_t e = 0; e < E; ++e) {
     const int nc = cornerCount(input.types[e]);
     const std::int32_t* nd = input.conn.data() + offsets[e];
     for (int k = 0; k < nc; ++k) {
       const std::uint32_t a = static_cast<std::uint32_t>(nd[k]);
       const std::uint32_t b = static_cast<std::uint32_t>(nd[(k + 1) % nc]);
-      if (a == b) continue;
+      if (a == b || !shared[a] || !shared[b]) continue;
       const std::uint64_t key = a < b ? (std::uint64_t(a) << 32 | b) : (std::uint64_t(b) << 32 | a);
       sides.push_back({key, elemFace[e], a < b ? 1 : -1});
     }
   }
+  shared = std::vector<unsigned char>();
   std::sort(sides.begin(), sides.end(), [](const Side& p, const Side& q) {
     return p.key != q.key ? p.key < q.key : p.face < q.face;
   });
@@ -854,33 +866,27 @@ std::vector<int> faceWindingSigns(const MeshInput& input, const std::vector<std:
         }
       }
     }
-    if (!consistent) {  // per-face votes, as without relations
-      for (std::int32_t f : part) {
-        const std::size_t fi = static_cast<std::size_t>(f);
-        out[fi] = disagree[fi] > agree[fi] ? -1 : 1;
-      }
-      continue;
-    }
     std::int64_t total = 0;
     for (std::int32_t f : part) {
       const std::size_t fi = static_cast<std::size_t>(f);
       total += rel[fi] * (agree[fi] - disagree[fi]);
     }
     const int sign = total < 0 ? -1 : 1;
-    // A face whose own elements clearly say otherwise (more than 3 to 1, by at least 3): the
-    // relations do not hold for this part (faces of an open model whose normals are not
-    // oriented alike, joined without a cycle that would show it); per-face votes then.
-    bool contradicted = false;
+    // Per-face votes, as without relations, when the relations contradict each other or a
+    // face's own elements clearly say otherwise (more than 3 to 1, by at least 3: faces of an
+    // open model whose normals are not oriented alike, joined without a cycle that would
+    // show it).
+    bool perFace = !consistent;
     for (std::int32_t f : part) {
       const std::size_t fi = static_cast<std::size_t>(f);
       const int o = sign * rel[fi];
       const std::int64_t with = o > 0 ? agree[fi] : disagree[fi];
       const std::int64_t against = o > 0 ? disagree[fi] : agree[fi];
-      if (against >= 3 && against > 3 * with) contradicted = true;
+      if (against >= 3 && against > 3 * with) perFace = true;
     }
     for (std::int32_t f : part) {
       const std::size_t fi = static_cast<std::size_t>(f);
-      out[fi] = contradicted ? (disagree[fi] > agree[fi] ? -1 : 1) : sign * rel[fi];
+      out[fi] = perFace ? (disagree[fi] > agree[fi] ? -1 : 1) : sign * rel[fi];
     }
   }
   return out;

@@ -94,10 +94,11 @@ class OccFaceSurface final : public Surface {
   /// only to (u,v) that contains() accepts stays on the face as FreeCAD measures it
   /// (Face.distToShape), not merely within the face's tolerance of it.
   bool contains(double u, double v) const override;
-  /// contains() where it needs no classifier query at (u,v) itself: 1 inside, 0 outside
-  /// (outside the face's parameter box, in a periodic direction modulo the period; in a
-  /// sub-cell no trimming loop passes through; or, in one that a loop passes through, by the
-  /// parity of the grid's pcurve pieces crossed on the way to a sub-cell of known side); −1
+  /// The trimming-loop part of contains() where it needs no classifier query at (u,v)
+  /// itself: 1 inside, 0 outside (outside the face's parameter box, in a periodic direction
+  /// modulo the period; in a sub-cell no trimming loop passes through; or, in one that a loop
+  /// passes through, by the parity of the grid's pcurve pieces crossed on the way to a
+  /// sub-cell of known side); −1
   /// within 1/10 sub-cell plus the tolerance of a pcurve piece (or when the face has no grid),
   /// where only a classifier can tell. (Classifying a region of the grid for the first time
   /// asks the classifier at one point of it.)
