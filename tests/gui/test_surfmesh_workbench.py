@@ -93,12 +93,20 @@ try:
     expected = coloring.quality_rgb(q, q <= 0)
     got = np.array([c[:3] for c in mesh.SurfMeshColors])
     check(np.allclose(got, expected, atol=1e-6), "color property matches the quality")
+    # A selected object is drawn in the selection's style, over its colors: look at it as a
+    # user does after clicking elsewhere.
+    FreeCADGui.Selection.clearSelection()
+    FreeCADGui.updateGui()
     shot1 = os.path.join(out, "gui_measure.png")
     view.saveImage(shot1, 800, 600, "White")
     img1 = pixels(shot1)
     frac_green, frac_yellow, frac_tangled = shares(img1)
     check(frac_green > 0.3, f"screenshot shows good (green) elements ({frac_green:.3f})")
     check(frac_yellow > 0.03, f"screenshot shows poor (yellow/red) elements ({frac_yellow:.3f})")
+    # A tangled element is wound against its neighbours: the view sees its back face, which a
+    # FEM view culls by default. Its purple must reach the screen all the same.
+    check(mesh.ViewObject.BackfaceCulling is False, "back faces drawn while tangled are shown")
+    check(frac_tangled > 0.0, f"screenshot shows the tangled (purple) elements ({frac_tangled:.5f})")
 
     # ---- optimize through the task panel: cancel, then apply --------------------------------
     from SurfMesh.gui.taskpanels.optimize_panel import OptimizePanel
@@ -139,7 +147,8 @@ try:
     check(frac_green2 > frac_green, f"optimized view is greener ({frac_green2:.3f} > "
                                     f"{frac_green:.3f})")
     check(frac_yellow2 < frac_yellow, "fewer poor elements in the view")
-    check(frac_tangled2 <= frac_tangled, "no more tangled color than before")
+    check(frac_tangled2 < 0.1 * frac_tangled, f"no tangled color left ({frac_tangled2:.5f})")
+    check(new.ViewObject.BackfaceCulling is True, "untangled mesh keeps the view's culling")
 
     # ---- report ---------------------------------------------------------------------------
     FreeCADGui.Selection.clearSelection()
@@ -166,6 +175,12 @@ try:
     frac_green3 = shares(pixels(shot3))[0]
     check(frac_green3 < 0.5 * frac_green2, f"view no longer green ({frac_green3:.3f})")
 
+    FreeCADGui.Selection.clearSelection()
+    FreeCADGui.Selection.addSelection(mesh)
+    FreeCADGui.runCommand("SurfMesh_ClearColors")
+    check("SurfMeshColors" not in mesh.PropertiesList, "tangled mesh's colors cleared")
+    check(mesh.ViewObject.BackfaceCulling is True, "clearing gives the view its culling back")
+
     # ---- Mesh object: measure colors through Coloring -----------------------------------------
     import MeshPart
 
@@ -185,6 +200,18 @@ try:
     frac4, frac4y, _ = shares(pixels(shot4))
     check(frac4 + frac4y > 0.5, f"Mesh screenshot shows quality colors ({frac4:.3f}, "
                                 f"{frac4y:.3f})")
+
+    check(m.ViewObject.Lighting == "One side", "untangled Mesh keeps one-sided lighting")
+    # A Mesh view leaves back faces unlit: colors marking a tangled facet light both sides,
+    # and clearing them gives the view its own lighting back.
+    from types import SimpleNamespace
+
+    marked = np.array(m.SurfMeshQuality)
+    marked[:3] = 0.0
+    SurfMesh.apply_colors(m, SimpleNamespace(quality=marked, tangled=marked <= 0.0))
+    check(m.ViewObject.Lighting == "Two side", "Mesh with tangled facets lit on both sides")
+    SurfMesh.clear_colors(m)
+    check(m.ViewObject.Lighting == "One side", "clearing gives the Mesh view its lighting back")
 
     # ---- FEM tria6: node colors (ElementColor draws wrong colors on tria6 in 0.20) ----------
     m.ViewObject.Visibility = False

@@ -19,6 +19,7 @@ An optimized object also gets SurfMeshStatsBefore, SurfMeshQualityBefore, SurfMe
 Colors in the 3D view are applied when the object has a view provider (GUI up): Mesh objects
 through ``Coloring``, FEM tria3 meshes through ``ElementColor``, other FEM meshes (tria6, quad4,
 mixed) through per-node colors (``ElementColor`` draws wrong colors on tria6 in FreeCAD 0.20).
+While tangled elements are shown, the view draws back faces (see _show_back_faces).
 
 Headless: never imports FreeCADGui.
 """
@@ -123,6 +124,7 @@ def apply_colors(obj, report=None):
     vo = getattr(obj, "ViewObject", None)
     if vo is None:
         return rgb
+    _show_back_faces(obj, vo, kind, bool(np.any(tangled)))
     if kind == "mesh":
         vo.Coloring = False  # toggle: the view keeps stale colors otherwise
         vo.Coloring = True
@@ -140,6 +142,43 @@ def apply_colors(obj, report=None):
     return rgb
 
 
+def _show_back_faces(obj, vo, kind, show):
+    """Makes a tangled element visible: it is wound against its neighbours, so the view sees
+    its back face, which FEM views cull (BackfaceCulling) and Mesh views leave unlit (one-sided
+    Lighting) — the purple of a tangled element never reached the screen. While the colors
+    show tangled elements, back faces are drawn (FEM) and lit (Mesh); the view's own setting
+    is recorded on the object (SurfMeshViewBackFaces) and given back by clear_colors or by
+    colors without tangled elements."""
+    prop = "BackfaceCulling" if kind == "fem" else "Lighting"
+    if prop not in vo.PropertiesList:
+        return
+    saved = "SurfMeshViewBackFaces"
+    if show:
+        if saved not in obj.PropertiesList:
+            obj.addProperty("App::PropertyString", saved, GROUP,
+                            "The view's back-face setting before tangled elements were shown")
+            setattr(obj, saved, str(getattr(vo, prop)))
+            obj.setEditorMode(saved, 2)  # hidden: bookkeeping of the view, not of the mesh
+        if kind == "fem":
+            vo.BackfaceCulling = False
+        else:
+            vo.Lighting = "Two side"
+    else:
+        _restore_back_faces(obj, vo, kind)
+
+
+def _restore_back_faces(obj, vo, kind):
+    saved = "SurfMeshViewBackFaces"
+    if saved not in obj.PropertiesList:
+        return
+    value = getattr(obj, saved)
+    obj.removeProperty(saved)
+    if kind == "fem" and "BackfaceCulling" in vo.PropertiesList:
+        vo.BackfaceCulling = value == "True"
+    elif kind == "mesh" and "Lighting" in vo.PropertiesList and value:
+        vo.Lighting = value
+
+
 def clear_colors(obj):
     """Removes the quality colors from ``obj`` (the stored stats are kept)."""
     kind = _mesh_kind(obj)
@@ -148,6 +187,7 @@ def clear_colors(obj):
     vo = getattr(obj, "ViewObject", None)
     if vo is None:
         return
+    _restore_back_faces(obj, vo, kind)
     if kind == "mesh":
         vo.Coloring = False
     else:
@@ -156,6 +196,17 @@ def clear_colors(obj):
 
 
 # ---- make functions --------------------------------------------------------------------------
+
+
+def _fem_mesh_type():
+    """The type of a new FEM mesh object. FreeCAD 0.20 draws a plain Fem::FemMeshObject made
+    without the GUI as nothing once its file is opened in the GUI (its view is not built from
+    the restored mesh), while the Python variant is drawn; but made in the GUI, the Python
+    variant without a view proxy has no display mode (drawn as nothing, none can be set) while
+    the plain one is drawn. So: the plain object in the GUI, the Python variant headless."""
+    import FreeCAD
+
+    return "Fem::FemMeshObject" if FreeCAD.GuiUp else "Fem::FemMeshObjectPython"
 
 
 def _print_warnings(warnings):
@@ -215,7 +266,7 @@ def optimize_object(obj, shape=None, measure="shape", boundary="fixed", name=Non
             new = doc.addObject("Mesh::Feature", new_name)
             new.Mesh = res.mesh
         else:
-            new = doc.addObject("Fem::FemMeshObject", new_name)
+            new = doc.addObject(_fem_mesh_type(), new_name)
             new.FemMesh = res.mesh
         new.Label = f"{obj.Label}_optimized" if name is None else name
         _ensure(new, "App::PropertyLink", "SurfMeshOriginal", "The mesh this one was optimized from")

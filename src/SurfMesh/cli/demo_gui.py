@@ -27,16 +27,33 @@ try:
     for o in doc.Objects:
         o.ViewObject.Visibility = False
     view = gdoc.ActiveView
+    import time
+
+    import matplotlib.image as mpimg
+
+    def drawn_share(path):
+        """Share of the image's pixels that are not the white background."""
+        img = mpimg.imread(path)[..., :3]
+        return float((img.sum(axis=-1) < 2.9).mean())
+
     shots = []
     for obj in meshes:
         obj.ViewObject.Visibility = True  # color a visible FEM view: hidden ones stay blank
         FreeCADGui.updateGui()
         SurfMesh.apply_colors(obj)
-        view.viewIsometric()
-        view.fitAll()
-        FreeCADGui.updateGui()
         path = os.path.join(outdir, f"view_{obj.Name}.png")
-        view.saveImage(path, 800, 600, "White")
+        # The off-screen render now and then comes back empty right after a change of the
+        # scene: render again (up to 5 times) rather than show a blank view.
+        for attempt in range(5):
+            view.viewIsometric()
+            view.fitAll()
+            FreeCADGui.updateGui()
+            view.saveImage(path, 800, 600, "White")
+            if drawn_share(path) > 0.05:
+                break
+            time.sleep(0.5)
+        else:
+            raise RuntimeError(f"the 3D view of {obj.Label} rendered empty 5 times")
         shots.append(path)
         obj.ViewObject.Visibility = False
     for obj in meshes:
@@ -48,7 +65,6 @@ try:
 
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
-    import matplotlib.image as mpimg
 
     titles = ["tangled (shape quality)", "smoothed: shape", "smoothed: Oddy"]
     fig = Figure(figsize=(15, 4.8), dpi=100)
