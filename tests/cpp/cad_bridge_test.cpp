@@ -11,11 +11,17 @@
 #include <BRepBuilderAPI_MakeVertex.hxx>
 #include <BRepClass_FaceClassifier.hxx>
 #include <BRepExtrema_DistShapeShape.hxx>
+#include <BRepPrimAPI_MakeBox.hxx>
+#include <BRep_Builder.hxx>
 #include <BRep_Tool.hxx>
 #include <GeomAPI_ProjectPointOnCurve.hxx>
 #include <GeomAPI_ProjectPointOnSurf.hxx>
 #include <Geom_Curve.hxx>
+#include <Geom_Plane.hxx>
 #include <Geom_Surface.hxx>
+#include <TopExp_Explorer.hxx>
+#include <TopoDS.hxx>
+#include <TopoDS_Compound.hxx>
 #include <gp_Pnt.hxx>
 #include <gp_Pnt2d.hxx>
 #include <gtest/gtest.h>
@@ -30,6 +36,7 @@
 #include <set>
 #include <stdexcept>
 #include <string>
+#include <tuple>
 
 using namespace surfmesh;
 
@@ -278,6 +285,164 @@ TEST(CadBridge, MeshWoundTheOtherWayIsNeverAllTangled) {
 }
 
 // ---- hints and boundary modes --------------------------------------------------------------
+
+namespace {
+
+/// Sides of the box [0, L]³: the plane coordinate[axis] = value·L (value 0 or 1).
+struct BoxSide {
+  int axis, value;
+};
+
+/// Structured triangle mesh (n × n cells, two triangles each) of some sides of the box
+/// [0, L]³, nodes shared where sides meet, every triangle wound along the box's outward
+/// normal. `side[e]` gives each element's index in `sides`.
+struct BoxMesh {
+  MeshInput input;
+  std::vector<int> side;
+};
+
+BoxMesh boxSideMesh(double L, int n, const std::vector<BoxSide>& sides) {
+  BoxMesh m;
+  std::map<std::tuple<int, int, int>, std::int32_t> ids;
+  auto node = [&](int i, int j, int k) {
+    const auto key = std::make_tuple(i, j, k);
+    auto it = ids.find(key);
+    if (it != ids.end()) return it->second;
+    const std::int32_t id = static_cast<std::int32_t>(m.input.nodes.size());
+    m.input.nodes.emplace_back(L * i / n, L * j / n, L * k / n);
+    ids[key] = id;
+    return id;
+  };
+  for (std::size_t s = 0; s < sides.size(); ++s) {
+    const int a = sides[s].axis, b = (a + 1) % 3, c = (a + 2) % 3;
+    auto at = [&](int p, int q) {
+      int ijk[3];
+      ijk[a] = sides[s].value * n;
+      ijk[b] = p;
+      ijk[c] = q;
+      return node(ijk[0], ijk[1], ijk[2]);
+    };
+    for (int p = 0; p < n; ++p)
+      for (int q = 0; q < n; ++q) {
+        // Counter-clockwise in (b, c) is along e_b × e_c = +e_a: the outward normal of the
+        // side at value 1; the side at value 0 is wound the other way.
+        const std::int32_t tris[2][3] = {{at(p, q), at(p + 1, q), at(p + 1, q + 1)},
+                                         {at(p, q), at(p + 1, q + 1), at(p, q + 1)}};
+        for (const auto& t : tris) {
+          m.input.types.push_back(ElementType::Tri3);
+          m.input.conn.insert(m.input.conn.end(), {t[0], t[1], t[2]});
+          if (sides[s].value == 0) std::swap(m.input.conn.end()[-1], m.input.conn.end()[-2]);
+          m.side.push_back(static_cast<int>(s));
+        }
+      }
+  }
+  return m;
+}
+
+/// Whether node `id` of a box mesh lies on the box's edge where sides s and t meet.
+bool onBoxEdge(const BoxMesh& m, double L, std::int32_t id, BoxSide s, BoxSide t) {
+  const Vec3& x = m.input.nodes[static_cast<std::size_t>(id)];
+  return std::abs(x[s.axis] - s.value * L) < 1e-12 && std::abs(x[t.axis] - t.value * L) < 1e-12;
+}
+
+/// Number of tangled elements of a recovered mesh (shape measure).
+std::size_t tangledCount(const CadMesh& cm) {
+  return measureQuality(cm.mesh(), measureByName("shape")).stats.tangled;
+}
+
+}  // namespace
+
+TEST(CadBridge, ContradictingWindingRelationsFallBackToPerFaceVotes) {
+  // A closed box meshed consistently, then the row of elements of one side C along its edge
+  // with side A rewound: across that edge, A and C now look oppositely wound, across C's edges
+  // with the other sides alike — a cycle of relations that contradict each other. The faces
+  // then vote one by one: C's own elements (two thirds of them wound right) keep C's winding,
+  // and only the rewound elements are tangled. Without this fallback, the walk from face 0 = A
+  // gives C the opposite winding and C's other elements are all tangled (a third of C against
+  // two thirds is not the clear majority that the other fallback asks for).
+  const double L = 10.0;
+  const int n = 3;
+  auto shape = std::make_shared<CadShape>(BRepPrimAPI_MakeBox(L, L, L).Shape());
+  const std::vector<BoxSide> sides = {{0, 0}, {0, 1}, {1, 0}, {1, 1}, {2, 0}, {2, 1}};
+  BoxMesh m = boxSideMesh(L, n, sides);
+  std::vector<int> faceOfSide(sides.size(), -1);
+  {
+    CadMesh cm(shape, m.input);
+    ASSERT_TRUE(cm.report().flippedFaces.empty());
+    ASSERT_EQ(tangledCount(cm), 0u);
+    for (std::size_t e = 0; e < m.side.size(); ++e)
+      faceOfSide[static_cast<std::size_t>(m.side[e])] = cm.mesh().elemFace[e];
+  }
+  // A: the side on face 0, where the walk over the relations starts. C: the neighbour of A
+  // with the largest face id, walked last, so that every other face is reached through right
+  // relations first: only C takes the wrong winding, and the contradiction alone (not a face
+  // whose own elements all say otherwise) decides.
+  const int a =
+      static_cast<int>(std::find(faceOfSide.begin(), faceOfSide.end(), 0) - faceOfSide.begin());
+  ASSERT_LT(a, 6);
+  int c = -1;
+  for (int s = 0; s < 6; ++s)
+    if (sides[static_cast<std::size_t>(s)].axis != sides[static_cast<std::size_t>(a)].axis &&
+        (c < 0 ||
+         faceOfSide[static_cast<std::size_t>(s)] > faceOfSide[static_cast<std::size_t>(c)]))
+      c = s;
+  std::size_t rewound = 0;
+  for (std::size_t e = 0; e < m.side.size(); ++e) {
+    if (m.side[e] != c) continue;
+    std::int32_t* t = m.input.conn.data() + 3 * e;
+    int on = 0;
+    for (int k = 0; k < 3; ++k)
+      on += onBoxEdge(m, L, t[k], sides[static_cast<std::size_t>(a)],
+                      sides[static_cast<std::size_t>(c)]);
+    if (on == 0) continue;  // not in the row of cells along the A-C edge
+    std::swap(t[1], t[2]);
+    ++rewound;
+  }
+  ASSERT_EQ(rewound, static_cast<std::size_t>(2 * n));
+  CadMesh cm(shape, m.input);
+  EXPECT_TRUE(cm.report().flippedFaces.empty());
+  EXPECT_EQ(tangledCount(cm), rewound);
+}
+
+TEST(CadBridge, OpenModelWithFacesNotOrientedAlikeKeepsEachFaceWinding) {
+  // Two sides of a box that share an edge, given as a compound with one of them reversed: an
+  // open model whose face normals are not oriented alike. The mesh is wound consistently
+  // (along the box's outward normal on both), so across the shared edge the relation says the
+  // two faces have the same winding, while every element of the reversed face says it is
+  // against that face's normal. That face's own elements win: it is reported flipped and
+  // nothing is tangled. Without the fallback, one winding for both leaves all of its elements
+  // tangled.
+  const double L = 10.0;
+  const int n = 6;
+  const TopoDS_Shape box = BRepPrimAPI_MakeBox(L, L, L).Shape();
+  // The box's faces at x = 0 and y = 0.
+  TopoDS_Face fx, fy;
+  for (TopExp_Explorer ex(box, TopAbs_FACE); ex.More(); ex.Next()) {
+    const TopoDS_Face f = TopoDS::Face(ex.Current());
+    const Handle(Geom_Plane) pl = Handle(Geom_Plane)::DownCast(BRep_Tool::Surface(f));
+    ASSERT_FALSE(pl.IsNull());
+    const gp_Pnt o = pl->Location();
+    const gp_Dir d = pl->Axis().Direction();
+    if (std::abs(std::abs(d.X()) - 1.0) < 1e-12 && std::abs(o.X()) < 1e-12) fx = f;
+    if (std::abs(std::abs(d.Y()) - 1.0) < 1e-12 && std::abs(o.Y()) < 1e-12) fy = f;
+  }
+  ASSERT_FALSE(fx.IsNull() || fy.IsNull());
+  TopoDS_Compound both;
+  BRep_Builder builder;
+  builder.MakeCompound(both);
+  builder.Add(both, fx);
+  builder.Add(both, fy.Reversed());
+  auto shape = std::make_shared<CadShape>(both);
+  ASSERT_EQ(shape->faceCount(), 2);
+  BoxMesh m = boxSideMesh(L, n, {{0, 0}, {1, 0}});
+  CadMesh cm(shape, m.input);
+  // The face the y = 0 side's elements are on.
+  const std::size_t ey =
+      static_cast<std::size_t>(std::find(m.side.begin(), m.side.end(), 1) - m.side.begin());
+  const int faceY = cm.mesh().elemFace[ey];
+  EXPECT_EQ(cm.report().flippedFaces, std::vector<int>{faceY});
+  EXPECT_EQ(tangledCount(cm), 0u);
+}
 
 TEST(CadBridge, HintsAreUsedAndVerified) {
   auto shape = load("occt_crankarm.brep");
