@@ -123,6 +123,18 @@ def mesh_points(mesh):
     ))
 
 
+def box_volume_fem(nodes, tris):
+    """The box's surface triangles plus a volume mesh on them: one node at the box's centre
+    and a tetrahedron from each surface triangle to it (all of positive volume)."""
+    fem = make_fem(nodes, tris)
+    centre = FEM_NODE_ID0 + len(nodes)
+    fem.addNode(5.0, 5.0, 5.0, centre)
+    for t in tris:
+        fem.addVolume([FEM_NODE_ID0 + int(t[0]), FEM_NODE_ID0 + int(t[2]),
+                       FEM_NODE_ID0 + int(t[1]), centre])
+    return fem
+
+
 def box_shape():
     return Part.makeBox(10, 10, 10)
 
@@ -362,6 +374,20 @@ class BadInputApi(unittest.TestCase):
         # A larger tolerance accepts it.
         SurfMesh.measure(make_mesh(nodes, self.tris), self.shape, tolerance=1.5)
 
+    def test_every_node_of_a_list_is_named_by_its_id(self):
+        # Four nodes pushed off the box: the message's list names each one by its FEM id
+        # (ids start at FEM_NODE_ID0, not at the 0-based row the core reports).
+        nodes = self.nodes.copy()
+        off = [i for i, p in enumerate(nodes)
+               if sum(1 for c in p if 1e-9 < c < 10.0 - 1e-9) == 2][:4]
+        for i in off:
+            d = next(d for d in range(3) if nodes[i][d] in (0.0, 10.0))
+            nodes[i][d] += 1.0 if nodes[i][d] == 10.0 else -1.0
+        msgs = self.expect_error(make_fem(nodes, self.tris), "4 of", "farther than the tolerance")
+        listed = " ".join(str(FEM_NODE_ID0 + i) for i in off)
+        for m in msgs:
+            self.assertIn(f"e.g. nodes {listed}", m)
+
     def test_mesh_of_another_shape(self):
         far = Part.makeCylinder(3, 8, App.Vector(100, 0, 0))
         self.expect_error(make_mesh(self.nodes, self.tris), "does not lie on this shape", shape=far)
@@ -411,6 +437,16 @@ class BadInputApi(unittest.TestCase):
         self.assertGreater(rep.bridge["pole_nodes"], 0)
         res = SurfMesh.optimize(mesh, sphere, max_sweeps=5)
         self.assertLessEqual(res.after.stats["tangled"], res.before.stats["tangled"])
+
+    def test_volume_mesh_is_measured_but_not_moved(self):
+        # Moving the surface nodes of a volume mesh would leave its interior nodes behind and
+        # could invert the tetrahedra along the surface: optimize refuses, measure works.
+        nodes, tris = self.nodes, self.tris
+        fem = box_volume_fem(nodes, tris)
+        self.assertEqual(fem.VolumeCount, len(tris))
+        rep = SurfMesh.measure(fem, self.shape)
+        self.assertEqual(rep.stats["elements"], len(tris))
+        self.expect_error(fem, "volume element", "tetra4 (%d)" % len(tris), call=("optimize",))
 
     def test_unknown_measure_name(self):
         mesh = make_mesh(self.nodes, self.tris)
@@ -551,6 +587,20 @@ class DocumentUnchanged(unittest.TestCase):
                 with self.assertRaises(ValueError):
                     fn(self.part)  # not a mesh
                 self.assertEqual(self.snapshot(), before)
+
+    def test_volume_mesh_object_is_not_optimized(self):
+        nodes, tris = box_grid()
+        vol = self.doc.addObject("Fem::FemMeshObject", "BoxVolume")
+        vol.FemMesh = box_volume_fem(nodes, tris)
+        self.doc.recompute()
+        self.doc.clearUndos()
+        before = self.snapshot()
+        points = mesh_points(vol.FemMesh)
+        with self.assertRaises(ValueError) as cm:
+            SurfMesh.optimize_object(vol, self.part)
+        self.assertIn("volume element", str(cm.exception))
+        self.assertEqual(self.snapshot(), before)
+        self.assertEqual(mesh_points(vol.FemMesh), points)
 
     def test_catalogue_on_document_objects(self):
         """Each bad FEM mesh of the catalogue in a document object: measure_object and
@@ -724,6 +774,33 @@ class BadInputCli(unittest.TestCase):
                             "{report}", fragments=["does not lie on this shape"])
         self.expect_failure("measure", self.far, os.path.join(BAD, "square.msh"),
                             "--report", "{report}", fragments=["does not lie on this shape"])
+
+    def test_volume_meshes_are_refused(self):
+        # A FEM volume mesh (.unv) and a Gmsh volume mesh (.msh, tetrahedra and the surface
+        # triangles): optimize refuses both with exit 2, measure reads them.
+        nodes, tris = box_grid()
+        unv = os.path.join(self.tmp.name, "box_volume.unv")
+        box_volume_fem(nodes, tris).write(unv)
+        msh = os.path.join(self.tmp.name, "box_volume.msh")
+        from SurfMesh.app import fileio
+
+        gmsh = fileio._gmsh()  # initialized as the CLI does
+        gmsh.clear()
+        gmsh.model.occ.addBox(0, 0, 0, 10, 10, 10)
+        gmsh.model.occ.synchronize()
+        gmsh.option.setNumber("Mesh.MeshSizeMax", 3.0)
+        gmsh.model.mesh.generate(3)
+        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+        gmsh.option.setNumber("Mesh.SaveAll", 1)
+        gmsh.write(msh)
+        gmsh.clear()
+        for path in (unv, msh):
+            with self.subTest(file=os.path.basename(path)):
+                self.expect_failure("optimize", self.box, path, "-o", "{msh}", "--report",
+                                    "{report}", fragments=["volume element", "tetra"])
+                p, _, report = self.run_cli("measure", self.box, path, "--report", "{report}")
+                self.assertEqual(p.returncode, 0, (p.stdout + p.stderr)[-2000:])
+                self.assertTrue(os.path.exists(report))
 
     def test_bad_options(self):
         self.expect_failure("optimize", self.box, self.mesh, "-o", "{out}", "--measure",

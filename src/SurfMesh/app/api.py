@@ -210,6 +210,19 @@ def prepare(mesh, shape, boundary="fixed", tolerance=None, hints="auto", collaps
     return data, handle
 
 
+def _surface_nodes_only(data):
+    """A mesh with volume elements holds interior nodes, which lie off the shape and belong to
+    no surface element: measuring its surface takes the nodes of the surface elements only."""
+    used = np.unique(data.conn)
+    if used.size == data.node_count or used.size == 0 or used[0] < 0 or used[-1] >= data.node_count:
+        return data
+    index = np.full(data.node_count, -1, dtype=np.int64)
+    index[used] = np.arange(used.size, dtype=np.int64)
+    return dataclasses.replace(data, nodes=data.nodes[used], node_ids=data.node_ids[used],
+                               conn=index[data.conn], hint_face=None, hint_edge=None,
+                               hint_vertex=None)
+
+
 def _glue_coincident(data):
     """``data`` with its coincident nodes glued (see :func:`prepare`), and (the glued nodes'
     indices, the warning to give), or None when no nodes coincide."""
@@ -229,7 +242,7 @@ def _glue_coincident(data):
 
 
 def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, duplicates="glue",
-             timings=None):
+             timings=None, moving=False):
     """:func:`prepare`, and the "shape" measure of the returned handle when it was taken on
     the way (else None): measuring it again would give the same result. ``timings`` (a dict),
     when given, receives the seconds of reading the mesh ("read") and of the rest ("recovery").
@@ -247,6 +260,15 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, duplicates="glu
     part_shape = shapes.shape_of(shape) if not _is_core_shape(shape) else None
     if data.element_count == 0:
         raise ValueError("the mesh has no elements")
+    if moving and data.volume_elements:
+        raise ValueError(
+            f"the mesh has {data.volume_elements} volume element(s) ({data.volume_types}) "
+            "besides its surface elements: moving the surface nodes would distort them (their "
+            "interior nodes do not follow), and those along the surface could be inverted. "
+            "Optimize the surface (2D) mesh, then mesh the volume from it; measure works as it is"
+        )
+    if data.volume_elements:
+        data = _surface_nodes_only(data)
     if hints not in ("auto", "all", "none", "given"):
         raise ValueError(f"unknown hints mode {hints!r}; use 'auto', 'all' or 'none'")
     if data.kind == "fem" and hints == "all" and part_shape is not None:
@@ -361,33 +383,32 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, duplicates="glu
 
 
 _UNUSED_NODES = re.compile(r"^\d+ nodes belong(?= to no element)")
-_NODE_REF = re.compile(r"\b(nodes?|row) (\d+)((?:,| and) (\d+))?")
-_ELEMENT_REF = re.compile(r"\b(elements?) (\d+)((?:,| and) (\d+))?")
+# "node 5", "nodes 2 and 7", "nodes 2, 7 and 9", "nodes 7 19 32" (lists as the core writes
+# them), "row 5" (a row of the node array); the same for elements.
+_ID_LIST = r"(\d+(?:(?:, | and | )\d+(?!\d|\.\d))*)"
+_NODE_REF = re.compile(r"\b(nodes?|row) " + _ID_LIST)
+_ELEMENT_REF = re.compile(r"\b(elements?) " + _ID_LIST)
 
 
 def _name_by_ids(message, data):
     """The core names nodes and elements by their 0-based position in the arrays it was given;
     users know them by their ids (FEM node and element ids, which need not start at 0 or 1).
-    Rewrites "node 5", "nodes 2 and 7", "row 5" (a row of the node array) and "element 3"."""
-    def ids_of(table, pattern, label_row=False):
+    Rewrites "node 5", "nodes 2 and 7", "nodes 2, 7 and 9", "nodes 7 19 32", "row 5" (a row
+    of the node array) and "element 3" (every id of a list)."""
+    def ids_of(table, label_row=False):
+        def one(m):
+            k = int(m.group(0))
+            return str(int(table[k])) if 0 <= k < len(table) else m.group(0)
+
         def sub(m):
-            out = []
-            for g in (m.group(2), m.group(4)):
-                if g is None:
-                    continue
-                k = int(g)
-                out.append(str(int(table[k])) if 0 <= k < len(table) else g)
             word = "node" if (label_row and m.group(1) == "row") else m.group(1)
-            if len(out) == 2:
-                sep = m.group(3)[: -len(m.group(4))]
-                return f"{word} {out[0]}{sep}{out[1]}"
-            return f"{word} {out[0]}"
+            return f"{word} " + re.sub(r"\d+", one, m.group(2))
         return sub
 
     if getattr(data, "node_ids", None) is not None:
-        message = _NODE_REF.sub(ids_of(data.node_ids, _NODE_REF, label_row=True), message)
+        message = _NODE_REF.sub(ids_of(data.node_ids, label_row=True), message)
     if getattr(data, "element_ids", None) is not None:
-        message = _ELEMENT_REF.sub(ids_of(data.element_ids, _ELEMENT_REF), message)
+        message = _ELEMENT_REF.sub(ids_of(data.element_ids), message)
     return message
 
 
@@ -527,7 +548,8 @@ def optimize(
     t_start = time.perf_counter()
     timings = {}
     data, handle, measured = _prepare(
-        mesh, shape, boundary, tolerance, hints, collapsed, duplicates, timings=timings
+        mesh, shape, boundary, tolerance, hints, collapsed, duplicates, timings=timings,
+        moving=True,
     )
     bridge = _bridge_report(handle)
     t0 = time.perf_counter()

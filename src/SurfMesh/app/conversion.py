@@ -65,6 +65,11 @@ class MeshData:
     # Set by api.prepare when coincident nodes were glued: glued[i] is the node that node i
     # moves with (i itself for most nodes); ``conn`` then names only those nodes.
     glued: Optional[np.ndarray] = None
+    # Volume elements of the source (FEM mesh, Gmsh or meshio file), which are carried over
+    # untouched: their count and type names. SurfMesh refuses to move the surface nodes of
+    # such a mesh (the interior nodes would not follow: boundary elements would be inverted).
+    volume_elements: int = 0
+    volume_types: str = ""
 
     @property
     def node_count(self) -> int:
@@ -277,6 +282,7 @@ def _read_fem_mesh(fem) -> MeshData:
             f"unsupported FEM element type {name}: {len(bad)} element(s), first id "
             f"{face_ids[bad[0]]}; supported face elements: tria3, tria6, quad4"
         )
+    volume_count = int(fem.VolumeCount)
     names = [_FEM_FACE_TYPES[int(c)] for c in counts]
     types = np.array([ELEMENT_TYPES[n] for n in names], dtype=np.int64)
     offsets = np.zeros(len(face_ids) + 1, dtype=np.int64)
@@ -300,7 +306,20 @@ def _read_fem_mesh(fem) -> MeshData:
         node_ids=node_ids,
         element_ids=np.array(face_ids, dtype=np.int64),
         source=fem,
+        volume_elements=volume_count,
+        volume_types=_fem_volume_types(fem) if volume_count else "",
     )
+
+
+def _fem_volume_types(fem):
+    """'tetra4 (5909)'-style summary of a FEM mesh's volume elements."""
+    names = {4: "tetra4", 5: "pyra5", 6: "penta6", 8: "hexa8", 10: "tetra10", 13: "pyra13",
+             15: "penta15", 20: "hexa20"}
+    counts = {}
+    for v in fem.Volumes:
+        k = names.get(len(fem.getElementNodes(v)), f"{len(fem.getElementNodes(v))}-node")
+        counts[k] = counts.get(k, 0) + 1
+    return ", ".join(f"{k} ({n})" for k, n in sorted(counts.items()))
 
 
 # ---- hints from FreeCAD's node classification -----------------------------------------------

@@ -297,6 +297,7 @@ def _read_gmsh(path) -> MeshFile:
         raise ValueError(f"{path}: an element references an unknown node")
     offsets = np.zeros(len(el_types) + 1, dtype=np.int64)
     np.cumsum(sizes, out=offsets[1:])
+    vol_types, vol_tags, _ = gmsh.model.mesh.getElements(3)
     data = conversion.MeshData(
         kind="arrays",
         nodes=nodes,
@@ -305,12 +306,20 @@ def _read_gmsh(path) -> MeshFile:
         conn=pos.astype(np.int64),
         node_ids=node_tags,
         element_ids=el_ids,
+        volume_elements=int(sum(len(t) for t in vol_tags)),
+        volume_types=", ".join(
+            f"{gmsh.model.mesh.getElementProperties(int(t))[0]} ({len(tags)})"
+            for t, tags in zip(vol_types, vol_tags)),
     )
     return MeshFile(path, "gmsh", data, msh_version=version)
 
 
 _MESHIO_TYPES = {"triangle": "tri3", "triangle6": "tri6", "quad": "quad4",
                  "triangle10": "tri10", "triangle15": "tri15", "triangle21": "tri21"}
+
+
+# meshio's volume cell types, without their node count suffix (tetra10, hexahedron27, ...).
+_MESHIO_VOLUME_TYPES = {"tetra", "hexahedron", "wedge", "pyramid"}
 
 
 def _read_meshio(path) -> MeshFile:
@@ -337,10 +346,14 @@ def _read_meshio(path) -> MeshFile:
     nodes = np.asarray(m.points, dtype=np.float64)
     if nodes.shape[1] == 2:
         nodes = np.hstack([nodes, np.zeros((len(nodes), 1))])
+    volumes = [(b.type, len(b.data)) for b in m.cells
+               if b.type.split("1")[0].split("2")[0] in _MESHIO_VOLUME_TYPES]
     data = conversion.MeshData(
         kind="arrays", nodes=nodes, types=types, offsets=offsets, conn=np.concatenate(conns),
         node_ids=np.arange(len(nodes), dtype=np.int64),
         element_ids=np.arange(len(types), dtype=np.int64),
+        volume_elements=int(sum(n for _, n in volumes)),
+        volume_types=", ".join(f"{t} ({n})" for t, n in volumes),
     )
     return MeshFile(path, "meshio", data, meshio_mesh=m)
 

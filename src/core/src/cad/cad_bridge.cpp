@@ -738,12 +738,15 @@ void parallelFor(std::size_t n, ProjectorPool& pool, Body body) {
   if (error) std::rethrow_exception(error);
 }
 
-std::string joinInts(const std::vector<int>& v) {
-  std::ostringstream os;
-  os << "{";
-  for (std::size_t i = 0; i < v.size(); ++i) os << (i ? ", " : "") << v[i];
-  os << "}";
-  return os.str();
+/// Faces named as users know them: by their 1-based position in the shape's face map
+/// (TopExp::MapShapes order, FreeCAD's Face1, Face2, ...), where the core counts from 0.
+std::string faceName(int f) { return "Face" + std::to_string(f + 1); }
+
+std::string faceNames(const std::vector<int>& v) {
+  std::string s;
+  for (std::size_t i = 0; i < v.size(); ++i)
+    s += (i ? (i + 1 == v.size() ? " and " : ", ") : "") + faceName(v[i]);
+  return s.empty() ? "no face" : s;
 }
 
 bool includesAll(const std::vector<int>& sortedSuper, const std::vector<int>& sortedSub) {
@@ -1366,8 +1369,8 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
       std::ostringstream os;
       os << "element " << e << " lies on no single face of the shape (its nodes share no face):";
       for (int k = 0; k < nn; ++k)
-        os << " node " << nd[k] << " on faces "
-           << joinInts(nodeFaces[static_cast<std::size_t>(nd[k])]) << (k + 1 < nn ? "," : "");
+        os << " node " << nd[k] << " on " << faceNames(nodeFaces[static_cast<std::size_t>(nd[k])])
+           << (k + 1 < nn ? ";" : "");
       os << ". The mesh must conform to the B-rep faces (no element across a CAD edge).";
       fail(os.str());
     }
@@ -1379,7 +1382,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
         " element(s) whose nodes are each nearest to another face (next to a CAD edge with a "
         "tolerance as large as the elements) were put on the face all their nodes are within "
         "the tolerance of (e.g. element " +
-        std::to_string(firstOffFace) + " on face " + std::to_string(elemFace[firstOffFace]) + ")");
+        std::to_string(firstOffFace) + " on " + faceName(elemFace[firstOffFace]) + ")");
 
   // ---- 3. node classes ----------------------------------------------------------------------
   // Faces of each node's elements, mesh boundary nodes, shortest incident mesh edge.
