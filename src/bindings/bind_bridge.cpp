@@ -49,6 +49,7 @@ py::dict reportDict(const BridgeReport& r) {
   d["face_flipped"] = flipped;
   d["flipped_faces"] = r.flippedFaces;
   d["face_elements"] = r.faceElements;
+  d["miswound_elements"] = toArray(r.miswoundElements);
   d["tolerance"] = r.tolerance;
   d["max_distance"] = r.maxDistance;
   d["worst_node"] = r.worstNode;

@@ -387,6 +387,7 @@ TEST(CadBridge, ContradictingWindingRelationsFallBackToPerFaceVotes) {
          faceOfSide[static_cast<std::size_t>(s)] > faceOfSide[static_cast<std::size_t>(c)]))
       c = s;
   std::size_t rewound = 0;
+  std::vector<std::int32_t> rewoundIds;
   for (std::size_t e = 0; e < m.side.size(); ++e) {
     if (m.side[e] != c) continue;
     std::int32_t* t = m.input.conn.data() + 3 * e;
@@ -397,11 +398,51 @@ TEST(CadBridge, ContradictingWindingRelationsFallBackToPerFaceVotes) {
     if (on == 0) continue;  // not in the row of cells along the A-C edge
     std::swap(t[1], t[2]);
     ++rewound;
+    rewoundIds.push_back(static_cast<std::int32_t>(e));
   }
   ASSERT_EQ(rewound, static_cast<std::size_t>(2 * n));
   CadMesh cm(shape, m.input);
   EXPECT_TRUE(cm.report().flippedFaces.empty());
   EXPECT_EQ(tangledCount(cm), rewound);
+  // The rewound row is wound against the rest of C's mesh: listed as such.
+  EXPECT_EQ(cm.report().miswoundElements, rewoundIds);
+}
+
+TEST(CadBridge, ElementsWoundAgainstTheirFaceAreListed) {
+  // Scattered elements of a BRepMesh mesh of the propeller with their node order reversed:
+  // exactly those are listed as wound against their face's mesh, and they are tangled. A
+  // whole face reversed, or the whole mesh, is a winding of the face, not of elements: none
+  // listed.
+  auto shape = load("occt_propeller.brep");
+  OccMesh om = meshWithBRepMesh(*shape, 1e-3 * shape->diagonal(), 0.5);
+  {
+    CadMesh cm(shape, om.input);
+    EXPECT_TRUE(cm.report().miswoundElements.empty());
+  }
+  const std::size_t tangledBefore =
+      measureQuality(CadMesh(shape, om.input).mesh(), measureByName("shape")).stats.tangled;
+  MeshInput in = om.input;
+  std::vector<std::int32_t> reversed;
+  for (std::size_t e = 5; e < om.elemFace.size(); e += 97) {
+    std::swap(in.conn[3 * e + 1], in.conn[3 * e + 2]);
+    reversed.push_back(static_cast<std::int32_t>(e));
+  }
+  ASSERT_GT(reversed.size(), 10u);
+  CadMesh cm(shape, in);
+  EXPECT_EQ(cm.report().miswoundElements, reversed);
+  EXPECT_TRUE(cm.report().flippedFaces.empty());
+  EXPECT_EQ(measureQuality(cm.mesh(), measureByName("shape")).stats.tangled,
+            tangledBefore + reversed.size());
+  bool warned = false;
+  for (const std::string& w : cm.report().warnings)
+    warned |= w.find("wound against the rest of their face") != std::string::npos;
+  EXPECT_TRUE(warned);
+  // The whole mesh reversed: the faces are flipped, no element is listed.
+  MeshInput all = om.input;
+  for (std::size_t e = 0; e < om.elemFace.size(); ++e)
+    std::swap(all.conn[3 * e + 1], all.conn[3 * e + 2]);
+  CadMesh ca(shape, all);
+  EXPECT_TRUE(ca.report().miswoundElements.empty());
 }
 
 TEST(CadBridge, OpenModelWithFacesNotOrientedAlikeKeepsEachFaceWinding) {

@@ -438,6 +438,25 @@ class BadInputApi(unittest.TestCase):
         res = SurfMesh.optimize(mesh, sphere, max_sweeps=5)
         self.assertLessEqual(res.after.stats["tangled"], res.before.stats["tangled"])
 
+    def test_elements_wound_against_their_face_are_refused_by_optimize(self):
+        # Three triangles with their node order reversed (an STL with flipped facets): each is
+        # tangled whatever its node positions, and untangling them by moving nodes folds the
+        # mesh. measure counts them tangled and says why; optimize refuses, naming them.
+        tris = self.tris.copy()
+        flipped = [5, 40, 77]
+        for e in flipped:
+            tris[e, [1, 2]] = tris[e, [2, 1]]
+        for mesh, ids in ((make_fem(self.nodes, tris), [FEM_ELEM_ID0 + e for e in flipped]),
+                          (make_mesh(self.nodes, tris), flipped)):
+            with self.subTest(kind=type(mesh).__name__):
+                rep = SurfMesh.measure(mesh, self.shape)
+                self.assertEqual(rep.stats["tangled"], len(flipped))
+                self.assertTrue(any("wound against the rest of their face" in w
+                                    for w in rep.bridge["warnings"]), rep.bridge["warnings"])
+                listed = ", ".join(str(i) for i in ids)
+                self.expect_error(mesh, "wound against the rest of their face",
+                                  f"element(s) {listed}", call=("optimize",))
+
     def test_volume_mesh_is_measured_but_not_moved(self):
         # Moving the surface nodes of a volume mesh would leave its interior nodes behind and
         # could invert the tetrahedra along the surface: optimize refuses, measure works.

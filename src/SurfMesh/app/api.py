@@ -552,6 +552,17 @@ def optimize(
         moving=True,
     )
     bridge = _bridge_report(handle)
+    miswound = [int(e) for e in np.asarray(bridge.get("miswound_elements", []))]
+    if miswound:
+        raise ValueError(
+            f"{len(miswound)} element(s) are wound against the rest of their face's mesh "
+            f"(their nodes are listed in the opposite order): element(s) "
+            f"{_id_list(_user_element_ids(data, miswound))}"
+            f"{_where(data, handle, data.nodes, miswound)}. They are tangled whatever their node "
+            "positions, and moving nodes would only fold the mesh over them: reverse their "
+            "node order first (FreeCAD: Mesh > Analyze > Evaluate and repair > Orientation, or "
+            "Mesh.harmonizeNormals())"
+        )
     t0 = time.perf_counter()
     before = _report(data, handle, measure, bridge,
                      measured=measured if measure == "shape" else None)

@@ -895,6 +895,96 @@ std::vector<int> faceWindingSigns(const MeshInput& input, const std::vector<std:
   return out;
 }
 
+/// BridgeReport::miswoundElements: per connected part of a face's mesh (through the manifold
+/// corner edges between two of its elements), the elements of the less common winding.
+std::vector<std::int32_t> miswoundElements(const MeshInput& input,
+                                           const std::vector<std::int64_t>& offsets,
+                                           const std::vector<std::int32_t>& elemFace) {
+  const std::size_t E = input.types.size();
+  struct Side {
+    std::uint64_t key;  // the edge's two nodes, smaller first
+    std::int32_t elem;
+    std::int32_t dir;  // +1 when the element runs from the smaller node to the larger one
+  };
+  std::vector<Side> sides;
+  sides.reserve(input.conn.size());
+  for (std::size_t e = 0; e < E; ++e) {
+    const int nc = cornerCount(input.types[e]);
+    const std::int32_t* nd = input.conn.data() + offsets[e];
+    for (int k = 0; k < nc; ++k) {
+      const std::uint32_t a = static_cast<std::uint32_t>(nd[k]);
+      const std::uint32_t b = static_cast<std::uint32_t>(nd[(k + 1) % nc]);
+      if (a == b) continue;
+      const std::uint64_t key = a < b ? (std::uint64_t(a) << 32 | b) : (std::uint64_t(b) << 32 | a);
+      sides.push_back({key, static_cast<std::int32_t>(e), a < b ? 1 : -1});
+    }
+  }
+  std::sort(sides.begin(), sides.end(), [](const Side& p, const Side& q) { return p.key < q.key; });
+  // Links between two elements of one face across a manifold edge: r = +1 same winding (the
+  // edge run in opposite directions), −1 opposite windings. CSR by element.
+  std::vector<std::int64_t> deg(E + 1, 0);
+  std::vector<std::array<std::int32_t, 3>> links;  // e, f, r
+  for (std::size_t i = 0; i < sides.size();) {
+    std::size_t j = i + 1;
+    while (j < sides.size() && sides[j].key == sides[i].key) ++j;
+    if (j - i == 2) {
+      const Side &p = sides[i], &q = sides[i + 1];
+      if (p.elem != q.elem &&
+          elemFace[static_cast<std::size_t>(p.elem)] == elemFace[static_cast<std::size_t>(q.elem)])
+        links.push_back({p.elem, q.elem, p.dir != q.dir ? 1 : -1});
+    }
+    i = j;
+  }
+  sides = std::vector<Side>();
+  for (const auto& l : links) {
+    ++deg[static_cast<std::size_t>(l[0]) + 1];
+    ++deg[static_cast<std::size_t>(l[1]) + 1];
+  }
+  for (std::size_t e = 0; e < E; ++e) deg[e + 1] += deg[e];
+  std::vector<std::pair<std::int32_t, std::int8_t>> adj(static_cast<std::size_t>(deg[E]));
+  {
+    std::vector<std::int64_t> fill(deg.begin(), deg.end() - 1);
+    for (const auto& l : links) {
+      adj[static_cast<std::size_t>(fill[static_cast<std::size_t>(l[0])]++)] = {
+          l[1], static_cast<std::int8_t>(l[2])};
+      adj[static_cast<std::size_t>(fill[static_cast<std::size_t>(l[1])]++)] = {
+          l[0], static_cast<std::int8_t>(l[2])};
+    }
+  }
+  links = {};
+  std::vector<std::int8_t> cls(E, 0);
+  std::vector<std::int32_t> part, out;
+  for (std::size_t root = 0; root < E; ++root) {
+    if (cls[root] != 0 || deg[root + 1] == deg[root]) continue;
+    part.assign(1, static_cast<std::int32_t>(root));
+    cls[root] = 1;
+    bool consistent = true;
+    std::size_t plus = 0;
+    for (std::size_t q = 0; q < part.size(); ++q) {
+      const std::size_t e = static_cast<std::size_t>(part[q]);
+      plus += cls[e] > 0;
+      for (std::int64_t k = deg[e]; k < deg[e + 1]; ++k) {
+        const auto& [f, r] = adj[static_cast<std::size_t>(k)];
+        const std::size_t fi = static_cast<std::size_t>(f);
+        const std::int8_t want = static_cast<std::int8_t>(cls[e] * r);
+        if (cls[fi] == 0) {
+          cls[fi] = want;
+          part.push_back(f);
+        } else if (cls[fi] != want) {
+          consistent = false;  // not orientable (a Möbius-like patch): no winding is "less"
+        }
+      }
+    }
+    const std::size_t minus = part.size() - plus;
+    if (!consistent || plus == minus) continue;
+    const std::int8_t fewer = plus < minus ? 1 : -1;
+    for (std::int32_t e : part)
+      if (cls[static_cast<std::size_t>(e)] == fewer) out.push_back(e);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
 }  // namespace
 
 /// The hint a node's classification was forced by.
@@ -1798,6 +1888,18 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   // other (a mesh not wound consistently, or a shell whose faces are not oriented alike) keeps
   // the per-face votes.
   std::vector<int> windingSign = faceWindingSigns(input, offsets, elemFace, NF, agree, disagree);
+  report_.miswoundElements = miswoundElements(input, offsets, elemFace);
+  if (!report_.miswoundElements.empty()) {
+    const std::int32_t e0 = report_.miswoundElements[0];
+    report_.warnings.push_back(
+        std::to_string(report_.miswoundElements.size()) +
+        " element(s) are wound against the rest of their face's mesh (their nodes listed in "
+        "the opposite order, e.g. element " +
+        std::to_string(e0) + " on " + faceName(elemFace[static_cast<std::size_t>(e0)]) +
+        "): they are tangled whatever their node positions, and moving nodes would only fold "
+        "the mesh over them. Reverse their node order (e.g. FreeCAD's Mesh > Analyze > "
+        "Evaluate and repair > Orientation)");
+  }
   report_.faceFlipped.assign(static_cast<std::size_t>(NF), 0);
   for (int f = 0; f < NF; ++f) {
     const std::size_t fi = static_cast<std::size_t>(f);

@@ -136,6 +136,14 @@ struct BridgeReport {
   std::vector<unsigned char> faceFlipped;  ///< F; 1 when the mesh is wound against the face
   std::vector<int> flippedFaces;           ///< ids of the flipped faces
   std::vector<int> faceElements;           ///< F; number of elements on each face
+  // ---- per element --------------------------------------------------------------------------
+  /// Elements wound against the rest of their face's mesh (sorted): inside one face, two
+  /// elements that run along their shared mesh edge in the same direction are wound
+  /// oppositely; of the two windings of a connected part of a face's mesh, the elements of
+  /// the less common one are listed (none on a tie). Such an element is tangled whatever its
+  /// node positions; moving nodes can only fold the mesh over it (its connectivity must be
+  /// reversed: an STL with flipped facets, a hand-edited mesh).
+  std::vector<std::int32_t> miswoundElements;
   // ---- totals -----------------------------------------------------------------------------
   double tolerance = 0.0;    ///< the tolerance used
   double maxDistance = 0.0;  ///< largest node distance to the shape
