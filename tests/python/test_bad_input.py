@@ -794,6 +794,21 @@ class BadInputCli(unittest.TestCase):
         self.expect_failure("measure", self.far, os.path.join(BAD, "square.msh"),
                             "--report", "{report}", fragments=["does not lie on this shape"])
 
+    def test_output_problems_are_found_before_the_run(self):
+        # A missing folder, an unknown or missing extension, a report in a missing folder:
+        # refused with exit 2 and a one-line message before anything is optimized.
+        d = self.tmp.name
+        for out, report, fragment in (
+                (os.path.join(d, "no_such_dir", "out.msh"), "{report}", "does not exist"),
+                (os.path.join(d, "out.xyz"), "{report}", "unknown output mesh format"),
+                (os.path.join(d, "out"), "{report}", "no extension"),
+                ("{out}", os.path.join(d, "no_such_dir", "r.json"), "does not exist")):
+            with self.subTest(out=os.path.basename(out), report=os.path.basename(report)):
+                text = self.expect_failure("optimize", self.box, self.mesh, "-o", out,
+                                           "--report", report, fragments=[fragment])
+                self.assertNotIn("Optimized", text, "the run went on before the error")
+                self.assertFalse(os.path.exists(out))
+
     def test_volume_meshes_are_refused(self):
         # A FEM volume mesh (.unv) and a Gmsh volume mesh (.msh, tetrahedra and the surface
         # triangles): optimize refuses both with exit 2, measure reads them.

@@ -361,6 +361,48 @@ def _read_meshio(path) -> MeshFile:
 # ---- writing ---------------------------------------------------------------------------------
 
 
+def check_output(out, src: MeshFile = None, what="output mesh"):
+    """Raises ValueError when ``out`` cannot be written: its folder is missing or not
+    writable, or (a mesh, with ``src``) its extension names no known format or one that cannot
+    hold ``src``'s elements. Called before a run, so that a long optimization is not lost."""
+    folder = os.path.dirname(os.path.abspath(out))
+    if not os.path.isdir(folder):
+        raise ValueError(f"cannot write the {what} {out}: folder {folder} does not exist")
+    if not os.access(folder, os.W_OK):
+        raise ValueError(f"cannot write the {what} {out}: folder {folder} is not writable")
+    if os.path.isdir(out):
+        raise ValueError(f"cannot write the {what} {out}: it is a folder")
+    if src is None:
+        return
+    ext = _ext(out)
+    names = set(src.data.type_names())
+    if ext in GMSH_EXTS:
+        return
+    if ext in FEM_EXTS and src.fmt != "fem":
+        bad = sorted(names - {"tri3", "tri6", "quad4"})
+        if bad:
+            raise ValueError(f"FreeCAD FEM meshes cannot hold {', '.join(bad)} elements: write "
+                             f".msh instead of {ext}")
+        return
+    if ext in FEM_EXTS:
+        return
+    if ext in MESH_EXTS:
+        if names - {"tri3"}:
+            raise ValueError(f"{', '.join(sorted(names))} elements cannot be written as a "
+                             f"triangle mesh ({ext}): write .msh or a FEM format")
+        return
+    try:
+        import meshio
+
+        known = set(meshio.extension_to_filetypes)
+    except ImportError:
+        known = set()
+    if not ext or ext not in known:
+        formats = sorted(GMSH_EXTS | FEM_EXTS | MESH_EXTS | known)
+        raise ValueError(f"unknown output mesh format {ext or '(no extension)'!r} for {out}; "
+                         f"known: {', '.join(formats)}")
+
+
 def write_mesh(out, src: MeshFile, new_nodes, msh_version=None):
     """Writes the mesh of ``src`` with node positions ``new_nodes`` to ``out`` (format by
     extension). Ids and element order are kept where the format stores them."""

@@ -99,6 +99,11 @@ def run(argv):
             f"unknown measure {args.measure!r}; known: {', '.join(api.measure_names())}")
     shape = fileio.read_shape(args.shape, args.shape_object)
     mf = fileio.read_mesh(args.mesh, args.mesh_object)
+    # What will be written is checked before the run, not after it.
+    if args.command == "optimize":
+        fileio.check_output(args.output, mf)
+    if args.report:
+        fileio.check_output(args.report, what="report")
     out = {"command": args.command, "shape": os.path.abspath(args.shape),
            "mesh": _mesh_summary(mf), "measure": args.measure}
     if args.command == "measure":
@@ -125,7 +130,7 @@ def run(argv):
         fileio.write_mesh(args.output, mf, res.nodes, msh_version=args.msh_version)
         print(reports.format_table([(args.measure, "Initial", res.before.stats),
                                     (args.measure, "Optimized", res.after.stats)]))
-        print(f"{res.sweeps} sweeps, {res.seconds:.2f} s ({res.reason}); wrote {args.output}")
+        print(f"{res.sweeps} sweeps, {res.seconds:.3g} s ({res.reason}); wrote {args.output}")
         for w in list(res.bridge.get("warnings", [])) + list(res.warnings):
             print(f"warning: {w}", file=sys.stderr)
         out.update(res.to_dict())
