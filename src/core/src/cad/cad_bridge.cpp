@@ -769,6 +769,25 @@ ElementEdges elementEdges(ElementType t) {
 
 void fail(const std::string& msg) { throw std::invalid_argument("CadMesh: " + msg); }
 
+/// A mesh edge's key: its two node ids, the smaller one in the high half.
+inline std::uint64_t edgeKey(std::uint32_t a, std::uint32_t b) {
+  return a < b ? (std::uint64_t(a) << 32 | b) : (std::uint64_t(b) << 32 | a);
+}
+
+/// Calls f(e, a, b) for each corner edge a → b (a ≠ b) of each element e, in element order.
+template <class F>
+void forEachCornerEdge(const MeshInput& input, const std::vector<std::int64_t>& offsets, F&& f) {
+  for (std::size_t e = 0; e < input.types.size(); ++e) {
+    const int nc = cornerCount(input.types[e]);
+    const std::int32_t* nd = input.conn.data() + offsets[e];
+    for (int k = 0; k < nc; ++k) {
+      const std::uint32_t a = static_cast<std::uint32_t>(nd[k]);
+      const std::uint32_t b = static_cast<std::uint32_t>(nd[(k + 1) % nc]);
+      if (a != b) f(e, a, b);
+    }
+  }
+}
+
 /// Winding of each face against its outward normal (+1 as the normal, −1 against it, +1 for
 /// a face without elements), from the per-face element votes `agree` / `disagree` and the
 /// relations between faces across shared mesh edges (see step 5 of CadMesh's constructor).
@@ -800,17 +819,9 @@ std::vector<int> faceWindingSigns(const MeshInput& input, const std::vector<std:
     std::int32_t dir;
   };
   std::vector<Side> sides;
-  for (std::size_t e = 0; e < E; ++e) {
-    const int nc = cornerCount(input.types[e]);
-    const std::int32_t* nd = input.conn.data() + offsets[e];
-    for (int k = 0; k < nc; ++k) {
-      const std::uint32_t a = static_cast<std::uint32_t>(nd[k]);
-      const std::uint32_t b = static_cast<std::uint32_t>(nd[(k + 1) % nc]);
-      if (a == b || !shared[a] || !shared[b]) continue;
-      const std::uint64_t key = a < b ? (std::uint64_t(a) << 32 | b) : (std::uint64_t(b) << 32 | a);
-      sides.push_back({key, elemFace[e], a < b ? 1 : -1});
-    }
-  }
+  forEachCornerEdge(input, offsets, [&](std::size_t e, std::uint32_t a, std::uint32_t b) {
+    if (shared[a] && shared[b]) sides.push_back({edgeKey(a, b), elemFace[e], a < b ? 1 : -1});
+  });
   shared = std::vector<unsigned char>();
   std::sort(sides.begin(), sides.end(), [](const Side& p, const Side& q) {
     return p.key != q.key ? p.key < q.key : p.face < q.face;
@@ -908,17 +919,9 @@ std::vector<std::int32_t> miswoundElements(const MeshInput& input,
   };
   std::vector<Side> sides;
   sides.reserve(input.conn.size());
-  for (std::size_t e = 0; e < E; ++e) {
-    const int nc = cornerCount(input.types[e]);
-    const std::int32_t* nd = input.conn.data() + offsets[e];
-    for (int k = 0; k < nc; ++k) {
-      const std::uint32_t a = static_cast<std::uint32_t>(nd[k]);
-      const std::uint32_t b = static_cast<std::uint32_t>(nd[(k + 1) % nc]);
-      if (a == b) continue;
-      const std::uint64_t key = a < b ? (std::uint64_t(a) << 32 | b) : (std::uint64_t(b) << 32 | a);
-      sides.push_back({key, static_cast<std::int32_t>(e), a < b ? 1 : -1});
-    }
-  }
+  forEachCornerEdge(input, offsets, [&](std::size_t e, std::uint32_t a, std::uint32_t b) {
+    sides.push_back({edgeKey(a, b), static_cast<std::int32_t>(e), a < b ? 1 : -1});
+  });
   std::sort(sides.begin(), sides.end(), [](const Side& p, const Side& q) { return p.key < q.key; });
   // Links between two elements of one face across a manifold edge: r = +1 same winding (the
   // edge run in opposite directions), −1 opposite windings. CSR by element.
