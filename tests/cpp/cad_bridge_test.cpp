@@ -767,6 +767,27 @@ TEST(CadBridge, MeshOfAnotherPartFailsFast) {
   EXPECT_LT(t, 1.0);
 }
 
+TEST(CadBridge, MeshInOtherUnitsIsRefusedAsSuch) {
+  // The screw's own mesh scaled as from mm to m, m to mm, and mm to inches: refused, with the
+  // likely unit mismatch in the message; the mesh as it is is taken, and the housing's mesh on
+  // the propeller (another part of a similar size) gets no such hint.
+  auto shape = load("occt_screw.step");
+  OccMesh om = meshWithBRepMesh(*shape, 1e-3 * shape->diagonal(), 0.5);
+  EXPECT_NO_THROW(CadMesh(shape, om.input));
+  for (double f : {1e-3, 1e3, 1.0 / 25.4}) {
+    MeshInput in = om.input;
+    for (Vec3& p : in.nodes) p *= f;
+    const std::string msg = errorOf([&] { CadMesh cm(shape, in); });
+    EXPECT_NE(msg.find("does not lie on this shape"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("unit mismatch"), std::string::npos) << f << ": " << msg;
+  }
+  auto housing = load("occt_housing_bottom.brep");
+  OccMesh oh = meshWithBRepMesh(*housing, 1e-3 * housing->diagonal(), 0.5);
+  const std::string other = errorOf([&] { CadMesh cm(load("occt_propeller.brep"), oh.input); });
+  EXPECT_NE(other.find("does not lie on this shape"), std::string::npos) << other;
+  EXPECT_EQ(other.find("unit"), std::string::npos) << other;
+}
+
 TEST(CadBridge, BadInputIsRejectedWithClearMessages) {
   auto shape = load("occt_screw.step");
   OccMesh om = meshWithBRepMesh(*shape, 1e-3 * shape->diagonal(), 0.5);

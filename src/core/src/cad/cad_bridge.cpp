@@ -1170,12 +1170,32 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
          << b[5] << "]";
       return os.str();
     };
+    // A mesh many times larger or smaller than the shape was most likely written in other
+    // units (the shape's box may be loose, up to about twice the tight one: only a factor of
+    // 8 or more is taken as a sign).
+    auto unitHint = [&]() -> std::string {
+      auto diag = [](const Box& b) {
+        return std::sqrt((b[3] - b[0]) * (b[3] - b[0]) + (b[4] - b[1]) * (b[4] - b[1]) +
+                         (b[5] - b[2]) * (b[5] - b[2]));
+      };
+      const double ds = diag(sb), dm = diag(mb);
+      if (!(ds > 0.0) || !(dm > 0.0) || !std::isfinite(dm)) return "";
+      const double ratio = dm / ds;
+      if (ratio < 8.0 && ratio > 1.0 / 8.0) return "";
+      std::ostringstream os;
+      os.precision(2);
+      os << " (the mesh's bounding box is about " << (ratio >= 1.0 ? ratio : 1.0 / ratio)
+         << (ratio >= 1.0 ? " times larger" : " times smaller")
+         << " than the shape's: a unit mismatch, e.g. mm and m or inches? Scale the mesh or "
+            "the shape)";
+      return os.str();
+    };
     bool disjoint = false;
     for (std::size_t i = 0; i < 3; ++i)
       if (mb[i] > sb[i + 3] + tol || mb[i + 3] < sb[i] - tol) disjoint = true;
     if (disjoint)
       fail("the mesh does not lie on this shape: its bounding box " + boxText(mb) +
-           " does not meet the shape's " + boxText(sb));
+           " does not meet the shape's " + boxText(sb) + unitHint());
     const std::size_t samples = std::min<std::size_t>(N, 64);
     std::vector<double> sd(samples);
     std::vector<int> sf(samples, -1);
@@ -1196,7 +1216,8 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
       os << "the mesh does not lie on this shape: " << off << " of " << samples
          << " sampled nodes are farther than the tolerance " << tol
          << " from every face (e.g. node " << worst * N / samples << " at distance " << sd[worst]
-         << "); mesh bounding box " << boxText(mb) << ", shape bounding box " << boxText(sb);
+         << "); mesh bounding box " << boxText(mb) << ", shape bounding box " << boxText(sb)
+         << unitHint();
       fail(os.str());
     }
   }
