@@ -130,7 +130,10 @@ def run(argv):
         fileio.write_mesh(args.output, mf, res.nodes, msh_version=args.msh_version)
         print(reports.format_table([(args.measure, "Initial", res.before.stats),
                                     (args.measure, "Optimized", res.after.stats)]))
-        print(f"{res.sweeps} sweeps, {res.seconds:.3g} s ({res.reason}); wrote {args.output}")
+        phases = (" (fixed boundary, then sliding: up to twice --max-sweeps)"
+                  if args.boundary == "slide" else "")
+        print(f"{res.sweeps} sweeps{phases}, {res.seconds:.3g} s ({res.reason}); "
+              f"wrote {args.output}")
         for w in list(res.bridge.get("warnings", [])) + list(res.warnings):
             print(f"warning: {w}", file=sys.stderr)
         out.update(res.to_dict())
