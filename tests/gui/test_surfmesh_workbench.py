@@ -93,10 +93,10 @@ try:
     expected = coloring.quality_rgb(q, q <= 0)
     got = np.array([c[:3] for c in mesh.SurfMeshColors])
     check(np.allclose(got, expected, atol=1e-6), "color property matches the quality")
-    # A selected object is drawn in the selection's style, over its colors: look at it as a
-    # user does after clicking elsewhere.
-    FreeCADGui.Selection.clearSelection()
-    FreeCADGui.updateGui()
+    # The measured mesh is still selected: FreeCAD's "Shape" selection style would draw it in
+    # the selection color over its quality colors; while colored, it draws a bounding box.
+    check(mesh.ViewObject.SelectionStyle == "BoundBox", "colored mesh selected as a box")
+    check(len(FreeCADGui.Selection.getSelection()) == 1, "the mesh is still selected")
     shot1 = os.path.join(out, "gui_measure.png")
     view.saveImage(shot1, 800, 600, "White")
     img1 = pixels(shot1)
@@ -180,6 +180,7 @@ try:
     FreeCADGui.runCommand("SurfMesh_ClearColors")
     check("SurfMeshColors" not in mesh.PropertiesList, "tangled mesh's colors cleared")
     check(mesh.ViewObject.BackfaceCulling is True, "clearing gives the view its culling back")
+    check(mesh.ViewObject.SelectionStyle == "Shape", "clearing gives the view its selection style")
 
     # ---- Mesh object: measure colors through Coloring -----------------------------------------
     import MeshPart

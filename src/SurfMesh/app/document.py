@@ -19,7 +19,8 @@ An optimized object also gets SurfMeshStatsBefore, SurfMeshQualityBefore, SurfMe
 Colors in the 3D view are applied when the object has a view provider (GUI up): Mesh objects
 through ``Coloring``, FEM tria3 meshes through ``ElementColor``, other FEM meshes (tria6, quad4,
 mixed) through per-node colors (``ElementColor`` draws wrong colors on tria6 in FreeCAD 0.20).
-While tangled elements are shown, the view draws back faces (see _show_back_faces).
+While colored, a selection draws the object's bounding box, and while tangled elements are
+shown, the view draws back faces (see _show_colors_in_view).
 
 Headless: never imports FreeCADGui.
 """
@@ -124,7 +125,7 @@ def apply_colors(obj, report=None):
     vo = getattr(obj, "ViewObject", None)
     if vo is None:
         return rgb
-    _show_back_faces(obj, vo, kind, bool(np.any(tangled)))
+    _show_colors_in_view(obj, vo, kind, bool(np.any(tangled)))
     if kind == "mesh":
         vo.Coloring = False  # toggle: the view keeps stale colors otherwise
         vo.Coloring = True
@@ -142,41 +143,56 @@ def apply_colors(obj, report=None):
     return rgb
 
 
-def _show_back_faces(obj, vo, kind, show):
-    """Makes a tangled element visible: it is wound against its neighbours, so the view sees
-    its back face, which FEM views cull (BackfaceCulling) and Mesh views leave unlit (one-sided
-    Lighting) — the purple of a tangled element never reached the screen. While the colors
-    show tangled elements, back faces are drawn (FEM) and lit (Mesh); the view's own setting
-    is recorded on the object (SurfMeshViewBackFaces) and given back by clear_colors or by
-    colors without tangled elements."""
-    prop = "BackfaceCulling" if kind == "fem" else "Lighting"
+_VIEW_SAVED = "SurfMeshViewSaved"
+
+
+def _set_view(obj, vo, prop, value):
+    """Sets view property ``prop`` while SurfMesh's colors are shown, recording the view's own
+    value on the object (hidden map SurfMeshViewSaved) the first time, for _restore_view."""
     if prop not in vo.PropertiesList:
         return
-    saved = "SurfMeshViewBackFaces"
-    if show:
-        if saved not in obj.PropertiesList:
-            obj.addProperty("App::PropertyString", saved, GROUP,
-                            "The view's back-face setting before tangled elements were shown")
-            setattr(obj, saved, str(getattr(vo, prop)))
-            obj.setEditorMode(saved, 2)  # hidden: bookkeeping of the view, not of the mesh
-        if kind == "fem":
-            vo.BackfaceCulling = False
-        else:
-            vo.Lighting = "Two side"
-    else:
-        _restore_back_faces(obj, vo, kind)
+    saved = dict(getattr(obj, _VIEW_SAVED)) if _VIEW_SAVED in obj.PropertiesList else {}
+    if prop not in saved:
+        saved[prop] = str(getattr(vo, prop))
+        if _VIEW_SAVED not in obj.PropertiesList:
+            obj.addProperty("App::PropertyMap", _VIEW_SAVED, GROUP,
+                            "The view's own settings, given back when the colors are cleared")
+            obj.setEditorMode(_VIEW_SAVED, 2)  # hidden: bookkeeping of the view, not the mesh
+        setattr(obj, _VIEW_SAVED, saved)
+    setattr(vo, prop, value)
 
 
-def _restore_back_faces(obj, vo, kind):
-    saved = "SurfMeshViewBackFaces"
-    if saved not in obj.PropertiesList:
+def _restore_view(obj, vo, props=None):
+    """Gives the view back its own value of ``props`` (all recorded ones when None)."""
+    if _VIEW_SAVED not in obj.PropertiesList:
         return
-    value = getattr(obj, saved)
-    obj.removeProperty(saved)
-    if kind == "fem" and "BackfaceCulling" in vo.PropertiesList:
-        vo.BackfaceCulling = value == "True"
-    elif kind == "mesh" and "Lighting" in vo.PropertiesList and value:
-        vo.Lighting = value
+    saved = dict(getattr(obj, _VIEW_SAVED))
+    for prop in list(saved) if props is None else [p for p in props if p in saved]:
+        value = saved.pop(prop)
+        if prop in vo.PropertiesList:
+            setattr(vo, prop, value == "True" if prop == "BackfaceCulling" else value)
+    if saved:
+        setattr(obj, _VIEW_SAVED, saved)
+    else:
+        obj.removeProperty(_VIEW_SAVED)
+
+
+def _show_colors_in_view(obj, vo, kind, tangled):
+    """What the view needs for the colors to reach the screen:
+    - a selected object is drawn in FreeCAD's selection color over its own ("Shape" selection
+      style; tangled elements lose their purple): while colored, a selection draws the
+      object's bounding box instead;
+    - a tangled element is wound against its neighbours, so the view sees its back face, which
+      FEM views cull (BackfaceCulling) and Mesh views leave unlit (one-sided Lighting): while
+      the colors show tangled elements, back faces are drawn (FEM) and lit (Mesh).
+    The view's own settings are given back by clear_colors (and the back-face one by colors
+    without tangled elements)."""
+    _set_view(obj, vo, "SelectionStyle", "BoundBox")
+    back = "BackfaceCulling" if kind == "fem" else "Lighting"
+    if tangled:
+        _set_view(obj, vo, back, False if kind == "fem" else "Two side")
+    else:
+        _restore_view(obj, vo, [back])
 
 
 def clear_colors(obj):
@@ -187,7 +203,7 @@ def clear_colors(obj):
     vo = getattr(obj, "ViewObject", None)
     if vo is None:
         return
-    _restore_back_faces(obj, vo, kind)
+    _restore_view(obj, vo)
     if kind == "mesh":
         vo.Coloring = False
     else:
