@@ -769,78 +769,66 @@ ElementEdges elementEdges(ElementType t) {
 
 void fail(const std::string& msg) { throw std::invalid_argument("CadMesh: " + msg); }
 
-/// A mesh edge's key: its two node ids, the smaller one in the high half.
-inline std::uint64_t edgeKey(std::uint32_t a, std::uint32_t b) {
-  return a < b ? (std::uint64_t(a) << 32 | b) : (std::uint64_t(b) << 32 | a);
-}
+/// A corner edge used by exactly two elements: whether they run along it in opposite
+/// directions (wound alike) or in the same one (wound oppositely).
+struct EdgePair {
+  std::int32_t e0, e1;
+  bool alike;
+};
 
-/// Calls f(e, a, b) for each corner edge a → b (a ≠ b) of each element e, in element order.
-template <class F>
-void forEachCornerEdge(const MeshInput& input, const std::vector<std::int64_t>& offsets, F&& f) {
+/// The manifold corner edges of the mesh (edges of two distinct elements), in node order.
+std::vector<EdgePair> manifoldEdgePairs(const MeshInput& input,
+                                        const std::vector<std::int64_t>& offsets) {
+  struct Side {
+    std::uint64_t key;  // the edge's two nodes, smaller first
+    std::int32_t elem;
+    std::int32_t dir;  // +1 when the element runs from the smaller node to the larger one
+  };
+  std::vector<Side> sides;
+  sides.reserve(input.conn.size());
   for (std::size_t e = 0; e < input.types.size(); ++e) {
     const int nc = cornerCount(input.types[e]);
     const std::int32_t* nd = input.conn.data() + offsets[e];
     for (int k = 0; k < nc; ++k) {
       const std::uint32_t a = static_cast<std::uint32_t>(nd[k]);
       const std::uint32_t b = static_cast<std::uint32_t>(nd[(k + 1) % nc]);
-      if (a != b) f(e, a, b);
+      if (a == b) continue;
+      const std::uint64_t key = a < b ? (std::uint64_t(a) << 32 | b) : (std::uint64_t(b) << 32 | a);
+      sides.push_back({key, static_cast<std::int32_t>(e), a < b ? 1 : -1});
     }
   }
+  std::sort(sides.begin(), sides.end(), [](const Side& p, const Side& q) { return p.key < q.key; });
+  std::vector<EdgePair> out;
+  for (std::size_t i = 0; i < sides.size();) {
+    std::size_t j = i + 1;
+    while (j < sides.size() && sides[j].key == sides[i].key) ++j;
+    if (j - i == 2 && sides[i].elem != sides[i + 1].elem)
+      out.push_back({sides[i].elem, sides[i + 1].elem, sides[i].dir != sides[i + 1].dir});
+    i = j;
+  }
+  return out;
 }
 
 /// Winding of each face against its outward normal (+1 as the normal, −1 against it, +1 for
 /// a face without elements), from the per-face element votes `agree` / `disagree` and the
 /// relations between faces across shared mesh edges (see step 5 of CadMesh's constructor).
-std::vector<int> faceWindingSigns(const MeshInput& input, const std::vector<std::int64_t>& offsets,
+std::vector<int> faceWindingSigns(const std::vector<EdgePair>& edges,
                                   const std::vector<std::int32_t>& elemFace, int NF,
                                   const std::vector<std::int64_t>& agree,
                                   const std::vector<std::int64_t>& disagree) {
   const std::size_t F = static_cast<std::size_t>(NF);
-  const std::size_t E = input.types.size();
-  // Nodes used by elements of more than one face: both ends of any edge between two faces.
-  std::vector<std::int32_t> firstFace(input.nodes.size(), -1);
-  std::vector<unsigned char> shared(input.nodes.size(), 0);
-  for (std::size_t e = 0; e < E; ++e) {
-    const std::int32_t* nd = input.conn.data() + offsets[e];
-    for (int k = 0; k < cornerCount(input.types[e]); ++k) {
-      std::int32_t& f0 = firstFace[static_cast<std::size_t>(nd[k])];
-      if (f0 < 0)
-        f0 = elemFace[e];
-      else if (f0 != elemFace[e])
-        shared[static_cast<std::size_t>(nd[k])] = 1;
-    }
-  }
-  firstFace = std::vector<std::int32_t>();
-  // Those corner edges, keyed by their two nodes; `dir` = +1 when the element runs from the
-  // smaller node id to the larger one.
-  struct Side {
-    std::uint64_t key;
-    std::int32_t face;
-    std::int32_t dir;
-  };
-  std::vector<Side> sides;
-  forEachCornerEdge(input, offsets, [&](std::size_t e, std::uint32_t a, std::uint32_t b) {
-    if (shared[a] && shared[b]) sides.push_back({edgeKey(a, b), elemFace[e], a < b ? 1 : -1});
-  });
-  shared = std::vector<unsigned char>();
-  std::sort(sides.begin(), sides.end(), [](const Side& p, const Side& q) {
-    return p.key != q.key ? p.key < q.key : p.face < q.face;
-  });
-  // Relations between face pairs: + (same winding) / − votes over their manifold shared edges.
+  // Relations between face pairs (f < g): + (same winding) / − votes over the manifold mesh
+  // edges between them.
   struct Pair {
     std::int32_t f, g;
     std::int32_t vote;
   };
   std::vector<Pair> pairs;
-  for (std::size_t i = 0; i < sides.size();) {
-    std::size_t j = i + 1;
-    while (j < sides.size() && sides[j].key == sides[i].key) ++j;
-    if (j - i == 2 && sides[i].face != sides[i + 1].face)  // a manifold edge between two faces
-      pairs.push_back(
-          {sides[i].face, sides[i + 1].face, sides[i].dir != sides[i + 1].dir ? 1 : -1});
-    i = j;
+  for (const EdgePair& p : edges) {
+    const std::int32_t f = elemFace[static_cast<std::size_t>(p.e0)];
+    const std::int32_t g = elemFace[static_cast<std::size_t>(p.e1)];
+    if (f != g) pairs.push_back({std::min(f, g), std::max(f, g), p.alike ? 1 : -1});
   }
-  sides = std::vector<Side>();
   std::sort(pairs.begin(), pairs.end(),
             [](const Pair& p, const Pair& q) { return p.f != q.f ? p.f < q.f : p.g < q.g; });
   // Adjacency with one relation per face pair (ties: no relation).
@@ -908,53 +896,31 @@ std::vector<int> faceWindingSigns(const MeshInput& input, const std::vector<std:
 
 /// BridgeReport::miswoundElements: per connected part of a face's mesh (through the manifold
 /// corner edges between two of its elements), the elements of the less common winding.
-std::vector<std::int32_t> miswoundElements(const MeshInput& input,
-                                           const std::vector<std::int64_t>& offsets,
+std::vector<std::int32_t> miswoundElements(const std::vector<EdgePair>& edges,
                                            const std::vector<std::int32_t>& elemFace) {
-  const std::size_t E = input.types.size();
-  struct Side {
-    std::uint64_t key;  // the edge's two nodes, smaller first
-    std::int32_t elem;
-    std::int32_t dir;  // +1 when the element runs from the smaller node to the larger one
-  };
-  std::vector<Side> sides;
-  sides.reserve(input.conn.size());
-  forEachCornerEdge(input, offsets, [&](std::size_t e, std::uint32_t a, std::uint32_t b) {
-    sides.push_back({edgeKey(a, b), static_cast<std::int32_t>(e), a < b ? 1 : -1});
-  });
-  std::sort(sides.begin(), sides.end(), [](const Side& p, const Side& q) { return p.key < q.key; });
+  const std::size_t E = elemFace.size();
   // Links between two elements of one face across a manifold edge: r = +1 same winding (the
   // edge run in opposite directions), −1 opposite windings. CSR by element.
+  auto inOneFace = [&](const EdgePair& p) {
+    return elemFace[static_cast<std::size_t>(p.e0)] == elemFace[static_cast<std::size_t>(p.e1)];
+  };
   std::vector<std::int64_t> deg(E + 1, 0);
-  std::vector<std::array<std::int32_t, 3>> links;  // e, f, r
-  for (std::size_t i = 0; i < sides.size();) {
-    std::size_t j = i + 1;
-    while (j < sides.size() && sides[j].key == sides[i].key) ++j;
-    if (j - i == 2) {
-      const Side &p = sides[i], &q = sides[i + 1];
-      if (p.elem != q.elem &&
-          elemFace[static_cast<std::size_t>(p.elem)] == elemFace[static_cast<std::size_t>(q.elem)])
-        links.push_back({p.elem, q.elem, p.dir != q.dir ? 1 : -1});
+  for (const EdgePair& p : edges)
+    if (inOneFace(p)) {
+      ++deg[static_cast<std::size_t>(p.e0) + 1];
+      ++deg[static_cast<std::size_t>(p.e1) + 1];
     }
-    i = j;
-  }
-  sides = std::vector<Side>();
-  for (const auto& l : links) {
-    ++deg[static_cast<std::size_t>(l[0]) + 1];
-    ++deg[static_cast<std::size_t>(l[1]) + 1];
-  }
   for (std::size_t e = 0; e < E; ++e) deg[e + 1] += deg[e];
   std::vector<std::pair<std::int32_t, std::int8_t>> adj(static_cast<std::size_t>(deg[E]));
   {
     std::vector<std::int64_t> fill(deg.begin(), deg.end() - 1);
-    for (const auto& l : links) {
-      adj[static_cast<std::size_t>(fill[static_cast<std::size_t>(l[0])]++)] = {
-          l[1], static_cast<std::int8_t>(l[2])};
-      adj[static_cast<std::size_t>(fill[static_cast<std::size_t>(l[1])]++)] = {
-          l[0], static_cast<std::int8_t>(l[2])};
+    for (const EdgePair& p : edges) {
+      if (!inOneFace(p)) continue;
+      const std::int8_t r = p.alike ? 1 : -1;
+      adj[static_cast<std::size_t>(fill[static_cast<std::size_t>(p.e0)]++)] = {p.e1, r};
+      adj[static_cast<std::size_t>(fill[static_cast<std::size_t>(p.e1)]++)] = {p.e0, r};
     }
   }
-  links = {};
   std::vector<std::int8_t> cls(E, 0);
   std::vector<std::int32_t> part, out;
   for (std::size_t root = 0; root < E; ++root) {
@@ -1911,8 +1877,12 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   // elements of that part vote once for its winding. A part whose relations contradict each
   // other (a mesh not wound consistently, or a shell whose faces are not oriented alike) keeps
   // the per-face votes.
-  std::vector<int> windingSign = faceWindingSigns(input, offsets, elemFace, NF, agree, disagree);
-  report_.miswoundElements = miswoundElements(input, offsets, elemFace);
+  std::vector<int> windingSign;
+  {
+    const std::vector<EdgePair> edges = manifoldEdgePairs(input, offsets);
+    windingSign = faceWindingSigns(edges, elemFace, NF, agree, disagree);
+    report_.miswoundElements = miswoundElements(edges, elemFace);
+  }
   if (!report_.miswoundElements.empty()) {
     const std::int32_t e0 = report_.miswoundElements[0];
     report_.warnings.push_back(
