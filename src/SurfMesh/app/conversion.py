@@ -317,7 +317,8 @@ def _fem_volume_types(fem):
              15: "penta15", 20: "hexa20"}
     counts = {}
     for v in fem.Volumes:
-        k = names.get(len(fem.getElementNodes(v)), f"{len(fem.getElementNodes(v))}-node")
+        n = len(fem.getElementNodes(v))
+        k = names.get(n, f"{n}-node")
         counts[k] = counts.get(k, 0) + 1
     return ", ".join(f"{k} ({n})" for k, n in sorted(counts.items()))
 

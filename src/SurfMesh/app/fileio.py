@@ -347,7 +347,7 @@ def _read_meshio(path) -> MeshFile:
     if nodes.shape[1] == 2:
         nodes = np.hstack([nodes, np.zeros((len(nodes), 1))])
     volumes = [(b.type, len(b.data)) for b in m.cells
-               if b.type.split("1")[0].split("2")[0] in _MESHIO_VOLUME_TYPES]
+               if b.type.rstrip("0123456789") in _MESHIO_VOLUME_TYPES]
     data = conversion.MeshData(
         kind="arrays", nodes=nodes, types=types, offsets=offsets, conn=np.concatenate(conns),
         node_ids=np.arange(len(nodes), dtype=np.int64),
@@ -375,21 +375,8 @@ def check_output(out, src: MeshFile = None, what="output mesh"):
     if src is None:
         return
     ext = _ext(out)
-    names = set(src.data.type_names())
-    if ext in GMSH_EXTS:
-        return
-    if ext in FEM_EXTS and src.fmt != "fem":
-        bad = sorted(names - {"tri3", "tri6", "quad4"})
-        if bad:
-            raise ValueError(f"FreeCAD FEM meshes cannot hold {', '.join(bad)} elements: write "
-                             f".msh instead of {ext}")
-        return
-    if ext in FEM_EXTS:
-        return
-    if ext in MESH_EXTS:
-        if names - {"tri3"}:
-            raise ValueError(f"{', '.join(sorted(names))} elements cannot be written as a "
-                             f"triangle mesh ({ext}): write .msh or a FEM format")
+    if ext in GMSH_EXTS | FEM_EXTS | MESH_EXTS:
+        _check_format_holds(src.data, ext)
         return
     try:
         import meshio
@@ -403,12 +390,26 @@ def check_output(out, src: MeshFile = None, what="output mesh"):
                          f"known: {', '.join(formats)}")
 
 
+def _check_format_holds(data, ext):
+    """Raises ValueError when the mesh format of extension ``ext`` cannot hold ``data``'s
+    elements: FreeCAD FEM meshes hold tri3, tri6 and quad4, triangle meshes (STL/OBJ…) tri3."""
+    names = set(data.type_names())
+    if ext in FEM_EXTS and names - {"tri3", "tri6", "quad4"}:
+        raise ValueError(f"FreeCAD FEM meshes cannot hold "
+                         f"{', '.join(sorted(names - {'tri3', 'tri6', 'quad4'}))} elements: "
+                         f"write .msh instead of {ext}")
+    if ext in MESH_EXTS and names - {"tri3"}:
+        raise ValueError(f"{', '.join(sorted(names))} elements cannot be written as a "
+                         f"triangle mesh ({ext}): write .msh or a FEM format")
+
+
 def write_mesh(out, src: MeshFile, new_nodes, msh_version=None):
     """Writes the mesh of ``src`` with node positions ``new_nodes`` to ``out`` (format by
     extension). Ids and element order are kept where the format stores them."""
     new_nodes = np.asarray(new_nodes, dtype=np.float64)
     ext = _ext(out)
     data = src.data
+    _check_format_holds(data, ext)
     if ext in GMSH_EXTS:
         version = msh_version or (src.msh_version if src.fmt == "gmsh" else 4.1)
         version = 2.2 if float(version) < 3 else 4.1
@@ -472,10 +473,7 @@ def _fem_from(data, nodes):
     eids = data.element_ids if data.element_ids.min() > 0 else data.element_ids + 1
     for nid, (x, y, z) in zip(ids.tolist(), nodes.tolist()):
         fem.addNode(x, y, z, int(nid))
-    for e in range(data.element_count):
-        name = conversion.ELEMENT_NAMES[int(data.types[e])]
-        if name not in ("tri3", "tri6", "quad4"):
-            raise ValueError(f"FreeCAD FEM meshes cannot hold {name} elements: write .msh")
+    for e in range(data.element_count):  # element types checked by _check_format_holds
         fem.addFace([int(i) for i in ids[data.element(e)]], int(eids[e]))
     return fem
 
@@ -484,10 +482,7 @@ def _mesh_from(data, nodes):
     import FreeCAD
     import Mesh
 
-    if np.any(data.types != conversion.ELEMENT_TYPES["tri3"]):
-        raise ValueError(f"{', '.join(data.type_names())} elements cannot be written as a "
-                         "triangle mesh (STL/OBJ…): write .msh or a FEM format")
-    vec = FreeCAD.Vector
+    vec = FreeCAD.Vector  # element types checked by _check_format_holds
     pts = [vec(float(x), float(y), float(z)) for x, y, z in nodes]
     tris = [tuple(int(i) for i in data.element(e)) for e in range(data.element_count)]
     return Mesh.Mesh((pts, tris))
