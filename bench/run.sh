@@ -13,7 +13,9 @@
 # 5. (not in quick) FreeCAD's Gmsh second-order meshes of four parts, Face nodes perturbed in
 #    (u,v), through SurfMesh.optimize (bench/python/perturbed_fem.py, freecadcmd);
 # 6. (not in quick) FreeCAD's MeshPart meshes (standard and Mefisto) of every CAD part, as
-#    they come, fixed and sliding boundary (bench/python/meshpart_parts.py, freecadcmd).
+#    they come, fixed and sliding boundary (bench/python/meshpart_parts.py, freecadcmd);
+# 7. (not in quick) Gmsh's own high-order meshes (orders 2-5) of two parts through the
+#    installed workbench's command line (bench/high_order_parts.py).
 set -e
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
 BUILD=${BUILD:-$ROOT/build-bench}
@@ -64,4 +66,9 @@ if [ "$1" != "quick" ]; then
   echo
   echo "## FreeCAD MeshPart meshes of every CAD part"
   freecadcmd "$ROOT/bench/python/meshpart_parts.py" 2>&1 | grep -E '^\||rror' || true
+fi
+if [ "$1" != "quick" ]; then
+  echo
+  echo "## Gmsh's high-order meshes, orders 2-5 (installed workbench's command line)"
+  /usr/bin/python3 "$ROOT/bench/high_order_parts.py" 2>&1 | grep -E '^\||rror' || true
 fi

@@ -35,6 +35,7 @@
 #include <cstdio>
 #include <map>
 #include <random>
+#include <set>
 #include <utility>
 
 using namespace surfmesh;
@@ -556,6 +557,70 @@ TEST(HighOrderOptimize, FoldedSecondOrderNodesAreStraightenedInParameterSpace) {
   EXPECT_EQ(r.after.tangled, 0u);
   // Every folded element was straightened (the sweep alone needed 40× the time here).
   EXPECT_EQ(r.straightenedElements, folded.tangled);
+  EXPECT_LE(maxDistanceToSurface(m), 1e-12);
+}
+
+TEST(HighOrderOptimize, ElementFoldedBetweenFixedNodesIsHeldAndTheRestUntangled) {
+  // A quadratic triangle at a corner of the square, both its sides there on the fixed
+  // boundary, whose mid-side node is moved along the boundary beyond the corner: at that
+  // corner ∂x/∂ξ = −3 x0 + 4 x3 − x1 (Gmsh order: x3 the mid-side node of side 0–1) points
+  // backwards, the element folds there, and only fixed nodes act on that Jacobian. No motion
+  // of its free (interior mid-side) node repairs it; the run must hold it from the start and
+  // still untangle what elsewhere can be untangled, without the stalled sweeps that end in
+  // giving up.
+  const PlaneSurface plane;
+  const GridMesh lin = squareMesh(5);
+  GridMesh g = elevate(plane, lin, 2);
+  const std::size_t E = g.conn.size() / 6;
+  std::vector<int> uses(g.uv.size(), 0);
+  for (std::int32_t id : g.conn) ++uses[static_cast<std::size_t>(id)];
+  // The element holding a corner of the square alone, with the corner as its node k.
+  std::size_t corner = E;
+  int k = -1;
+  for (std::size_t e = 0; e < E && corner == E; ++e)
+    for (int a = 0; a < 3; ++a)
+      if (uses[static_cast<std::size_t>(g.conn[6 * e + a])] == 1) {
+        corner = e;
+        k = a;
+      }
+  ASSERT_LT(corner, E);
+  // Relabel the element's corners cyclically so that the square's corner is node 0.
+  std::int32_t* c = g.conn.data() + 6 * corner;
+  std::int32_t el[6] = {c[k],     c[(k + 1) % 3],     c[(k + 2) % 3],
+                        c[3 + k], c[3 + (k + 1) % 3], c[3 + (k + 2) % 3]};
+  std::copy(el, el + 6, c);
+  const std::set<std::int32_t> fixedSet(g.fixed.begin(), g.fixed.end());
+  for (int a : {0, 1, 2, 3, 5}) ASSERT_TRUE(fixedSet.count(c[a])) << "node " << a;
+  ASSERT_FALSE(fixedSet.count(c[4]));
+  const Vec2 x0 = g.uv[static_cast<std::size_t>(c[0])], x1 = g.uv[static_cast<std::size_t>(c[1])];
+  g.uv[static_cast<std::size_t>(c[3])] =
+      x0 - 0.1 * (x1 - x0);  // −3 x0 + 4 x3 − x1 = −1.4 (x1 − x0)
+  SurfaceMesh m = makeSingleSurfaceMesh(plane, g.uv, ElementType::Tri6, g.conn, g.fixed);
+  // A repairable fold elsewhere: an interior corner node moved across a neighbour.
+  std::size_t inner = m.nodeCount();
+  for (std::size_t i = 0; i < lin.uv.size() && inner == m.nodeCount(); ++i)
+    if (!fixedSet.count(static_cast<std::int32_t>(i)) && std::abs(lin.uv[i].x() - 0.5) < 0.2 &&
+        std::abs(lin.uv[i].y() - 0.5) < 0.2)
+      inner = i;
+  ASSERT_LT(inner, m.nodeCount());
+  const Vec2 moved = m.uv[inner] + Vec2(0.3, 0.05);
+  m.uv[inner] = moved;
+  syncFaceNodes(m);
+  const MeshQuality q0 = measureQuality(m, measureByName("shape"));
+  ASSERT_TRUE(q0.tangled[corner]);
+  ASSERT_GT(q0.stats.tangled, 1u);
+
+  OptimizeOptions opt;
+  opt.maxSweeps = 200;
+  const OptimizeResult r = optimizeMesh(m, opt);
+  std::printf("%zu tangled → %zu in %d sweeps\n", q0.stats.tangled, r.after.tangled, r.sweeps);
+  EXPECT_EQ(r.after.tangled, 1u);
+  EXPECT_EQ(r.tangledUnmovable, std::vector<std::int32_t>{static_cast<std::int32_t>(corner)});
+  EXPECT_TRUE(r.tangledMovable.empty());
+  ASSERT_FALSE(r.warnings.empty());
+  EXPECT_NE(r.warnings[0].find("no node that may move where they fold"), std::string::npos);
+  // Held from the start: the run never waits for the give-up of a stalled untangling.
+  EXPECT_LT(r.sweeps, 6 * opt.deltaStallSweeps);
   EXPECT_LE(maxDistanceToSurface(m), 1e-12);
 }
 

@@ -288,6 +288,42 @@ TEST(QuadOptimize, QuadMeshOfATorusIsUntangled) {
   EXPECT_LE(maxDistanceToSurface(m), 1e-12);
 }
 
+TEST(QuadOptimize, QuadFoldedBetweenFixedNodesIsHeldAndTheRestUntangled) {
+  // The corner quad (a, b, c, d) of a square grid with a, b, d on the fixed boundary and c free:
+  // b moved along the boundary beyond the corner a folds the corner triangle (a, b, d), which
+  // only fixed nodes span. No motion of c repairs the quad; the run must hold it from the
+  // start, untangle the fold made elsewhere, and never wait for the give-up.
+  const PlaneSurface plane;
+  const int n = 5;
+  std::vector<ElementType> types;
+  GridMesh g = quadGrid(n, n, 0, 1, 0, 1, false, &types, false, false);
+  const double h = 1.0 / n;
+  g.uv[1] = Vec2(-0.5 * h, 0.0);  // node (1, 0): b of the corner quad 0
+  SurfaceMesh m = mixedMesh(plane, g, types);
+  const std::int32_t* q = m.elementNodes(0);
+  ASSERT_EQ(q[0], 0);
+  ASSERT_EQ(q[1], 1);
+  ASSERT_EQ(m.nodeKind[static_cast<std::size_t>(q[2])], NodeKind::Face);
+  // A repairable fold: the free node (2, 2) moved past (3, 2).
+  const std::size_t inner = 2 * (n + 1) + 2;
+  ASSERT_EQ(m.nodeKind[inner], NodeKind::Face);
+  m.uv[inner] += Vec2(1.4 * h, 0.1 * h);
+  syncFaceNodes(m);
+  const MeshQuality q0 = measureQuality(m, measureByName("shape"));
+  ASSERT_TRUE(q0.tangled[0]);
+  ASSERT_GT(q0.stats.tangled, 1u);
+
+  OptimizeOptions opt;
+  opt.maxSweeps = 200;
+  const OptimizeResult r = optimizeMesh(m, opt);
+  std::printf("%zu tangled → %zu in %d sweeps\n", q0.stats.tangled, r.after.tangled, r.sweeps);
+  EXPECT_EQ(r.after.tangled, 1u);
+  EXPECT_EQ(r.tangledUnmovable, std::vector<std::int32_t>{0});
+  EXPECT_TRUE(r.tangledMovable.empty());
+  EXPECT_LT(r.sweeps, 6 * opt.deltaStallSweeps);
+  EXPECT_LE(maxDistanceToSurface(m), 1e-12);
+}
+
 TEST(QuadOptimize, MixedTriQuadMeshOfACylinderIsUntangled) {
   const CylinderSurface cyl(2.0, 0.0, 6.0);
   const int nu = 24, nv = 12;

@@ -116,9 +116,9 @@ class OptimizeResult:
     options: dict = dataclasses.field(default_factory=dict)
     bridge: dict = dataclasses.field(default_factory=dict)
     # Elements still tangled after the run, by their ids (FEM element ids; 0-based indices of
-    # the input for Mesh.Mesh facets and arrays): those with no node that may move (all on
-    # CAD vertices, fixed CAD edges or poles: only changing the mesh repairs them) and those
-    # the sweeps could not free. ``warnings`` says the same in words.
+    # the input for Mesh.Mesh facets and arrays): those with no node that may move where they
+    # fold (all on CAD vertices, fixed CAD edges or poles: only changing the mesh repairs
+    # them) and those the sweeps could not free. ``warnings`` says the same in words.
     tangled_unmovable: list = dataclasses.field(default_factory=list)
     tangled_movable: list = dataclasses.field(default_factory=list)
     warnings: list = dataclasses.field(default_factory=list)
@@ -597,8 +597,9 @@ def optimize(
     if unmovable:
         hint = "try boundary='slide', or change" if boundary == "fixed" else "change"
         warnings.append(
-            f"{len(unmovable)} element(s) stay tangled with no node that may move (all on CAD "
-            f"vertices, fixed CAD edges or poles; {hint} the mesh there): elements "
+            f"{len(unmovable)} element(s) stay tangled with no node that may move where they "
+            f"fold (their nodes there are all on CAD vertices, fixed CAD edges or poles; {hint} "
+            f"the mesh there): elements "
             f"{_id_list(unmovable)}{_where(data, handle, new_nodes, core_unmovable)}"
         )
     if movable:

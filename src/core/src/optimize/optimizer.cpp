@@ -1582,6 +1582,56 @@ struct GlobalEval {
   double minValidMovable = 1.0;  // lowest quality of the valid elements with a movable node
 };
 
+/// Whether element e (nodes at `xyz`, reference normal n) folds where no node that may move
+/// acts: at one of the points where its validity is decided, det S ≤ 0 and the Jacobian there
+/// depends only on nodes that may not move (CAD vertices, fixed CAD edges, poles). No node
+/// motion can repair such an element. A linear triangle: none of its nodes may move. A
+/// quadrilateral: a tangled corner triangle whose three nodes may not move. A high-order
+/// triangle: a tangled node or quadrature point whose shape-function gradients vanish at
+/// every movable node (e.g. the corner at a CAD vertex between two element edges on fixed CAD
+/// edges, where a Gmsh curved element often folds).
+bool foldHeld(const SurfaceMesh& m, const std::vector<Vec3>& xyz, std::size_t e, const Vec3& n) {
+  const std::int32_t* nd = m.elementNodes(e);
+  auto movable = [&](int k) { return isMovable(m.nodeKind[static_cast<std::size_t>(nd[k])]); };
+  auto at = [&](int k) { return xyz[static_cast<std::size_t>(nd[k])]; };
+  const ElementType type = m.elemType[e];
+  if (type == ElementType::Tri3 || n.squaredNorm() == 0.0) {
+    // Without a reference normal (corner normals that cancel) the element is tangled wherever
+    // its nodes are, unless a movable corner changes the normal.
+    for (int k = 0; k < m.elementSize(e); ++k)
+      if (movable(k)) return false;
+    return true;
+  }
+  if (type == ElementType::Quad4) {
+    for (int k = 0; k < 4; ++k) {
+      const int k1 = (k + 1) % 4, k2 = (k + 3) % 4;
+      if (movable(k) || movable(k1) || movable(k2)) continue;
+      Jacobian32 J;
+      J.col(0) = at(k1) - at(k);
+      J.col(1) = at(k2) - at(k);
+      if (jacobianValidity(J, squareCornerWinv(), n).tangled) return true;
+    }
+    return false;
+  }
+  const HighOrderTriangleRule& rule = highOrderTriangleRule(elementOrder(type));
+  const int nn = rule.nodes;
+  auto heldAt = [&](const Eigen::Vector2d* grad) {
+    Jacobian32 J = Jacobian32::Zero();
+    for (int i = 0; i < nn; ++i) {
+      if (grad[i].squaredNorm() <= 1e-24) continue;  // zero up to the rounding of ξ
+      if (movable(i)) return false;
+      J.col(0) += grad[i].x() * at(i);
+      J.col(1) += grad[i].y() * at(i);
+    }
+    return jacobianValidity(J, equilateralWinv(), n).tangled;
+  };
+  for (int a = 0; a < nn; ++a)
+    if (heldAt(rule.gradAtNode.data() + static_cast<std::size_t>(a * nn))) return true;
+  for (std::size_t q = 0; q < rule.quadrature->points.size(); ++q)
+    if (heldAt(rule.gradAtPoint.data() + q * static_cast<std::size_t>(nn))) return true;
+  return false;
+}
+
 /// Per element: 1 when none of its nodes may move (it is in no node's submesh).
 std::vector<unsigned char> frozenElements(const SurfaceMesh& m) {
   std::vector<unsigned char> frozen(m.elementCount(), 1);
@@ -1622,18 +1672,16 @@ void parallelChunks(Team& team, std::size_t n, std::size_t chunk, Body&& body,
 
 namespace {
 
-/// Sorts the elements tangled in `q` into those with a movable node and those without (no
-/// node motion can repair the latter), with a warning for each non-empty list.
+/// Sorts the elements tangled in `q` into those that fold where a movable node acts and those
+/// that fold where none does (foldHeld: no node motion can repair them), with a warning for
+/// each non-empty list.
 void reportTangled(const SurfaceMesh& mesh, const MeshQuality& q, OptimizeResult* res) {
   res->tangledUnmovable.clear();
   res->tangledMovable.clear();
   for (std::size_t e = 0; e < mesh.elementCount(); ++e) {
     if (!q.tangled[e]) continue;
-    const std::int32_t* nd = mesh.elementNodes(e);
-    bool movable = false;
-    for (int k = 0; k < mesh.elementSize(e); ++k)
-      movable = movable || isMovable(mesh.nodeKind[static_cast<std::size_t>(nd[k])]);
-    (movable ? res->tangledMovable : res->tangledUnmovable).push_back(static_cast<std::int32_t>(e));
+    const bool held = foldHeld(mesh, mesh.xyz, e, elementReferenceNormal(mesh, e));
+    (held ? res->tangledUnmovable : res->tangledMovable).push_back(static_cast<std::int32_t>(e));
   }
   auto ids = [](const std::vector<std::int32_t>& v) {
     std::string t;
@@ -1646,8 +1694,9 @@ void reportTangled(const SurfaceMesh& mesh, const MeshQuality& q, OptimizeResult
   if (!res->tangledUnmovable.empty())
     res->warnings.push_back(
         std::to_string(res->tangledUnmovable.size()) +
-        " element(s) stay tangled with no movable node (all on CAD vertices, fixed CAD edges "
-        "or poles): moving nodes cannot repair them, the mesh must be changed there (elements " +
+        " element(s) stay tangled with no node that may move where they fold (their nodes there "
+        "are all on CAD vertices, fixed CAD edges or poles): moving nodes cannot repair them, "
+        "the mesh must be changed there (elements " +
         ids(res->tangledUnmovable) + ")");
   if (!res->tangledMovable.empty())
     res->warnings.push_back(std::to_string(res->tangledMovable.size()) +
@@ -1812,6 +1861,11 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
   // Tangled high-order triangles with valid corners: straight sides in (u,v) first.
   if (!s.allTri3 && movable > 0 && opt.maxSweeps > 0)
     NodeUpdater(s, *workers[0]).straightenHighOrder(frozen, false);
+  // Elements folded where no movable node acts are held like those without a movable node:
+  // they neither keep δ > 0 nor take escapes (which would only spend the run on them).
+  for (std::size_t e = 0; e < E; ++e)
+    if (!frozen[e] && foldHeld(mesh, s.xyz, e, s.elementNormal(e, -1, Vec3::Zero(), Vec3::Zero())))
+      frozen[e] = 1;
   GlobalEval g = fullEval(0.0);
   s.deltaHat = chooseDelta(g);
   res.initialObjective = s.deltaHat > 0.0 ? fullEval(s.deltaHat).objective : g.objective0;

@@ -35,7 +35,11 @@
 // backoff of 1, 2, 4, then deltaStallSweeps sweeps, or when ε changes level, and its
 // harmonic layout alone is retried after the same backoff — see
 // OptimizeResult::patchUntanglings). Tangled elements without a movable node cannot change:
-// they do not keep δ > 0 and are reported (OptimizeResult::warnings). Neither do, after
+// they do not keep δ > 0 and are reported (OptimizeResult::warnings). The same holds for an
+// element that folds where only nodes that may not move act (a tangled corner triangle of a
+// quadrilateral on three such nodes; a high-order triangle tangled at a node or quadrature
+// point where the shape functions of its movable nodes have no gradient, e.g. at a CAD vertex
+// between two element edges on fixed CAD edges): it is held from the start. Neither do, after
 // 6 × deltaStallSweeps sweeps without fewer tangled elements than ever before (each level of
 // ε tried twice), the elements still tangled: their nodes are held from then on,
 // the rest of the mesh is smoothed with δ = 0, and they are reported in tangledMovable.
@@ -143,8 +147,8 @@ struct OptimizeResult {
   /// interpolation of its corners (straight sides in (u,v)), kept when fewer elements around
   /// them are tangled. Tried before the first sweep and between stalled sweeps.
   std::size_t straightenedElements = 0;
-  /// Elements tangled after the run none of whose nodes may move (all on CAD vertices, on
-  /// fixed CAD edges or poles): no node motion can repair them.
+  /// Elements tangled after the run that fold where no node that may move acts (none of
+  /// their nodes may move, or see the held folds above): no node motion can repair them.
   std::vector<std::int32_t> tangledUnmovable;
   /// Elements tangled after the run with at least one movable node.
   std::vector<std::int32_t> tangledMovable;
