@@ -54,8 +54,8 @@ try:
     wb = FreeCADGui.activeWorkbench()
     check(wb.MenuText == "SurfMesh", "workbench active")
     cmds = FreeCADGui.listCommands()
-    for name in ("SurfMesh_Measure", "SurfMesh_Optimize", "SurfMesh_Report",
-                 "SurfMesh_ClearColors"):
+    for name in ("SurfMesh_Measure", "SurfMesh_SelectTangled", "SurfMesh_Optimize",
+                 "SurfMesh_Report", "SurfMesh_ClearColors"):
         check(name in cmds, f"{name} registered")
         res = FreeCADGui.Command.get(name).getInfo() if hasattr(FreeCADGui, "Command") else None
         if res:
@@ -64,8 +64,8 @@ try:
     from SurfMesh import paths
     from SurfMesh.app import coloring, examples
 
-    for name in ("SurfMesh", "SurfMesh_Measure", "SurfMesh_Optimize", "SurfMesh_Report",
-                 "SurfMesh_ClearColors"):
+    for name in ("SurfMesh", "SurfMesh_Measure", "SurfMesh_SelectTangled", "SurfMesh_Optimize",
+                 "SurfMesh_Report", "SurfMesh_ClearColors"):
         check(os.path.exists(paths.icon(name)), f"icon {name}.svg installed")
 
     # ---- sample document: tangled FEM tria3 torus -----------------------------------------

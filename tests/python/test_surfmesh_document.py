@@ -129,6 +129,72 @@ class TestDocument(DocumentCase):
         self.assertNotIn("SurfMeshColors", mobj.PropertiesList)
         self.assertIsNotNone(SurfMesh.stats_of(mobj))  # stats kept
 
+    def test_tangled_elements_in_user_ids_changes_nothing(self):
+        """tangled_elements names the tangled elements by their FEM ids (reference: FreeCAD's
+        face normal against each triangle's), with their centroids and CAD faces, and leaves
+        the document as it was."""
+        from SurfMesh.app.document import tangled_elements
+
+        tor, mesh = T.torus_fem(self.doc, tangled=True)
+        self.doc.recompute()
+        undo0, props0 = self.doc.UndoCount, sorted(mesh.PropertiesList)
+        snap = T.fem_snapshot(mesh.FemMesh)
+        pick = tangled_elements(mesh, tor, measure="shape")
+        self.assertEqual(self.doc.UndoCount, undo0)
+        self.assertEqual(sorted(mesh.PropertiesList), props0)
+        self.assertEqual(T.fem_snapshot(mesh.FemMesh), snap)
+        fem = mesh.FemMesh
+        faces = sorted(fem.Faces)
+        ids = sorted(fem.Nodes)
+        row = {n: i for i, n in enumerate(ids)}
+        nodes = np.array([tuple(fem.Nodes[n]) for n in ids])
+        tris = np.array([[row[n] for n in fem.getElementNodes(e)] for e in faces])
+        _, ref = T.reference_tri_quality(nodes, tris, tor.Shape.Faces[0])
+        expected = [faces[k] for k in np.nonzero(ref)[0]]
+        self.assertGreater(len(expected), 0)
+        self.assertEqual(pick.kind, "tangled")
+        self.assertEqual(pick.ids, expected)
+        self.assertEqual(pick.ids, [int(i) for i in pick.report.element_ids[pick.report.tangled]])
+        self.assertEqual(pick.faces, ["Face1"] * len(expected))
+        self.assertEqual(pick.quality, [0.0] * len(expected))
+        for e, c, corners in zip(pick.ids, pick.centers, pick.corners):
+            pts = np.array([tuple(fem.getNodeById(n)) for n in fem.getElementNodes(e)])
+            np.testing.assert_allclose(c, pts.mean(axis=0), rtol=0, atol=1e-12)
+            np.testing.assert_allclose(corners, pts[:3], rtol=0, atol=1e-12)
+        text = pick.summary()
+        self.assertIn(f"{len(expected)} tangled elements (shape measure)", text)
+        self.assertIn(f"the first, element {expected[0]}, lies near (", text)
+        self.assertTrue(text.endswith("on Face1"), text)
+        np.testing.assert_array_equal(pick.report.element_faces, 0)  # one face: Face1
+
+    def test_tangled_elements_worst_when_none_tangled(self):
+        """Without tangled elements: the WORST_ELEMENTS lowest qualities, worst first, by
+        0-based facet index for a Mesh (as FreeCAD numbers facets)."""
+        from SurfMesh.app.document import WORST_ELEMENTS, tangled_elements
+
+        tor, mobj = T.torus_mesh(self.doc, deflection=0.3)
+        snap = T.mesh_snapshot(mobj.Mesh)
+        pick = tangled_elements(mobj, tor)
+        self.assertEqual(T.mesh_snapshot(mobj.Mesh), snap)
+        self.assertNotIn("SurfMeshQuality", mobj.PropertiesList)
+        self.assertEqual(pick.kind, "worst")
+        self.assertEqual(pick.mesh_kind, "mesh")
+        self.assertEqual(len(pick.ids), WORST_ELEMENTS)
+        q = pick.report.quality
+        self.assertEqual(pick.ids, pick.indices)  # facet indices
+        self.assertEqual(pick.quality, sorted(pick.quality))
+        others = np.delete(q, pick.indices)
+        self.assertLessEqual(max(pick.quality), others.min())
+        facet = mobj.Mesh.Facets[pick.ids[0]]
+        np.testing.assert_allclose(pick.centers[0], np.mean(facet.Points, axis=0), atol=1e-6)
+        self.assertIn(f"no tangled facet (shape measure); the {WORST_ELEMENTS} worst",
+                      pick.summary())
+        self.assertEqual(len(tangled_elements(mobj, tor, worst=3).ids), 3)
+        with self.assertRaises(ValueError):
+            tangled_elements(mobj, tor, worst=0)
+        with self.assertRaises(ValueError):  # no shape known for a Mesh feature
+            tangled_elements(mobj)
+
     def test_report_object(self):
         import os
 

@@ -81,6 +81,9 @@ class QualityReport:
     element_types: list = dataclasses.field(default_factory=list)
     bridge: dict = dataclasses.field(default_factory=dict)  # how nodes were put on the shape
     skipped: np.ndarray = None  # (E,) bool: collapsed elements left out (not in the stats)
+    # (E,) int64: 0-based index in shape.Faces of the CAD face each element lies on (FreeCAD's
+    # Face1 is 0), -1 for the elements left out
+    element_faces: np.ndarray = None
 
     def __repr__(self):
         s = self.stats
@@ -456,6 +459,7 @@ def _report(data, handle, name, bridge=None, measured=None) -> QualityReport:
     tangled = np.asarray(r["tangled"], dtype=bool)
     distortion = np.asarray(r["distortion"], dtype=np.float64)
     min_sigma = np.asarray(r["min_sigma"], dtype=np.float64)
+    faces = np.asarray(handle.element_faces(), dtype=np.int64)
     skipped = np.zeros(data.element_count, dtype=bool)
     kept = getattr(data, "kept", None)
     if kept is not None:  # expand to every input element; skipped ones: quality 0, not tangled
@@ -468,6 +472,7 @@ def _report(data, handle, name, bridge=None, measured=None) -> QualityReport:
 
         quality, tangled = expand(quality, 0.0), expand(tangled, False)
         distortion, min_sigma = expand(distortion, np.inf), expand(min_sigma, 0.0)
+        faces = expand(faces, -1)
     stats["skipped"] = int(skipped.sum())
     return QualityReport(
         measure=name,
@@ -480,6 +485,7 @@ def _report(data, handle, name, bridge=None, measured=None) -> QualityReport:
         element_types=data.type_names(),
         bridge=bridge if bridge is not None else _bridge_report(handle),
         skipped=skipped,
+        element_faces=faces,
     )
 
 

@@ -4,6 +4,8 @@
     rep = SurfMesh.measure_object(doc.FEMMeshGmsh)             # colors it, stores the stats
     new = SurfMesh.optimize_object(doc.FEMMeshGmsh, measure="shape")   # "<name>_optimized"
     SurfMesh.clear_colors(new)
+    pick = SurfMesh.app.document.tangled_elements(doc.FEMMeshGmsh)   # changes nothing
+    pick.ids, pick.summary()                                  # tangled (or the worst) elements
 
 The shape defaults to the one the mesh was made from (``FemMeshGmsh.Part``, the source of a
 MeshPart mesh, or the shape SurfMesh recorded on an optimized mesh).
@@ -26,6 +28,8 @@ Headless: never imports FreeCADGui.
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 
@@ -252,6 +256,95 @@ def measure_object(obj, shape=None, measure="shape", color=True, **kwargs):
     doc.commitTransaction()
     _print_warnings(rep.bridge.get("warnings", []))
     return rep
+
+
+#: How many elements :func:`tangled_elements` picks when none is tangled: the worst ones.
+WORST_ELEMENTS = 10
+#: How many ids :meth:`ElementPick.summary` writes out (all of them are in ``ids``).
+_SHOWN_IDS = 100
+
+
+@dataclasses.dataclass
+class ElementPick:
+    """Elements of a mesh object picked by :func:`tangled_elements`, in the user's numbering.
+
+    ``ids`` are what FreeCAD shows: FEM element ids, or 0-based facet indices of a Mesh
+    (FreeCAD's Mesh > Face info says "Facet 26" for ``mesh.Facets[26]``)."""
+
+    kind: str  # "tangled": every tangled element; "worst": none is tangled, the lowest qualities
+    measure: str
+    mesh_kind: str  # "fem" or "mesh"
+    ids: list  # user ids (tangled: in element order; worst: worst first)
+    indices: list  # 0-based positions in the mesh's element order (the report's arrays)
+    quality: list  # their quality (0 for tangled elements)
+    centers: list  # (x, y, z) centroid of each (all its nodes), global coordinates
+    faces: list  # the CAD face each lies on, by FreeCAD's name ("Face3"); "" when unknown
+    corners: list  # the corner positions of each, in order around the element
+    report: api.QualityReport = None
+
+    @property
+    def noun(self) -> str:
+        return "facet" if self.mesh_kind == "mesh" else "element"
+
+    def summary(self) -> str:
+        """What was picked, in words: how many, their ids, where the first one is."""
+        n, noun = len(self.ids), self.noun
+        ids = f"{noun}{'s' if n != 1 else ''} {api._id_list(self.ids, shown=_SHOWN_IDS)}"
+        if n == 0:
+            return f"no {noun} measured"
+        c = self.centers[0]
+        where = f"near ({c[0]:.6g}, {c[1]:.6g}, {c[2]:.6g})" + (
+            f" on {self.faces[0]}" if self.faces[0] else "")
+        if self.kind == "tangled":
+            first = "the first" if n > 1 else "it"
+            return (f"{n} tangled {noun}{'s' if n != 1 else ''} ({self.measure} measure): "
+                    f"{ids}; {first}, {noun} {self.ids[0]}, lies {where}")
+        return (f"no tangled {noun} ({self.measure} measure); the {n} worst, quality "
+                f"{self.quality[0]:.4g} to {self.quality[-1]:.4g}: {ids}; the worst, "
+                f"{noun} {self.ids[0]} (quality {self.quality[0]:.4g}), lies {where}")
+
+
+def tangled_elements(obj, shape=None, measure="shape", worst=WORST_ELEMENTS, **kwargs):
+    """The tangled elements of mesh object ``obj`` measured on ``shape`` (default: its source
+    shape) with ``measure``, as :func:`measure_object` measures it; when none is tangled, its
+    ``worst`` elements of lowest quality (worst first; elements left out of the measure are
+    not picked). Changes nothing: no property, no transaction. Returns an :class:`ElementPick`;
+    the run's warnings go to the report view as with :func:`measure_object`."""
+    kind = _mesh_kind(obj)
+    if isinstance(worst, bool) or not isinstance(worst, (int, np.integer)) or worst < 1:
+        raise ValueError(f"worst must be a positive integer, got {worst!r}")
+    shp = resolve_shape(obj, shape)
+    rep = api.measure(obj, shp, measure=measure, **kwargs)
+    _print_warnings(rep.bridge.get("warnings", []))
+    if rep.tangled.any():
+        picked, what = np.nonzero(rep.tangled)[0], "tangled"
+    else:
+        measured = np.nonzero(~rep.skipped)[0] if rep.skipped is not None else \
+            np.arange(len(rep.quality))
+        order = np.argsort(rep.quality[measured], kind="stable")[: int(worst)]
+        picked, what = measured[order], "worst"
+    data = conversion.read_mesh(obj)
+    quad = conversion.ELEMENT_TYPES["quad4"]
+    centers, corners = [], []
+    for e in picked:
+        nodes = data.nodes[data.element(int(e))]
+        centers.append(tuple(float(x) for x in nodes.mean(axis=0)))
+        k = 4 if data.types[e] == quad else 3
+        corners.append([tuple(float(x) for x in p) for p in nodes[:k]])
+    faces = rep.element_faces
+    return ElementPick(
+        kind=what,
+        measure=rep.measure,
+        mesh_kind=kind,
+        ids=[int(rep.element_ids[e]) for e in picked],
+        indices=[int(e) for e in picked],
+        quality=[float(rep.quality[e]) for e in picked],
+        centers=centers,
+        faces=[f"Face{int(faces[e]) + 1}" if faces is not None and faces[e] >= 0 else ""
+               for e in picked],
+        corners=corners,
+        report=rep,
+    )
 
 
 def optimize_object(obj, shape=None, measure="shape", boundary="fixed", name=None, color=True,

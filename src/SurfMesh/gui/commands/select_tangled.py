@@ -1,0 +1,52 @@
+"""SurfMesh_SelectTangled: select the tangled elements of the selected mesh (the worst ones when
+none is tangled) and say where they are."""
+
+from __future__ import annotations
+
+import FreeCAD
+import FreeCADGui
+
+from SurfMesh import paths
+from SurfMesh.gui import preferences, runner, selection
+
+
+class SelectTangledCommand:
+    def GetResources(self):
+        from SurfMesh.app.document import WORST_ELEMENTS
+
+        return {
+            "Pixmap": paths.icon("SurfMesh_SelectTangled"),
+            "MenuText": "Select tangled elements",
+            "ToolTip": "Measures the selected mesh (Mesh or FEM) on its CAD shape and selects "
+            "its tangled elements, outlined in the 3D view; when none is tangled, its "
+            f"{WORST_ELEMENTS} worst elements.\nThe report view lists their ids and where the "
+            "first one is. The document is not changed. Select one mesh object, and its shape "
+            "unless the mesh was made from it.",
+        }
+
+    def IsActive(self):
+        return FreeCAD.ActiveDocument is not None and len(selection.selected_meshes()) == 1
+
+    def Activated(self):
+        mesh, shape = selection.selected_mesh_and_shape()
+        if mesh is None:
+            runner.show_error("SurfMesh", ValueError("select one mesh object (and its shape)"))
+            return
+        args = selection.object_ref(mesh)
+        if shape is not None:
+            args += ", " + selection.object_ref(shape)
+        args += f", measure={preferences.measure()!r}"
+        try:
+            pick = runner.run(f"SurfMesh.app.document.tangled_elements({args})")
+        except Exception as exc:
+            runner.show_error("SurfMesh: select tangled elements", exc)
+            return
+        names = selection.select_elements(mesh, pick.ids, pick.corners, pick.centers)
+        shown = ", ".join(f"{mesh.Name}.{n}" for n in names[:3]) + (", …" if len(names) > 3
+                                                                    else "")
+        FreeCAD.Console.PrintMessage(
+            f"SurfMesh: {mesh.Label}: {pick.summary()}. Selected as {shown}; FreeCAD draws no "
+            f"selected mesh {pick.noun}, so they are outlined in the 3D view while selected.\n"
+        )
+        FreeCADGui.updateGui()
+
