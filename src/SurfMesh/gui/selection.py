@@ -46,6 +46,49 @@ def object_ref(obj) -> str:
     return f"App.getDocument({obj.Document.Name!r}).getObject({obj.Name!r})"
 
 
+def one_mesh_selected() -> bool:
+    """Whether a command on one mesh applies: a document is open and one mesh is selected."""
+    import FreeCAD
+
+    return FreeCAD.ActiveDocument is not None and len(selected_meshes()) == 1
+
+
+def selected_mesh_or_say():
+    """selected_mesh_and_shape(), after telling the user what to select when it does not fit."""
+    mesh, shape = selected_mesh_and_shape()
+    if mesh is None:
+        from SurfMesh.gui import runner
+
+        runner.show_error("SurfMesh", ValueError("select one mesh object (and its shape)"))
+    return mesh, shape
+
+
+def run_on_selected_mesh(function, title, extra=""):
+    """Runs ``function(mesh[, shape]<extra>)`` (Python text, e.g. "SurfMesh.measure_object")
+    on the selected mesh and its shape through runner.run, so that the console shows the call.
+    Returns (mesh, what it returned), or (None, None) after telling the user what to select or
+    what went wrong (a message box titled ``title``)."""
+    from SurfMesh.gui import runner
+
+    mesh, shape = selected_mesh_or_say()
+    if mesh is None:
+        return None, None
+    try:
+        return mesh, runner.run(f"{function}({call_arguments(mesh, shape)}{extra})")
+    except Exception as exc:
+        runner.show_error(title, exc)
+        return None, None
+
+
+def call_arguments(mesh, shape, shape_keyword=False) -> str:
+    """The arguments of a SurfMesh call on ``mesh`` and ``shape`` (when not None; passed as
+    ``shape=`` when shape_keyword), as Python for FreeCADGui.doCommand."""
+    args = object_ref(mesh)
+    if shape is not None:
+        args += (", shape=" if shape_keyword else ", ") + object_ref(shape)
+    return args
+
+
 # ---- selecting mesh elements -----------------------------------------------------------------
 #
 # What FreeCAD 0.20.2 does with mesh sub-elements (tried in its GUI):

@@ -6,7 +6,7 @@ import FreeCAD
 import FreeCADGui
 
 from SurfMesh import paths
-from SurfMesh.gui import preferences, runner, selection
+from SurfMesh.gui import preferences, selection
 
 
 class MeasureCommand:
@@ -20,21 +20,13 @@ class MeasureCommand:
         }
 
     def IsActive(self):
-        return FreeCAD.ActiveDocument is not None and len(selection.selected_meshes()) == 1
+        return selection.one_mesh_selected()
 
     def Activated(self):
-        mesh, shape = selection.selected_mesh_and_shape()
+        mesh, rep = selection.run_on_selected_mesh(
+            "SurfMesh.measure_object", "SurfMesh: measure", f", measure={preferences.measure()!r}"
+        )
         if mesh is None:
-            runner.show_error("SurfMesh", ValueError("select one mesh object (and its shape)"))
-            return
-        args = selection.object_ref(mesh)
-        if shape is not None:
-            args += ", " + selection.object_ref(shape)
-        args += f", measure={preferences.measure()!r}"
-        try:
-            rep = runner.run(f"SurfMesh.measure_object({args})")
-        except Exception as exc:
-            runner.show_error("SurfMesh: measure", exc)
             return
         if rep is not None:
             FreeCAD.Console.PrintMessage(f"SurfMesh: {mesh.Label}: {rep!r}\n")

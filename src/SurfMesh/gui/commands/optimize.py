@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-import FreeCAD
 import FreeCADGui
 
 from SurfMesh import paths
-from SurfMesh.gui import runner, selection
+from SurfMesh.gui import selection
 
 
 class OptimizeCommand:
@@ -21,16 +20,11 @@ class OptimizeCommand:
         }
 
     def IsActive(self):
-        return (
-            FreeCAD.ActiveDocument is not None
-            and len(selection.selected_meshes()) == 1
-            and FreeCADGui.Control.activeDialog() is False
-        )
+        return selection.one_mesh_selected() and FreeCADGui.Control.activeDialog() is False
 
     def Activated(self):
-        mesh, shape = selection.selected_mesh_and_shape()
+        mesh, shape = selection.selected_mesh_or_say()
         if mesh is None:
-            runner.show_error("SurfMesh", ValueError("select one mesh object (and its shape)"))
             return
         from SurfMesh.gui.taskpanels.optimize_panel import OptimizePanel
 

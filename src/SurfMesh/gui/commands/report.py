@@ -6,8 +6,6 @@ from __future__ import annotations
 import os
 import tempfile
 
-import FreeCAD
-
 from SurfMesh import paths
 from SurfMesh.gui import runner, selection
 
@@ -23,18 +21,14 @@ class ReportCommand:
         }
 
     def IsActive(self):
-        return FreeCAD.ActiveDocument is not None and len(selection.selected_meshes()) == 1
+        return selection.one_mesh_selected()
 
     def Activated(self):
-        mesh, shape = selection.selected_mesh_and_shape()
+        mesh, shape = selection.selected_mesh_or_say()
         if mesh is None:
-            runner.show_error("SurfMesh", ValueError("select one mesh object (and its shape)"))
             return
         png = os.path.join(tempfile.gettempdir(), f"surfmesh_report_{mesh.Name}.png")
-        args = selection.object_ref(mesh)
-        if shape is not None:
-            args += ", shape=" + selection.object_ref(shape)
-        args += f", histogram={png!r}"
+        args = selection.call_arguments(mesh, shape, shape_keyword=True) + f", histogram={png!r}"
         try:
             report = runner.run(f"SurfMesh.app.document.report_object({args})")
         except Exception as exc:

@@ -7,7 +7,7 @@ import FreeCAD
 import FreeCADGui
 
 from SurfMesh import paths
-from SurfMesh.gui import preferences, runner, selection
+from SurfMesh.gui import preferences, selection
 
 
 class SelectTangledCommand:
@@ -25,21 +25,15 @@ class SelectTangledCommand:
         }
 
     def IsActive(self):
-        return FreeCAD.ActiveDocument is not None and len(selection.selected_meshes()) == 1
+        return selection.one_mesh_selected()
 
     def Activated(self):
-        mesh, shape = selection.selected_mesh_and_shape()
+        mesh, pick = selection.run_on_selected_mesh(
+            "SurfMesh.app.document.tangled_elements",
+            "SurfMesh: select tangled elements",
+            f", measure={preferences.measure()!r}",
+        )
         if mesh is None:
-            runner.show_error("SurfMesh", ValueError("select one mesh object (and its shape)"))
-            return
-        args = selection.object_ref(mesh)
-        if shape is not None:
-            args += ", " + selection.object_ref(shape)
-        args += f", measure={preferences.measure()!r}"
-        try:
-            pick = runner.run(f"SurfMesh.app.document.tangled_elements({args})")
-        except Exception as exc:
-            runner.show_error("SurfMesh: select tangled elements", exc)
             return
         names = selection.select_elements(mesh, pick.ids, pick.corners, pick.centers)
         shown = ", ".join(f"{mesh.Name}.{n}" for n in names[:3]) + (", …" if len(names) > 3
