@@ -19,14 +19,10 @@ import os
 import sys
 import traceback
 
+sys.path.insert(0, os.path.join(os.environ.get("SURFMESH_REPO", os.getcwd()), "tests", "gui"))
+from gui_testing import check, finish, MessageBoxCloser  # noqa: E402
+
 code = 1
-checks = []
-
-
-def check(cond, what):
-    if not cond:
-        raise AssertionError(what)
-    checks.append(what)
 
 
 try:
@@ -112,25 +108,6 @@ try:
                     self.clicked_at = status.text()
                     self.timer.stop()
                     b.click()
-
-        def stop(self):
-            self.timer.stop()
-
-    class MessageBoxCloser:
-        """Closes the modal message boxes the GUI opens for errors, keeping their texts."""
-
-        def __init__(self):
-            self.texts = []
-            self.timer = QtCore.QTimer()
-            self.timer.setInterval(20)
-            self.timer.timeout.connect(self.tick)
-            self.timer.start()
-
-        def tick(self):
-            w = QtGui.QApplication.activeModalWidget()
-            if isinstance(w, QtGui.QMessageBox):
-                self.texts.append(w.text())
-                w.accept()
 
         def stop(self):
             self.timer.stop()
@@ -255,8 +232,4 @@ try:
     code = 0
 except BaseException:
     traceback.print_exc()
-print(f"test_surfmesh_gui_faults: {'PASS' if code == 0 else 'FAIL'} "
-      f"({len(checks)} checks: {'; '.join(checks[-4:])})", flush=True)
-sys.stdout.flush()
-sys.stderr.flush()
-os._exit(code)
+finish("test_surfmesh_gui_faults", code, last=4)

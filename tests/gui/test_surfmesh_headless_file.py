@@ -10,14 +10,10 @@ import subprocess
 import sys
 import traceback
 
+sys.path.insert(0, os.path.join(os.environ.get("SURFMESH_REPO", os.getcwd()), "tests", "gui"))
+from gui_testing import check, finish  # noqa: E402
+
 code = 1
-checks = []
-
-
-def check(cond, what):
-    if not cond:
-        raise AssertionError(what)
-    checks.append(what)
 
 
 HEADLESS = r'''
@@ -98,8 +94,4 @@ try:
     code = 0
 except BaseException:
     traceback.print_exc()
-print(f"test_surfmesh_headless_file: {'PASS' if code == 0 else 'FAIL'} "
-      f"({len(checks)} checks: {'; '.join(checks)})", flush=True)
-sys.stdout.flush()
-sys.stderr.flush()
-os._exit(code)
+finish("test_surfmesh_headless_file", code, last=None)

@@ -21,21 +21,10 @@ import re
 import sys
 import traceback
 
+sys.path.insert(0, os.path.join(os.environ.get("SURFMESH_REPO", os.getcwd()), "tests", "gui"))
+from gui_testing import check, finish, MessageBoxCloser, pixels, report_text  # noqa: E402
+
 code = 1
-checks = []
-
-
-def check(cond, what):
-    if not cond:
-        raise AssertionError(what)
-    checks.append(what)
-
-
-def pixels(path):
-    """(H, W, 3) float RGB of a PNG screenshot."""
-    import matplotlib.image as mpimg
-
-    return mpimg.imread(path)[..., :3]
 
 
 def outline_pixels(img):
@@ -51,7 +40,7 @@ try:
     import FreeCAD
     import FreeCADGui
     import numpy as np
-    from PySide import QtCore, QtGui
+    from PySide import QtGui
 
     assert FreeCAD.GuiUp
     out = os.environ.get("SURFMESH_TEST_OUTPUT_DIR") or os.path.abspath("build/test-output")
@@ -77,31 +66,6 @@ try:
     import surfmesh_testing as T
 
     measure = preferences.measure()
-
-    def report_text():
-        """Everything the report view shows (its messages arrive as posted events)."""
-        FreeCADGui.updateGui()
-        edits = [w for w in mw.findChildren(QtGui.QTextEdit) if "Report" in w.objectName()]
-        return "\n".join(w.toPlainText() for w in edits)
-
-    class MessageBoxCloser:
-        """Closes the modal message boxes the GUI opens for errors, keeping their texts."""
-
-        def __init__(self):
-            self.texts = []
-            self.timer = QtCore.QTimer()
-            self.timer.setInterval(20)
-            self.timer.timeout.connect(self.tick)
-            self.timer.start()
-
-        def tick(self):
-            w = QtGui.QApplication.activeModalWidget()
-            if isinstance(w, QtGui.QMessageBox):
-                self.texts.append(w.text())
-                w.accept()
-
-        def stop(self):
-            self.timer.stop()
 
     # ---- the document: a tangled FEM mesh, a tangled Mesh feature, a clean FEM mesh ----------
     doc = FreeCAD.newDocument("SurfMeshSelectTangled")
@@ -177,10 +141,10 @@ try:
         FreeCADGui.Selection.clearSelection()
         for o in objs:
             FreeCADGui.Selection.addSelection(o)
-        start = len(report_text())
+        start = len(report_text(mw))
         FreeCADGui.runCommand("SurfMesh_SelectTangled")
         FreeCADGui.updateGui()
-        return report_text()[start:]
+        return report_text(mw)[start:]
 
     def selected_subs(obj):
         subs = []
@@ -328,18 +292,18 @@ try:
         else None
     if cmd is not None:
         check(not cmd.isActive(), "nothing selected: the command is disabled, like the others")
-    start = len(report_text())
+    start = len(report_text(mw))
     FreeCADGui.runCommand("SurfMesh_SelectTangled")  # disabled: does nothing
     FreeCADGui.updateGui()
     check(FreeCADGui.Selection.getSelectionEx() == [] and "Traceback" not in
-          report_text()[start:], "nothing selected: runCommand does nothing, no traceback")
+          report_text(mw)[start:], "nothing selected: runCommand does nothing, no traceback")
     from SurfMesh.gui.commands.select_tangled import SelectTangledCommand
 
     boxes = MessageBoxCloser()
-    start = len(report_text())
+    start = len(report_text(mw))
     SelectTangledCommand().Activated()  # as the menu would if it were enabled
     boxes.stop()
-    text = report_text()[start:]
+    text = report_text(mw)[start:]
     check(any("select one mesh object" in t for t in boxes.texts)
           and "select one mesh object" in text and "Traceback" not in text,
           f"nothing selected: the clear message ({boxes.texts}, {text.strip()!r})")
@@ -360,8 +324,4 @@ try:
     code = 0
 except BaseException:
     traceback.print_exc()
-print(f"test_surfmesh_select_tangled: {'PASS' if code == 0 else 'FAIL'} "
-      f"({len(checks)} checks: {'; '.join(checks[-5:])})", flush=True)
-sys.stdout.flush()
-sys.stderr.flush()
-os._exit(code)
+finish("test_surfmesh_select_tangled", code)

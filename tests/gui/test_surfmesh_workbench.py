@@ -6,21 +6,10 @@ import os
 import sys
 import traceback
 
+sys.path.insert(0, os.path.join(os.environ.get("SURFMESH_REPO", os.getcwd()), "tests", "gui"))
+from gui_testing import check, finish, pixels  # noqa: E402
+
 code = 1
-checks = []
-
-
-def check(cond, what):
-    if not cond:
-        raise AssertionError(what)
-    checks.append(what)
-
-
-def pixels(path):
-    """(H, W, 3) float RGB of a PNG screenshot."""
-    import matplotlib.image as mpimg
-
-    return mpimg.imread(path)[..., :3]
 
 
 def shares(img):
@@ -232,8 +221,4 @@ try:
     code = 0
 except BaseException:
     traceback.print_exc()
-print(f"test_surfmesh_workbench: {'PASS' if code == 0 else 'FAIL'} "
-      f"({len(checks)} checks: {'; '.join(checks[-5:])})", flush=True)
-sys.stdout.flush()
-sys.stderr.flush()
-os._exit(code)
+finish("test_surfmesh_workbench", code)
