@@ -6,6 +6,11 @@
 namespace surfmesh {
 
 namespace {
+Mat3 crossMatrix(const Vec3& w) {
+  Mat3 m;
+  m << 0.0, -w.z(), w.y(), w.z(), 0.0, -w.x(), -w.y(), w.x(), 0.0;
+  return m;
+}
 constexpr double kInf = std::numeric_limits<double>::infinity();
 }  // namespace
 
@@ -90,21 +95,17 @@ ElementEval jacobianDistortion(const PlanarMeasure& m, const Jacobian32& J, cons
       nu = gamma * c / cn;
     else
       nu = n.normalized();
-    const Vec3 mw = nu.cross(w);
-    const Vec3 gs = detWinv * mw;
+    const Vec3 gs = detWinv * nu.cross(w);
     if (grad) *grad = d.hF * gF + d.hs * gs;
     if (hess) {
       Mat3 H = d.hFF * gF * gF.transpose() + d.hFs * (gF * gs.transpose() + gs * gF.transpose()) +
                d.hss * gs * gs.transpose();
-      double diag = d.hF * 2.0 * beta.squaredNorm();
+      H.diagonal().array() += d.hF * 2.0 * beta.squaredNorm();
       if (regular) {
-        // ∂²σ/∂x² = γ det W⁻¹ [w]×ᵀ (I − ν νᵀ) [w]× / ‖c‖, and
-        // [w]×ᵀ (I − ν νᵀ) [w]× = ‖w‖² I − w wᵀ − (ν × w)(ν × w)ᵀ.
-        const double pc = d.hs * detWinv * gamma / cn;
-        diag += pc * w.squaredNorm();
-        H -= pc * (w * w.transpose() + mw * mw.transpose());
+        const Mat3 Wx = crossMatrix(w);
+        const Mat3 P = Mat3::Identity() - nu * nu.transpose();
+        H += d.hs * detWinv * gamma * (Wx.transpose() * P * Wx) / cn;
       }
-      H.diagonal().array() += diag;
       *hess = H;
     }
   }

@@ -1578,6 +1578,8 @@ struct GlobalEval {
   std::size_t tangled = 0;        // tangled elements with a movable node
   std::size_t frozenTangled = 0;  // tangled elements without one (no move can change them)
   double minSigma = kInf;
+  // Smallest det S of the held elements (folded where no movable node acts, see foldHeld).
+  double heldMinSigma = kInf;
   double minQuality = 1.0;
   double minValidMovable = 1.0;  // lowest quality of the valid elements with a movable node
 };
@@ -1766,7 +1768,10 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
     if (g.tangled == 0) return 0.0;
     if (opt.deltaPolicy == "fixed") return opt.delta;
     const double eps = epsilon;
-    const double sm = std::min(g.minSigma, 0.0);
+    // The held elements still set δ while other elements are tangled: their nodes' moves are
+    // measured with the same regularization as if they could be repaired (as before they were
+    // held), only they no longer keep the untangling going.
+    const double sm = std::min({g.minSigma, g.heldMinSigma, 0.0});
     return std::sqrt(eps * (eps - sm));
   };
   auto freezeScales = [&]() {
@@ -1784,6 +1789,7 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
   // (δ > 0) sweeps going nor sets δ; it is counted apart.
   // Also set, during the run, for the elements whose untangling is given up (see giveUpSweeps).
   std::vector<unsigned char> frozen = frozenElements(mesh);
+  std::vector<unsigned char> held(E, 0);  // frozen by foldHeld (below)
   auto cachedTangled = [&](std::size_t e) {
     return s.minSigma[e] <= 0.0 || !std::isfinite(s.eta0[e]);
   };
@@ -1793,6 +1799,7 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
       const bool tangled = cachedTangled(e);
       if (frozen[e] && tangled) {
         ++g.frozenTangled;
+        if (held[e]) g.heldMinSigma = std::min(g.heldMinSigma, s.minSigma[e]);
         continue;
       }
       if (tangled) {
@@ -1862,10 +1869,18 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
   if (!s.allTri3 && movable > 0 && opt.maxSweeps > 0)
     NodeUpdater(s, *workers[0]).straightenHighOrder(frozen, false);
   // Elements folded where no movable node acts are held like those without a movable node:
-  // they neither keep δ > 0 nor take escapes (which would only spend the run on them).
+  // they do not keep the untangling (δ > 0) going, which would only spend the run on them
+  // until it gives up. While other elements are tangled, they still set δ and take part in
+  // the escapes, as before they were held: the run is the same until no other element is
+  // tangled, then it smooths with δ = 0 at once.
   for (std::size_t e = 0; e < E; ++e)
     if (!frozen[e] && foldHeld(mesh, s.xyz, e, s.elementNormal(e, -1, Vec3::Zero(), Vec3::Zero())))
-      frozen[e] = 1;
+      frozen[e] = held[e] = 1;
+  // What the escapes leave alone: the frozen elements but the held ones. A held element cannot
+  // be untangled, but while others are tangled the joint moves of the nodes around it may
+  // untangle a neighbour (kept only then), as before it was held.
+  std::vector<unsigned char> noEscape(E, 0);
+  for (std::size_t e = 0; e < E; ++e) noEscape[e] = frozen[e] && !held[e];
   GlobalEval g = fullEval(0.0);
   s.deltaHat = chooseDelta(g);
   res.initialObjective = s.deltaHat > 0.0 ? fullEval(s.deltaHat).objective : g.objective0;
@@ -1982,8 +1997,8 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
     stuckSweeps = (g.tangled > 0 && g.tangled >= bestTangled) ? stuckSweeps + 1 : 0;
     if (stuckSweeps > 0) {
       NodeUpdater up(s, *workers[0]);
-      std::size_t gained = s.allTri3 ? 0 : up.straightenHighOrder(frozen, true);
-      gained += up.escapeTangledElements(frozen, stuckSweeps >= 3, sweep, epsilonLevel);
+      std::size_t gained = s.allTri3 ? 0 : up.straightenHighOrder(noEscape, true);
+      gained += up.escapeTangledElements(noEscape, stuckSweeps >= 3, sweep, epsilonLevel);
       if (gained > 0) g = fullEval(s.deltaHat);  // stuck elements untangled by joint moves
     }
     if (g.tangled < fewestTangled) {
@@ -1996,7 +2011,7 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
       // reported in tangledMovable) and the rest of the mesh is smoothed with δ = 0. The cache
       // is current (δ > 0 sweeps end with a full evaluation).
       for (std::size_t e = 0; e < E; ++e)
-        if (!frozen[e] && cachedTangled(e)) frozen[e] = 1;
+        if (!frozen[e] && cachedTangled(e)) frozen[e] = noEscape[e] = 1;
       g = cachedEval();
       continue;
     }

@@ -39,7 +39,9 @@
 // element that folds where only nodes that may not move act (a tangled corner triangle of a
 // quadrilateral on three such nodes; a high-order triangle tangled at a node or quadrature
 // point where the shape functions of its movable nodes have no gradient, e.g. at a CAD vertex
-// between two element edges on fixed CAD edges): it is held from the start. Neither do, after
+// between two element edges on fixed CAD edges): it is held from the start (while other
+// elements are tangled it still sets δ and takes part in the escapes, so the run is the same
+// until no other element is tangled; then it smooths with δ = 0). Neither do, after
 // 6 × deltaStallSweeps sweeps without fewer tangled elements than ever before (each level of
 // ε tried twice), the elements still tangled: their nodes are held from then on,
 // the rest of the mesh is smoothed with δ = 0, and they are reported in tangledMovable.
