@@ -1591,7 +1591,9 @@ struct GlobalEval {
 /// quadrilateral: a tangled corner triangle whose three nodes may not move. A high-order
 /// triangle: a tangled node or quadrature point whose shape-function gradients vanish at
 /// every movable node (e.g. the corner at a CAD vertex between two element edges on fixed CAD
-/// edges, where a Gmsh curved element often folds).
+/// edges, where a Gmsh curved element often folds). The fold must show against the reference
+/// normal n and against the surface normal at each corner: n follows the element's movable
+/// corners, and a fold that a corner normal does not confirm might open as they move.
 bool foldHeld(const SurfaceMesh& m, const std::vector<Vec3>& xyz, std::size_t e, const Vec3& n) {
   const std::int32_t* nd = m.elementNodes(e);
   auto movable = [&](int k) { return isMovable(m.nodeKind[static_cast<std::size_t>(nd[k])]); };
@@ -1604,6 +1606,18 @@ bool foldHeld(const SurfaceMesh& m, const std::vector<Vec3>& xyz, std::size_t e,
       if (movable(k)) return false;
     return true;
   }
+  const int nc = cornerCount(type);
+  Vec3 cornerNormal[4];
+  for (int k = 0; k < nc; ++k)
+    cornerNormal[k] = m.referenceNormal(m.elemFace[e], m.elementUV(e)[k]);
+  auto folded = [&](const Jacobian32& J, const Mat2& Winv) {
+    if (!jacobianValidity(J, Winv, n).tangled) return false;
+    for (int k = 0; k < nc; ++k)
+      if (cornerNormal[k].squaredNorm() > 0.0 &&
+          !jacobianValidity(J, Winv, cornerNormal[k]).tangled)
+        return false;
+    return true;
+  };
   if (type == ElementType::Quad4) {
     for (int k = 0; k < 4; ++k) {
       const int k1 = (k + 1) % 4, k2 = (k + 3) % 4;
@@ -1611,7 +1625,7 @@ bool foldHeld(const SurfaceMesh& m, const std::vector<Vec3>& xyz, std::size_t e,
       Jacobian32 J;
       J.col(0) = at(k1) - at(k);
       J.col(1) = at(k2) - at(k);
-      if (jacobianValidity(J, squareCornerWinv(), n).tangled) return true;
+      if (folded(J, squareCornerWinv())) return true;
     }
     return false;
   }
@@ -1625,7 +1639,7 @@ bool foldHeld(const SurfaceMesh& m, const std::vector<Vec3>& xyz, std::size_t e,
       J.col(0) += grad[i].x() * at(i);
       J.col(1) += grad[i].y() * at(i);
     }
-    return jacobianValidity(J, equilateralWinv(), n).tangled;
+    return folded(J, equilateralWinv());
   };
   for (int a = 0; a < nn; ++a)
     if (heldAt(rule.gradAtNode.data() + static_cast<std::size_t>(a * nn))) return true;
