@@ -43,4 +43,3 @@ class SelectTangledCommand:
             f"selected mesh {pick.noun}, so they are outlined in the 3D view while selected.\n"
         )
         FreeCADGui.updateGui()
-

@@ -1607,15 +1607,12 @@ bool foldHeld(const SurfaceMesh& m, const std::vector<Vec3>& xyz, std::size_t e,
     return true;
   }
   const int nc = cornerCount(type);
-  Vec3 cornerNormal[4];
-  for (int k = 0; k < nc; ++k)
-    cornerNormal[k] = m.referenceNormal(m.elemFace[e], m.elementUV(e)[k]);
   auto folded = [&](const Jacobian32& J, const Mat2& Winv) {
     if (!jacobianValidity(J, Winv, n).tangled) return false;
-    for (int k = 0; k < nc; ++k)
-      if (cornerNormal[k].squaredNorm() > 0.0 &&
-          !jacobianValidity(J, Winv, cornerNormal[k]).tangled)
-        return false;
+    for (int k = 0; k < nc; ++k) {  // surface normals only for a fold between fixed nodes
+      const Vec3 nk = m.referenceNormal(m.elemFace[e], m.elementUV(e)[k]);
+      if (nk.squaredNorm() > 0.0 && !jacobianValidity(J, Winv, nk).tangled) return false;
+    }
     return true;
   };
   if (type == ElementType::Quad4) {
@@ -1887,7 +1884,8 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
   // until it gives up. While other elements are tangled, they still set δ and take part in
   // the escapes, as before they were held: the run is the same until no other element is
   // tangled, then it smooths with δ = 0 at once.
-  for (std::size_t e = 0; e < E; ++e)
+  // (A linear triangle with a movable node is never held: all-Tri3 meshes skip the pass.)
+  for (std::size_t e = 0; !s.allTri3 && e < E; ++e)
     if (!frozen[e] && foldHeld(mesh, s.xyz, e, s.elementNormal(e, -1, Vec3::Zero(), Vec3::Zero())))
       frozen[e] = held[e] = 1;
   // What the escapes leave alone: the frozen elements but the held ones. A held element cannot
