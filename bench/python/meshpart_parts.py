@@ -18,8 +18,9 @@ the start of the message.
 
     freecadcmd bench/python/meshpart_parts.py
 
-Options by environment (freecadcmd takes no script options): SURFMESH_MP_PARTS (comma list
-of files in SURFMESH_MP_CAD_DIR); SURFMESH_MP_AMPS (e.g. "0.3,0.6": also runs each mesh SurfMesh
+Options by environment (freecadcmd takes no script options): SURFMESH_MP_CAD_DIR ("built":
+the shapes of built_shapes.py — a helical sweep, a loft, a revolved profile, poles —, written to
+a temporary directory); SURFMESH_MP_PARTS (comma list of files in SURFMESH_MP_CAD_DIR); SURFMESH_MP_AMPS (e.g. "0.3,0.6": also runs each mesh SurfMesh
 takes with its Face nodes moved in (u,v) by that many × their element size, as
 perturbed_fem.py does; default none) and SURFMESH_MP_SEEDS (default "1,2").
 """
@@ -42,6 +43,12 @@ from perturb import local_sizes, perturbed  # noqa: E402
 CAD = os.environ.get(
     "SURFMESH_MP_CAD_DIR", os.path.normpath(os.path.join(HERE, "..", "..", "..", "shared",
                                                          "data", "cad")))
+if CAD == "built":
+    import tempfile
+
+    import built_shapes
+
+    CAD = built_shapes.write(tempfile.mkdtemp(prefix="surfmesh_built_"))
 
 
 def points(mesh):
@@ -88,8 +95,8 @@ def main():
     seeds = [int(x) for x in os.environ.get("SURFMESH_MP_SEEDS", "1,2").split(",") if x]
     perturbations = [(amp, seed) for amp in amps for seed in seeds]
     print("| part | mesher | triangles | glued nodes | boundary | tangled before → after "
-          "(movable) | min q before → after | mean q before → after | sweeps | s | "
-          "max distance of moved nodes to the part |")
+          "(movable) | min q before → after | mean q before → after | sweeps | s (of it CAD "
+          "recovery) | max distance of moved nodes to the part |")
     print("|---|---|---:|---:|---|---|---|---|---:|---:|---:|")
     for name in parts:
         shape = Part.read(os.path.join(CAD, name))
@@ -124,7 +131,8 @@ def main():
                     print(f"{head} {r.bridge.get('glued_nodes', 0)} | {boundary} | "
                           f"{b['tangled']} → {a['tangled']} ({len(r.tangled_movable)}) | "
                           f"{b['min']:.3f} → {a['min']:.3f} | {b['mean']:.3f} → "
-                          f"{a['mean']:.3f} | {r.sweeps} | {dt:.1f} | {d / diag:.1e} × diag "
+                          f"{a['mean']:.3f} | {r.sweeps} | {dt:.1f} ({r.bridge['seconds']:.1f}) | "
+                          f"{d / diag:.1e} × diag "
                           f"({n_moved} moved{note}) |", flush=True)
 
 

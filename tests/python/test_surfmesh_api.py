@@ -257,6 +257,43 @@ class TestOptimize(ApiCase):
         self.assertGreaterEqual(res.after.stats["min"], res.before.stats["min"])
         self.assertGreater(res.after.stats["mean"], res.before.stats["mean"])
 
+    def test_mesh_on_a_helical_sweep(self):
+        """A circle swept along a five-turn helix: one B-spline face whose normal turns around
+        the tube and along the helix, its turns 4 apart. Every node of FreeCAD's (float32)
+        mesh inside that face is recovered on it at its own position, and the optimized nodes
+        lie on the part."""
+        import MeshPart
+        import Part
+
+        helix = Part.Wire(Part.makeHelix(8, 40, 15))
+        circle = Part.Wire(Part.makeCircle(2, FreeCAD.Vector(15, 0, 0), FreeCAD.Vector(0, 1, 0)))
+        shape = helix.makePipeShell([circle], True, True)
+        sweep = [i for i, f in enumerate(shape.Faces) if f.Surface.TypeId == "Part::GeomBSplineSurface"]
+        self.assertEqual(len(sweep), 1)
+        diag = shape.BoundBox.DiagonalLength
+        m = MeshPart.meshFromShape(Shape=shape, LinearDeflection=diag / 300,
+                                   AngularDeflection=0.35, Relative=False)
+        data, handle = SurfMesh.app.api.prepare(m, shape)
+        kinds, faces, uv = handle.node_kinds(), handle.node_faces(), handle.uv()
+        inside = np.nonzero((kinds == 1) & (faces == sweep[0]))[0]
+        self.assertGreater(len(inside), 0.9 * len(data.nodes))
+        face = shape.Faces[sweep[0]]
+        for i in inside[:: max(1, len(inside) // 400)]:
+            u, v = map(float, uv[i])
+            self.assertTrue(face.isPartOfDomain(u, v), f"node {i}: (u,v) outside its face")
+            p = face.Surface.value(u, v)
+            gap = (p - FreeCAD.Vector(*map(float, data.nodes[i]))).Length
+            # float32 storage: 2^-24 of each coordinate (at most 17 here) away from the face
+            self.assertLess(gap, 17 * 2e-7, f"node {i} recovered {gap} away from its position")
+        res = SurfMesh.optimize(m, shape, max_sweeps=20)
+        self.assertEqual(res.after.stats["tangled"], 0)
+        self.assertGreaterEqual(res.after.stats["min"], res.before.stats["min"] - 1e-12)
+        self.assertGreater(res.after.stats["mean"], res.before.stats["mean"])
+        moved = np.nonzero(np.any(res.nodes != data.nodes, axis=1))[0]
+        self.assertGreater(len(moved), len(inside) // 2)
+        d = T.distance_to_shape(shape, res.nodes[moved[:: max(1, len(moved) // 150)]])
+        self.assertLess(d.max(), 1e-9 * diag)
+
     def test_slide_boundary_on_real_part(self):
         path = T.find_part("occt_screw.step")
         if path is None:

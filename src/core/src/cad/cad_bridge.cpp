@@ -33,6 +33,9 @@ namespace surfmesh {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
+/// Twice the distance by which rounding a point to single precision may move it, relative to
+/// its largest coordinate (√3 × 2^-24 ≈ 1.03e-7).
+constexpr double kSinglePrecisionRounding = 2e-7;
 const double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 using Box = Box3;
@@ -214,22 +217,58 @@ class Projector {
     if (Precision::IsInfinite(v1)) v1 = fb.vmax + mv;
     ft.ad = std::make_unique<GeomAdaptor_Surface>(ft.g, u0, u1, v0, v1);
     ft.loc = std::make_unique<Extrema_GenLocateExtPS>(*ft.ad);
-    constexpr int K = kCells + 1;
-    ft.samples.reserve(K * K);
-    ft.sampleUV.reserve(K * K);
-    for (int i = 0; i < K; ++i)
-      for (int j = 0; j < K; ++j) {
-        const double u = fb.umin + (fb.umax - fb.umin) * i / (K - 1);
-        const double v = fb.vmin + (fb.vmax - fb.vmin) * j / (K - 1);
-        gp_Pnt q;
-        gp_Vec du, dv;
-        ft.ad->D1(u, v, q, du, dv);
-        ft.samples.emplace_back(q.X(), q.Y(), q.Z());
-        ft.sampleUV.emplace_back(u, v);
-        const SurfaceD1 d{ft.samples.back(), Vec3(du.X(), du.Y(), du.Z()),
-                          Vec3(dv.X(), dv.Y(), dv.Z())};
-        ft.sampleDegenerate.push_back(isDegenerate(d) ? 1 : 0);
+    // Start points of the local searches: a grid over the face's (u,v) range, kCells
+    // intervals a side, refined along a direction in which the surface's normal turns by more
+    // than kSampleTurn between neighbouring samples (a helical sweep, a long corrugated face),
+    // so that the nearest sample lies on the same side of the surface as the point.
+    std::vector<Vec3> normals;
+    auto sampleGrid = [&](int nu, int nv) {
+      ft.samples.clear();
+      ft.sampleUV.clear();
+      ft.sampleDegenerate.clear();
+      normals.clear();
+      for (int i = 0; i <= nu; ++i)
+        for (int j = 0; j <= nv; ++j) {
+          const double u = fb.umin + (fb.umax - fb.umin) * i / nu;
+          const double v = fb.vmin + (fb.vmax - fb.vmin) * j / nv;
+          gp_Pnt q;
+          gp_Vec du, dv;
+          ft.ad->D1(u, v, q, du, dv);
+          ft.samples.emplace_back(q.X(), q.Y(), q.Z());
+          ft.sampleUV.emplace_back(u, v);
+          const SurfaceD1 d{ft.samples.back(), Vec3(du.X(), du.Y(), du.Z()),
+                            Vec3(dv.X(), dv.Y(), dv.Z())};
+          const bool degenerate = isDegenerate(d);
+          ft.sampleDegenerate.push_back(degenerate ? 1 : 0);
+          normals.push_back(degenerate ? Vec3::Zero() : d.du.cross(d.dv).normalized().eval());
+        }
+    };
+    sampleGrid(kCells, kCells);
+    double turnU = 0.0, turnV = 0.0;  // largest normal turn between neighbouring samples
+    auto turn = [&](std::size_t a, std::size_t b) {
+      if (ft.sampleDegenerate[a] || ft.sampleDegenerate[b]) return 0.0;
+      return std::atan2(normals[a].cross(normals[b]).norm(), normals[a].dot(normals[b]));
+    };
+    for (int i = 0; i <= kCells; ++i)
+      for (int j = 0; j <= kCells; ++j) {
+        const std::size_t k = static_cast<std::size_t>(i * (kCells + 1) + j);
+        if (i < kCells) turnU = std::max(turnU, turn(k, k + kCells + 1));
+        if (j < kCells) turnV = std::max(turnV, turn(k, k + 1));
       }
+    auto refined = [](double t) {
+      return std::max(kCells, static_cast<int>(std::ceil(kCells * t / kSampleTurn)));
+    };
+    int nu = refined(turnU), nv = refined(turnV);
+    const double total = (nu + 1.0) * (nv + 1.0);
+    if (total > static_cast<double>(kMaxSamples)) {  // at most kMaxSamples samples
+      const double scale = std::sqrt(static_cast<double>(kMaxSamples) / total);
+      nu = std::max(kCells, static_cast<int>(nu * scale));
+      nv = std::max(kCells, static_cast<int>(nv * scale));
+      const int rest = static_cast<int>(kMaxSamples) / (kCells + 1) - 1;
+      if (nu == kCells) nv = std::min(nv, rest);
+      if (nv == kCells) nu = std::min(nu, rest);
+    }
+    if (nu != kCells || nv != kCells) sampleGrid(nu, nv);
     // Boxes around the surface over the face's (u,v) range: lower bounds on distances.
     ft.cells = surfacePatchBoxes(*ft.ad, fb, kCells, 1e-9 * s_.diagonal());
     if (!ft.cells.empty()) {
@@ -341,8 +380,14 @@ class Projector {
   /// `enough` (the point is on the surface) is found; ShapeAnalysis_Surface::ValueOfUV (global)
   /// when every start fails.
   void localProjection(FaceTools& ft, const gp_Pnt& P, double slack, gp_Pnt2d* uv, double* gap) {
-    const double enough = std::min(slack, 1e-9 * s_.diagonal() + preci_);
     const Vec3 p(P.X(), P.Y(), P.Z());
+    // On the surface: within 1e-9 × diagonal, or within the rounding of a node stored in single
+    // precision (FreeCAD's Mesh.Mesh; 2^-24 of each coordinate), whatever is larger. No other
+    // sheet of a surface comes that close to a foot point, so the global search could only
+    // confirm it.
+    const double rounding =
+        kSinglePrecisionRounding * std::max(s_.diagonal(), p.cwiseAbs().maxCoeff());
+    const double enough = std::min(slack, std::max(1e-9 * s_.diagonal() + preci_, rounding));
     double bestGap = kInf;
     auto tryStart = [&](const Vec2& st) {
       const double startD2 = (ft.ad->Value(st.x(), st.y()).XYZ() - P.XYZ()).SquareModulus();
@@ -662,7 +707,9 @@ class Projector {
 
  private:
   static constexpr int kCells = 16;  // sampling grid of a free-form face: kCells² cells
-  static constexpr int kBlock = 4;   // cells per block side in lowerBound's search
+  static constexpr double kSampleTurn = 0.39269908169872414;  // π/8
+  static constexpr std::size_t kMaxSamples = 4096;
+  static constexpr int kBlock = 4;  // cells per block side in lowerBound's search
 
   const CadShape& s_;
   const std::vector<Box>& faceBoxes_;
