@@ -10,10 +10,10 @@
 // the floor of the speed issue — one first-derivative evaluation per Face node —, the value
 // floor — that plus one shape value of each triangle around each Face node — and the time of
 // sweep 1 and of the mean later sweep). Environment for experiments: BENCH_RELTOL,
-// BENCH_SWEEPS, BENCH_MEASURE, BENCH_MONOTONE (0/1), BENCH_MOVETOL override relTol, maxSweeps,
-// the measure, the monotone option and moveTol; BENCH_REPEAT=n optimizes n − 1 copies of the
-// mesh first (profiling); BENCH_BOUNDARY ("fixed" or "slide") the boundary mode of the CAD
-// recovery; BENCH_TRACE=1 prints each sweep's progress on stderr.
+// BENCH_SWEEPS, BENCH_MEASURE, BENCH_MONOTONE (0/1), BENCH_MOVETOL, BENCH_OMEGA override relTol,
+// maxSweeps, the measure, the monotone option, moveTol and overRelaxation; BENCH_REPEAT=n optimizes
+// n − 1 copies of the mesh first (profiling); BENCH_BOUNDARY ("fixed" or "slide") the boundary mode
+// of the CAD recovery; BENCH_TRACE=1 prints each sweep's progress on stderr.
 #include "bench_common.h"
 #include "surfmesh/cad/cad_bridge.h"
 #include "surfmesh/cad/cad_shape.h"
@@ -121,6 +121,7 @@ int main(int argc, char** argv) {
     if (const char* v = std::getenv("BENCH_MEASURE")) opt.measure = v;
     if (const char* v = std::getenv("BENCH_MONOTONE")) opt.monotone = std::atoi(v) != 0;
     if (const char* v = std::getenv("BENCH_MOVETOL")) opt.moveTol = std::atof(v);
+    if (const char* v = std::getenv("BENCH_OMEGA")) opt.overRelaxation = std::atof(v);
     // Floors of the speed issue (bench_common.h): one first-derivative evaluation per Face
     // node, and that plus one value of each triangle around it.
     const Floors floors = measureFloors(m);

@@ -5,7 +5,7 @@
 // peak memory belongs to this mesh size only; bench/run.sh drives the sizes and thread counts.
 //
 //   bench_sweep --surface torus|occ-torus|occ-bspline --elements 100000 --threads 2
-//               [--tangled-fraction 0.02] [--max-sweeps 100] [--header]
+//               [--tangled-fraction 0.02] [--max-sweeps 100] [--omega 1.9] [--header]
 //
 // Prints one '|'-separated table row (see --header for the columns).
 #include "bench_common.h"
@@ -74,6 +74,7 @@ int main(int argc, char** argv) {
   std::string kind = "torus", measureName = "shape";
   double elements = 1e5, tangledFraction = 0.02;
   int threads = 1, maxSweeps = 100;
+  double omega = OptimizeOptions().overRelaxation;
   bool header = false, trace = false;
   for (int a = 1; a < argc; ++a) {
     const std::string k = argv[a];
@@ -88,6 +89,8 @@ int main(int argc, char** argv) {
       tangledFraction = std::atof(next().c_str());
     else if (k == "--max-sweeps")
       maxSweeps = std::atoi(next().c_str());
+    else if (k == "--omega")
+      omega = std::atof(next().c_str());
     else if (k == "--header")
       header = true;
     else if (k == "--trace")
@@ -135,6 +138,7 @@ int main(int argc, char** argv) {
   opt.threads = threads;
   opt.measure = measureName;
   opt.maxSweeps = maxSweeps;
+  opt.overRelaxation = omega;
   std::vector<double> stamps;
   stamps.reserve(static_cast<std::size_t>(maxSweeps) + 1);
   const double tStart = now();

@@ -19,9 +19,9 @@ void bind_optimize(MeshClass& cls) {
   cls.def(
       "optimize",
       [](MeshHandle& h, const std::string& measure, int max_sweeps, double rel_tol, double move_tol,
-         int inner_iterations, int max_line_search, const std::string& delta_policy,
-         double delta_epsilon, double delta, bool monotone, int threads, py::object progress,
-         py::object before) {
+         int inner_iterations, int max_line_search, double over_relaxation,
+         const std::string& delta_policy, double delta_epsilon, double delta, bool monotone,
+         int threads, py::object progress, py::object before) {
         OptimizeOptions o;
         o.measure = measure;
         o.maxSweeps = max_sweeps;
@@ -29,6 +29,7 @@ void bind_optimize(MeshClass& cls) {
         o.moveTol = move_tol;
         o.innerIterations = inner_iterations;
         o.maxLineSearch = max_line_search;
+        o.overRelaxation = over_relaxation;
         o.deltaPolicy = delta_policy;
         o.deltaEpsilon = delta_epsilon;
         o.delta = delta;
@@ -105,6 +106,7 @@ void bind_optimize(MeshClass& cls) {
       py::arg("rel_tol") = kDefaults.relTol, py::arg("move_tol") = kDefaults.moveTol,
       py::arg("inner_iterations") = kDefaults.innerIterations,
       py::arg("max_line_search") = kDefaults.maxLineSearch,
+      py::arg("over_relaxation") = kDefaults.overRelaxation,
       py::arg("delta_policy") = kDefaults.deltaPolicy,
       py::arg("delta_epsilon") = kDefaults.deltaEpsilon, py::arg("delta") = kDefaults.delta,
       py::arg("monotone") = kDefaults.monotone, py::arg("threads") = kDefaults.threads,

@@ -44,6 +44,8 @@ OPTIMIZE_DEFAULTS = {
     "move_tol": 1e-3,  # or when no node moved more than move_tol × its local size
     "inner_iterations": 1,  # Newton iterations per node and sweep (the paper uses 1)
     "max_line_search": 30,  # maximum halvings of the backtracking line search
+    "over_relaxation": 1.9,  # ω in [1, 2): once untangled, a node first tries ω × its Newton
+    # step (accepted only when it lowers the objective); 1 = plain Gauss-Seidel
     "delta_policy": "auto",  # "auto": δ from the smallest det S each sweep; "fixed": `delta`
     "delta_epsilon": 1e-2,  # ε of the automatic δ policy (relative to the local size²)
     "delta": 1e-2,  # δ of the fixed policy (dimensionless)
@@ -698,6 +700,9 @@ def _check_options(o):
         positive_int(k)
     for k in ("rel_tol", "move_tol", "delta_epsilon", "delta"):
         positive_float(k)
+    w = o["over_relaxation"]
+    if isinstance(w, bool) or not isinstance(w, (int, float)) or not (1 <= w < 2):
+        raise ValueError(f"over_relaxation must be a number in [1, 2), got {w!r}")
     if o["delta_policy"] not in ("auto", "fixed"):
         raise ValueError(f"delta_policy must be 'auto' or 'fixed', got {o['delta_policy']!r}")
     t = o["threads"]

@@ -64,6 +64,9 @@ def build_parser():
     o.add_argument("--rel-tol", type=float, default=None,
                    help="once untangled, stop when a sweep lowers both the objective and the "
                    "quality deficit sum(1 - q) by less than this fraction (default 1e-3)")
+    o.add_argument("--over-relaxation", type=float, default=None,
+                   help="once untangled, a node first tries this multiple of its Newton step "
+                   "(in [1, 2), default 1.9; 1: plain Gauss-Seidel)")
     o.add_argument("--threads", type=int, default=None)
     o.add_argument("--no-monotone", action="store_true",
                    help="accept moves that lower a valid mesh's minimum quality")
@@ -120,6 +123,8 @@ def run(argv):
             options["max_sweeps"] = args.max_sweeps
         if args.rel_tol is not None:
             options["rel_tol"] = args.rel_tol
+        if args.over_relaxation is not None:
+            options["over_relaxation"] = args.over_relaxation
         if args.threads is not None:
             options["threads"] = args.threads
         if args.no_monotone:

@@ -1210,7 +1210,11 @@ class NodeUpdater {
         return true;
       };
       bool accepted = false;
-      double alpha = 1.0;
+      // Smoothing sweeps (δ = 0) try the over-relaxed step ω × dir first (see
+      // OptimizeOptions::overRelaxation), then the step and its halvings.
+      const double omega = s_.opt.overRelaxation;
+      const bool over = omega > 1.0 && s_.deltaHat == 0.0 && omega * len3 <= L;
+      double alpha = over ? omega : 1.0;
       // Halvings stop below a tenth of the activity threshold moveTol × L: a shorter step
       // would not count as a move (the direction fails: e.g. it lowers the submesh's minimum
       // quality in monotone mode, or the node sits at its local minimum).
@@ -1221,7 +1225,8 @@ class NodeUpdater {
       const double minStep = kMinStepFraction * s_.opt.moveTol * L;
       const bool worstGrows = wantQ && qualityBar(cur) == cur.minQuality &&
                               cur.gradWorst.dot(d.du * dir.x() + d.dv * dir.y()) > 0.0;
-      for (int ls = 0; ls < s_.opt.maxLineSearch && !accepted; ++ls, alpha *= 0.5) {
+      for (int ls = over ? -1 : 0; ls < s_.opt.maxLineSearch && !accepted;
+           alpha = ls < 0 ? 1.0 : 0.5 * alpha, ++ls) {
         if (ls > 0 && (alpha * len3 < minStep || (lostQuality && worstGrows))) break;
         accepted = tryStep(alpha * dir);
       }
@@ -1350,9 +1355,12 @@ class NodeUpdater {
     const double margin = 1e-3 * (hi - lo);
     const bool wantQ = monotone && cur.tangled == 0;
     Vec3* trialN = w_.normals.data();
-    double alpha = 1.0;
+    const double omega = s_.opt.overRelaxation;  // as for Face nodes
+    const bool over = omega > 1.0 && s_.deltaHat == 0.0 && omega * len3 <= L;
+    double alpha = over ? omega : 1.0;
     const double minStep = kMinStepFraction * s_.opt.moveTol * L;  // as for Face nodes
-    for (int ls = 0; ls < s_.opt.maxLineSearch; ++ls, alpha *= 0.5) {
+    for (int ls = over ? -1 : 0; ls < s_.opt.maxLineSearch;
+         alpha = ls < 0 ? 1.0 : 0.5 * alpha, ++ls) {
       if (ls > 0 && alpha * len3 < minStep) break;
       const double tn = t0 + alpha * dt;
       if (!(tn > lo + margin && tn < hi - margin)) continue;
@@ -1729,6 +1737,8 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
     throw std::invalid_argument("tolerances must be >= 0");
   if (opt.innerIterations < 1) throw std::invalid_argument("innerIterations must be >= 1");
   if (opt.maxLineSearch < 1) throw std::invalid_argument("maxLineSearch must be >= 1");
+  if (!(opt.overRelaxation >= 1.0 && opt.overRelaxation < 2.0))
+    throw std::invalid_argument("overRelaxation must be in [1, 2)");
   if (opt.deltaPolicy != "auto" && opt.deltaPolicy != "fixed")
     throw std::invalid_argument("deltaPolicy must be 'auto' or 'fixed', got '" + opt.deltaPolicy +
                                 "'");
