@@ -2,7 +2,7 @@
 """SurfMesh on Gmsh's own high-order meshes of CAD parts, orders 2…5 (no perturbation).
 
     /usr/bin/python3 bench/high_order_parts.py [--parts gmsh_u_joint.step,occt_screw.step]
-        [--orders 2,3,4,5] [--div 21] [--threads 1] [--boundary fixed]
+        [--orders 2,3,4,5] [--div 21] [--threads 1] [--boundary fixed] [--over-relaxation W]
 
 Gmsh 4.8.4 meshes each part (element size = bounding-box diagonal / div) and raises the mesh to
 each order (its high-order nodes projected on the CAD surfaces, as Gmsh does), then the
@@ -47,6 +47,7 @@ def main():
     ap.add_argument("--div", type=float, default=21)
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--boundary", default="fixed")
+    ap.add_argument("--over-relaxation", default=None, help="passed to the command line")
     a = ap.parse_args()
     if not os.path.exists(CLI):
         raise SystemExit(f"{CLI} not found: run scripts/install.sh first")
@@ -66,7 +67,8 @@ def main():
             run = subprocess.run(
                 ["freecadcmd", CLI, "--", "optimize", path, mesh, "-o",
                  os.path.join(work, f"{name}_{order}_out.msh"), "--report", report,
-                 "--threads", str(a.threads), "--boundary", a.boundary],
+                 "--threads", str(a.threads), "--boundary", a.boundary]
+                + (["--over-relaxation", a.over_relaxation] if a.over_relaxation else []),
                 capture_output=True, text=True)
             if run.returncode != 0 or not os.path.exists(report):
                 last = (run.stderr or run.stdout).strip().splitlines()[-1:] or ["?"]

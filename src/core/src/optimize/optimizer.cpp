@@ -417,6 +417,10 @@ struct State {
   std::vector<unsigned char> d2Valid;   // whether d2[i] is current
   std::vector<std::int32_t> lastVisit;  // clock of the node's last update
   std::vector<std::int32_t> movedAt;    // clock of its last significant move (0: never)
+  /// Per node: its last accepted Newton step of a smoothing sweep, in (u,v) (Face nodes) or t
+  /// (x; sliding nodes); zero after any other move. Over-relaxation follows it (see
+  /// OptimizeOptions::overRelaxation).
+  std::vector<Eigen::Vector2f> lastStep;
   // ---- elements --------------------------------------------------------------------------
   // Reference normal of element e: normalized (fixedNormal[e] + Σ nodeNormal over its Face
   // corners), fixedNormal holding the corner normals of its Fixed and Edge corners.
@@ -483,6 +487,7 @@ struct State {
     d2Valid.assign(N, 0);
     lastVisit.assign(N, 0);
     movedAt.assign(N, 0);
+    lastStep.assign(N, Eigen::Vector2f::Zero());
     bool anyEdge = false;
     for (std::size_t i = 0; i < N; ++i) {
       if (m.nodeKind[i] == NodeKind::Face) nodeNormal[i] = m.referenceNormal(m.nodeFace[i], uv[i]);
@@ -1137,6 +1142,13 @@ class NodeUpdater {
     }
   }
 
+  /// Whether step b goes on the way step a went: the angle between them, measured in the
+  /// surface's metric G, is below 60° (a zero step goes no way).
+  static bool sameWay(const Vec2& a, const Vec2& b, const Mat2& G) {
+    const double aa = a.dot(G * a), bb = b.dot(G * b);
+    return aa > 0.0 && bb > 0.0 && a.dot(G * b) > 0.5 * std::sqrt(aa * bb);
+  }
+
   double updateFaceNode(std::size_t i) {
     const int face = s_.mesh.nodeFace[i];
     const Surface& surf = *w_.geo.surfaces[static_cast<std::size_t>(face)];
@@ -1190,6 +1202,7 @@ class NodeUpdater {
       Vec3 nn;
       LocalEval best = cur;      // acceptance threshold: a trial must beat it
       bool lostQuality = false;  // the last trial was rejected for lowering the minimum quality
+      Vec2 acceptedStep = Vec2::Zero();  // the Newton step (or its multiple) accepted
       auto tryStep = [&](const Vec2& step) {
         lostQuality = false;
         const Vec2 uvT = surf.wrap(uv0 + step);
@@ -1207,13 +1220,17 @@ class NodeUpdater {
         uvNew = uvT;
         dn = dT;
         nn = nT;
+        acceptedStep = step;
         return true;
       };
       bool accepted = false;
-      // Smoothing sweeps (δ = 0) try the over-relaxed step ω × dir first (see
-      // OptimizeOptions::overRelaxation), then the step and its halvings.
+      // Smoothing sweeps (δ = 0) try the over-relaxed step ω × dir first when the node keeps
+      // moving the way it did (see OptimizeOptions::overRelaxation), then the step and its
+      // halvings.
       const double omega = s_.opt.overRelaxation;
-      const bool over = omega > 1.0 && s_.deltaHat == 0.0 && omega * len3 <= L;
+      const Vec2 prev = s_.lastStep[i].cast<double>();
+      const bool over =
+          omega > 1.0 && s_.deltaHat == 0.0 && omega * len3 <= L && sameWay(prev, dir, T.metric);
       double alpha = over ? omega : 1.0;
       // Halvings stop below a tenth of the activity threshold moveTol × L: a shorter step
       // would not count as a move (the direction fails: e.g. it lowers the submesh's minimum
@@ -1230,6 +1247,7 @@ class NodeUpdater {
         if (ls > 0 && (alpha * len3 < minStep || (lostQuality && worstGrows))) break;
         accepted = tryStep(alpha * dir);
       }
+      const Vec2 newtonStep = accepted ? acceptedStep : Vec2::Zero();
       if ((!accepted || best.f > 0.5 * cur.f) && s_.deltaHat == 0.0 && cur.maxEta > kFallbackEta) {
         // A badly shaped submesh where the Newton direction fails or barely helps (e.g. three
         // nearly collinear nodes on a curved surface, whose element plane stands across the
@@ -1287,12 +1305,15 @@ class NodeUpdater {
               bestTangled = tr.tangled;
               bestF = tr.f;
               accepted = true;
+              acceptedStep = Vec2::Zero();
               uvNew = uvT;
               dn = dT;
               nn = nT;
             }
           }
       }
+      const bool newton = accepted && acceptedStep == newtonStep;
+      s_.lastStep[i] = newton ? Eigen::Vector2f(newtonStep.cast<float>()) : Eigen::Vector2f::Zero();
       if (!accepted) return moved;
       const double step = (dn.p - x0).norm();
       moved += step;
@@ -1356,7 +1377,9 @@ class NodeUpdater {
     const bool wantQ = monotone && cur.tangled == 0;
     Vec3* trialN = w_.normals.data();
     const double omega = s_.opt.overRelaxation;  // as for Face nodes
-    const bool over = omega > 1.0 && s_.deltaHat == 0.0 && omega * len3 <= L;
+    const double prevDt = s_.lastStep[i].x();
+    s_.lastStep[i].setZero();
+    const bool over = omega > 1.0 && s_.deltaHat == 0.0 && omega * len3 <= L && prevDt * dt > 0.0;
     double alpha = over ? omega : 1.0;
     const double minStep = kMinStepFraction * s_.opt.moveTol * L;  // as for Face nodes
     for (int ls = over ? -1 : 0; ls < s_.opt.maxLineSearch;
@@ -1374,6 +1397,7 @@ class NodeUpdater {
       if (s_.deltaHat > 0.0 && cur.tangled > 0 && tr.tangled >= cur.tangled &&
           (xn - x0).norm() < s_.opt.moveTol * L)
         slideEscape(i, curve, lo + margin, hi - margin, tr.tangled, &tb);
+      if (tb == tn) s_.lastStep[i].x() = static_cast<float>(tn - t0);
       return commitEdgeMove(i, curve, tb, x0);
     }
     double tb = t0;

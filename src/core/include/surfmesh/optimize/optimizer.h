@@ -83,12 +83,15 @@ struct OptimizeOptions {
   double moveTol = 1e-3;
   /// Newton iterations per node and sweep (the paper uses 1).
   int innerIterations = 1;
-  /// Over-relaxation ω of the smoothing sweeps (δ = 0): a node first tries ω × its Newton step
-  /// (when that is no longer than its local size), and the step and its halvings only when
-  /// that trial is not accepted (it must lower f, like every trial). Gauss–Seidel removes a
-  /// smooth, mesh-wide deviation from the optimum by a fraction per sweep only; ω > 1 carries
-  /// it further each sweep (as successive over-relaxation does for linear systems). 1: off.
-  /// Untangling sweeps (δ > 0) take plain steps.
+  /// Over-relaxation ω of the smoothing sweeps (δ = 0): a node whose Newton step goes on the
+  /// way its previous one went (less than 60° apart in the surface's metric; along its edge for
+  /// a sliding node) first tries ω × that step (when that is no longer than its local size),
+  /// and the step and its halvings only when that trial is not accepted (it must lower f, like
+  /// every trial). Gauss–Seidel removes a smooth, mesh-wide deviation from the optimum by a
+  /// fraction per sweep only, its nodes creeping the same way sweep after sweep; ω > 1 carries
+  /// it further each sweep (as successive over-relaxation does for linear systems). A node
+  /// whose steps turn back and forth (a local deviation, which Gauss–Seidel removes quickly)
+  /// takes plain steps. 1: off. Untangling sweeps (δ > 0) take plain steps.
   double overRelaxation = 1.9;
   /// Maximum halvings of the line search. It stops earlier once the step's 3D length falls
   /// below 0.1 × moveTol × the node's local size (a shorter step would not count as a move),
