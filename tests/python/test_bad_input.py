@@ -480,7 +480,9 @@ class BadInputApi(unittest.TestCase):
                 self.expect_error(mesh, "tolerance", tolerance=bad)
         for key, bad in (("rel_tol", -1e-5), ("move_tol", -1.0), ("rel_tol", math.nan),
                          ("delta", 0.0), ("max_sweeps", 0), ("max_sweeps", -3),
-                         ("threads", -1), ("delta_policy", "sometimes")):
+                         ("threads", -1), ("delta_policy", "sometimes"),
+                         ("over_relaxation", 2.0), ("over_relaxation", 0.5),
+                         ("over_relaxation", math.nan)):
             with self.subTest(option=key, value=bad):
                 self.expect_error(mesh, key, call=("optimize",), **{key: bad})
         self.expect_error(mesh, "unknown option", "bogus", call=("optimize",), bogus=1)
@@ -849,6 +851,8 @@ class BadInputCli(unittest.TestCase):
                             fragments=["rel_tol"])
         self.expect_failure("optimize", self.box, self.mesh, "-o", "{out}", "--max-sweeps",
                             "0", fragments=["max_sweeps"])
+        self.expect_failure("optimize", self.box, self.mesh, "-o", "{out}",
+                            "--over-relaxation", "2.5", fragments=["over_relaxation"])
         self.expect_failure("optimize", self.box, self.mesh, "-o", "{out}", "--boundary", "glue",
                             fragments=["glue"])
 
