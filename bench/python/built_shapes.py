@@ -1,8 +1,8 @@
 """Shapes built with FreeCAD's Part module, for meshpart_parts.py (SURFMESH_MP_CAD_DIR=built):
-surfaces the parts of ../shared/data/cad do not
-have — a sphere and a cone with their poles, a scaled (B-spline) sphere, a loft through three
-B-spline sections, a revolved B-spline profile, a circle swept along a five-turn helix, a
-filleted block with a hole and a fusion of a cylinder, a sphere and a torus.
+surfaces the parts of ../shared/data/cad do not have — a sphere and a cone with their poles, a
+scaled (B-spline) sphere, a loft through three B-spline sections, a revolved B-spline profile,
+a circle swept along a five-turn helix, a filleted block with a hole and a fusion of a
+cylinder, a sphere and a torus.
 """
 
 import math
@@ -55,4 +55,3 @@ def write(directory):
     for name, s in shapes().items():
         s.exportBrep(os.path.join(directory, name + ".brep"))
     return directory
-

@@ -20,9 +20,10 @@ the start of the message.
 
 Options by environment (freecadcmd takes no script options): SURFMESH_MP_CAD_DIR ("built":
 the shapes of built_shapes.py — a helical sweep, a loft, a revolved profile, poles —, written to
-a temporary directory); SURFMESH_MP_PARTS (comma list of files in SURFMESH_MP_CAD_DIR); SURFMESH_MP_AMPS (e.g. "0.3,0.6": also runs each mesh SurfMesh
-takes with its Face nodes moved in (u,v) by that many × their element size, as
-perturbed_fem.py does; default none) and SURFMESH_MP_SEEDS (default "1,2").
+a temporary directory); SURFMESH_MP_PARTS (comma list of files in SURFMESH_MP_CAD_DIR);
+SURFMESH_MP_AMPS (e.g. "0.3,0.6": also runs each mesh SurfMesh takes with its Face nodes moved
+in (u,v) by that many × their element size, as perturbed_fem.py does; default none) and
+SURFMESH_MP_SEEDS (default "1,2").
 """
 
 import os

@@ -268,7 +268,8 @@ class TestOptimize(ApiCase):
         helix = Part.Wire(Part.makeHelix(8, 40, 15))
         circle = Part.Wire(Part.makeCircle(2, FreeCAD.Vector(15, 0, 0), FreeCAD.Vector(0, 1, 0)))
         shape = helix.makePipeShell([circle], True, True)
-        sweep = [i for i, f in enumerate(shape.Faces) if f.Surface.TypeId == "Part::GeomBSplineSurface"]
+        sweep = [i for i, f in enumerate(shape.Faces)
+                 if f.Surface.TypeId == "Part::GeomBSplineSurface"]
         self.assertEqual(len(sweep), 1)
         diag = shape.BoundBox.DiagonalLength
         m = MeshPart.meshFromShape(Shape=shape, LinearDeflection=diag / 300,

@@ -221,12 +221,12 @@ class Projector {
     // intervals a side, refined along a direction in which the surface's normal turns by more
     // than kSampleTurn between neighbouring samples (a helical sweep, a long corrugated face),
     // so that the nearest sample lies on the same side of the surface as the point.
+    // The coarse grid's unit normals (zero where degenerate) measure the turn.
     std::vector<Vec3> normals;
-    auto sampleGrid = [&](int nu, int nv) {
+    auto sampleGrid = [&](int nu, int nv, std::vector<Vec3>* sampleNormals) {
       ft.samples.clear();
       ft.sampleUV.clear();
       ft.sampleDegenerate.clear();
-      normals.clear();
       for (int i = 0; i <= nu; ++i)
         for (int j = 0; j <= nv; ++j) {
           const double u = fb.umin + (fb.umax - fb.umin) * i / nu;
@@ -240,13 +240,14 @@ class Projector {
                             Vec3(dv.X(), dv.Y(), dv.Z())};
           const bool degenerate = isDegenerate(d);
           ft.sampleDegenerate.push_back(degenerate ? 1 : 0);
-          normals.push_back(degenerate ? Vec3::Zero() : d.du.cross(d.dv).normalized().eval());
+          if (sampleNormals)
+            sampleNormals->push_back(degenerate ? Vec3::Zero()
+                                                : d.du.cross(d.dv).normalized().eval());
         }
     };
-    sampleGrid(kCells, kCells);
+    sampleGrid(kCells, kCells, &normals);
     double turnU = 0.0, turnV = 0.0;  // largest normal turn between neighbouring samples
-    auto turn = [&](std::size_t a, std::size_t b) {
-      if (ft.sampleDegenerate[a] || ft.sampleDegenerate[b]) return 0.0;
+    auto turn = [&](std::size_t a, std::size_t b) {  // zero next to a degenerate sample
       return std::atan2(normals[a].cross(normals[b]).norm(), normals[a].dot(normals[b]));
     };
     for (int i = 0; i <= kCells; ++i)
@@ -268,7 +269,7 @@ class Projector {
       if (nu == kCells) nv = std::min(nv, rest);
       if (nv == kCells) nu = std::min(nu, rest);
     }
-    if (nu != kCells || nv != kCells) sampleGrid(nu, nv);
+    if (nu != kCells || nv != kCells) sampleGrid(nu, nv, nullptr);
     // Boxes around the surface over the face's (u,v) range: lower bounds on distances.
     ft.cells = surfacePatchBoxes(*ft.ad, fb, kCells, 1e-9 * s_.diagonal());
     if (!ft.cells.empty()) {

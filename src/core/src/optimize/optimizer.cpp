@@ -1142,6 +1142,17 @@ class NodeUpdater {
     }
   }
 
+  /// Whether a smoothing sweep (δ = 0) may try ω × a step of 3D length len3 at a node of local
+  /// size L (see OptimizeOptions::overRelaxation): it must stay within L.
+  bool overRelaxes(double len3, double L) const {
+    const double omega = s_.opt.overRelaxation;
+    return omega > 1.0 && s_.deltaHat == 0.0 && omega * len3 <= L;
+  }
+
+  /// The line search's step factor at trial ls: ω at ls = −1 (an over-relaxed first trial),
+  /// then 1, ½, ¼, …
+  double stepFactor(int ls) const { return ls < 0 ? s_.opt.overRelaxation : std::ldexp(1.0, -ls); }
+
   /// Whether step b goes on the way step a went: the angle between them, measured in the
   /// surface's metric G, is below 60° (a zero step goes no way).
   static bool sameWay(const Vec2& a, const Vec2& b, const Mat2& G) {
@@ -1227,11 +1238,8 @@ class NodeUpdater {
       // Smoothing sweeps (δ = 0) try the over-relaxed step ω × dir first when the node keeps
       // moving the way it did (see OptimizeOptions::overRelaxation), then the step and its
       // halvings.
-      const double omega = s_.opt.overRelaxation;
-      const Vec2 prev = s_.lastStep[i].cast<double>();
       const bool over =
-          omega > 1.0 && s_.deltaHat == 0.0 && omega * len3 <= L && sameWay(prev, dir, T.metric);
-      double alpha = over ? omega : 1.0;
+          overRelaxes(len3, L) && sameWay(s_.lastStep[i].cast<double>(), dir, T.metric);
       // Halvings stop below a tenth of the activity threshold moveTol × L: a shorter step
       // would not count as a move (the direction fails: e.g. it lowers the submesh's minimum
       // quality in monotone mode, or the node sits at its local minimum).
@@ -1242,8 +1250,8 @@ class NodeUpdater {
       const double minStep = kMinStepFraction * s_.opt.moveTol * L;
       const bool worstGrows = wantQ && qualityBar(cur) == cur.minQuality &&
                               cur.gradWorst.dot(d.du * dir.x() + d.dv * dir.y()) > 0.0;
-      for (int ls = over ? -1 : 0; ls < s_.opt.maxLineSearch && !accepted;
-           alpha = ls < 0 ? 1.0 : 0.5 * alpha, ++ls) {
+      for (int ls = over ? -1 : 0; ls < s_.opt.maxLineSearch && !accepted; ++ls) {
+        const double alpha = stepFactor(ls);
         if (ls > 0 && (alpha * len3 < minStep || (lostQuality && worstGrows))) break;
         accepted = tryStep(alpha * dir);
       }
@@ -1376,14 +1384,11 @@ class NodeUpdater {
     const double margin = 1e-3 * (hi - lo);
     const bool wantQ = monotone && cur.tangled == 0;
     Vec3* trialN = w_.normals.data();
-    const double omega = s_.opt.overRelaxation;  // as for Face nodes
-    const double prevDt = s_.lastStep[i].x();
+    const bool over = overRelaxes(len3, L) && s_.lastStep[i].x() * dt > 0.0;  // as for Face nodes
     s_.lastStep[i].setZero();
-    const bool over = omega > 1.0 && s_.deltaHat == 0.0 && omega * len3 <= L && prevDt * dt > 0.0;
-    double alpha = over ? omega : 1.0;
     const double minStep = kMinStepFraction * s_.opt.moveTol * L;  // as for Face nodes
-    for (int ls = over ? -1 : 0; ls < s_.opt.maxLineSearch;
-         alpha = ls < 0 ? 1.0 : 0.5 * alpha, ++ls) {
+    for (int ls = over ? -1 : 0; ls < s_.opt.maxLineSearch; ++ls) {
+      const double alpha = stepFactor(ls);
       if (ls > 0 && alpha * len3 < minStep) break;
       const double tn = t0 + alpha * dt;
       if (!(tn > lo + margin && tn < hi - margin)) continue;
