@@ -484,6 +484,82 @@ TEST(HighOrderMeasure, EtaWithoutDeltaFromTheSamePassEqualsASeparateEvaluation) 
   }
 }
 
+TEST(HighOrderMeasure, JacobiansPreparedForAFreeNodeGiveTheFreshEvaluationWhereverItMoves) {
+  // A line search moves one node of an element and keeps the others: the Jacobians without the
+  // free node's term (highOrderJacobians) are prepared once and the element evaluated at each
+  // trial position. η, validity and η at δ = 0 must be those of a fresh evaluation of the
+  // element with the node moved there (every node's term summed, up to the order of the sums),
+  // and the derivatives elementDistortion's, for corner, edge and interior nodes, valid and
+  // folded positions.
+  const TorusSurface torus(10, 4);
+  const Vec2 valid[3] = {{0.31, 1.2}, {0.45, 1.25}, {0.36, 1.42}};
+  int compared = 0, folded = 0;
+  for (ElementType type : kHighOrder) {
+    const int p = elementOrder(type);
+    const std::vector<Vec2> uv = curvedElementUV(p, valid, 0.04 / (p * p), 11 + p);
+    std::vector<Vec3> x(uv.size());
+    for (std::size_t i = 0; i < uv.size(); ++i) x[i] = torus.value(uv[i].x(), uv[i].y());
+    const Vec3 n = torus.normal(uv[0].x(), uv[0].y());
+    const int nn = static_cast<int>(uv.size());
+    for (int k : {0, 3, nn - 1}) {
+      HighOrderJacobians pre;
+      highOrderJacobians(type, x.data(), k, &pre);
+      ASSERT_EQ(pre.freeLocal, k);
+      // Steps towards the opposite corner: small ones keep the element valid, the longest
+      // folds it.
+      const Vec2 target = uv[static_cast<std::size_t>(k == 0 ? 1 : 0)];
+      for (double a : {0.0, 0.1, 0.4, 2.5}) {
+        const Vec2 t =
+            uv[static_cast<std::size_t>(k)] + a * (target - uv[static_cast<std::size_t>(k)]);
+        std::vector<Vec3> y = x;
+        y[static_cast<std::size_t>(k)] = torus.value(t.x(), t.y());
+        for (double delta : {0.0, 0.05}) {
+          Vec3 g, gRef;
+          Mat3 H, HRef;
+          double e0 = -1.0, e0Ref = -1.0;
+          const ElementEval e = highOrderTriangleDistortion(
+              measureByName("shape"), pre, y[static_cast<std::size_t>(k)], n, delta, &g, &H, &e0);
+          // The reference sums every node's term (no free node); its derivatives come from
+          // elementDistortion, checked against finite differences above.
+          const ElementEval ref = elementDistortion(measureByName("shape"), type, y.data(), n,
+                                                    delta, -1, nullptr, nullptr, &e0Ref);
+          elementDistortion(measureByName("shape"), type, y.data(), n, delta, k, &gRef, &HRef);
+          const std::string what = std::string(elementTypeName(type)) + " node " +
+                                   std::to_string(k) + " step " + std::to_string(a) + " delta " +
+                                   std::to_string(delta);
+          EXPECT_EQ(e.tangled, ref.tangled) << what;
+          EXPECT_NEAR(e.minSigma, ref.minSigma, 1e-12) << what;
+          if (ref.tangled) ++folded;
+          if (!std::isfinite(ref.eta)) {
+            EXPECT_TRUE(std::isinf(e.eta)) << what;
+            continue;
+          }
+          ++compared;
+          EXPECT_NEAR(e.eta, ref.eta, 1e-12 * ref.eta) << what;
+          if (std::isfinite(e0Ref)) EXPECT_NEAR(e0, e0Ref, 1e-12 * e0Ref) << what;
+          EXPECT_LE((g - gRef).norm(), 1e-10 * (1.0 + gRef.norm())) << what;
+          EXPECT_LE((H - HRef).norm(), 1e-10 * (1.0 + HRef.norm())) << what;
+        }
+      }
+    }
+  }
+  EXPECT_GT(compared, 60);
+  EXPECT_GT(folded, 4);
+  // Without a free node the prepared Jacobians are the whole element's.
+  const std::vector<Vec2> uv = curvedElementUV(3, valid, 0.004, 7);
+  std::vector<Vec3> x(uv.size());
+  for (std::size_t i = 0; i < uv.size(); ++i) x[i] = torus.value(uv[i].x(), uv[i].y());
+  const Vec3 n = torus.normal(uv[0].x(), uv[0].y());
+  HighOrderJacobians all;
+  highOrderJacobians(ElementType::Tri10, x.data(), -1, &all);
+  EXPECT_EQ(all.freeLocal, -1);
+  EXPECT_EQ(highOrderTriangleDistortion(measureByName("oddy"), all, Vec3(1e9, 0, 0), n, 0.0,
+                                        nullptr, nullptr)
+                .eta,
+            elementDistortion(measureByName("oddy"), ElementType::Tri10, x.data(), n, 0.0).eta);
+  EXPECT_THROW(highOrderJacobians(ElementType::Quad4, x.data(), 0, &all), std::invalid_argument);
+}
+
 // ---- optimization -----------------------------------------------------------------------------
 
 /// A 24 × 10 periodic grid of the whole torus elevated to order p (2 or 3), nodes at their

@@ -39,35 +39,79 @@
 namespace surfmesh {
 
 namespace {
-Jacobian32 jacobianAt(const Vec3* x, const Eigen::Vector2d* grad, int n) {
+/// Σ_i x_i ∇N_i(ξ)ᵀ over the element's nodes but `skip` (< 0: every node).
+Jacobian32 jacobianAt(const Vec3* x, const Eigen::Vector2d* grad, int n, int skip) {
   Jacobian32 J = Jacobian32::Zero();
   for (int i = 0; i < n; ++i) {
+    if (i == skip) continue;
     J.col(0) += grad[i].x() * x[i];
     J.col(1) += grad[i].y() * x[i];
   }
   return J;
 }
+
+const HighOrderTriangleRule& ruleOf(ElementType type) {
+  if (type == ElementType::Quad4)
+    throw std::invalid_argument("highOrderTriangleDistortion: quad4 is not a triangle");
+  const HighOrderTriangleRule& rule = highOrderTriangleRule(elementOrder(type));
+  if (rule.quadrature->points.size() > static_cast<std::size_t>(kMaxQuadraturePoints) ||
+      rule.nodes > kMaxElementNodes)
+    throw std::logic_error("highOrderTriangleDistortion: rule larger than its scratch");
+  return rule;
+}
 }  // namespace
+
+void highOrderJacobians(ElementType type, const Vec3* x, int freeLocal, HighOrderJacobians* out) {
+  const HighOrderTriangleRule& rule = ruleOf(type);
+  const int nn = rule.nodes;
+  out->type = type;
+  out->freeLocal = freeLocal >= 0 && freeLocal < nn ? freeLocal : -1;
+  for (int k = 0; k < nn; ++k)
+    out->atNode[k] = jacobianAt(x, rule.gradAtNode.data() + static_cast<std::size_t>(k) * nn, nn,
+                                out->freeLocal);
+  const std::size_t nq = rule.quadrature->points.size();
+  for (std::size_t q = 0; q < nq; ++q)
+    out->atPoint[q] = jacobianAt(x, rule.gradAtPoint.data() + q * static_cast<std::size_t>(nn), nn,
+                                 out->freeLocal);
+}
 
 ElementEval highOrderTriangleDistortion(const PlanarMeasure& m, ElementType type, const Vec3* x,
                                         const Vec3& n, double delta, int freeLocal, Vec3* grad,
                                         Mat3* hess, double* eta0) {
-  if (type == ElementType::Quad4)
-    throw std::invalid_argument("highOrderTriangleDistortion: quad4 is not a triangle");
-  const HighOrderTriangleRule& rule = highOrderTriangleRule(elementOrder(type));
+  HighOrderJacobians pre;
+  // Without derivatives the Jacobians are summed over every node, in node order.
+  const int k = (grad || hess) ? freeLocal : -1;
+  highOrderJacobians(type, x, k, &pre);
+  return highOrderTriangleDistortion(m, pre, pre.freeLocal >= 0 ? x[pre.freeLocal] : Vec3::Zero(),
+                                     n, delta, grad, hess, eta0);
+}
+
+ElementEval highOrderTriangleDistortion(const PlanarMeasure& m, const HighOrderJacobians& pre,
+                                        const Vec3& xFree, const Vec3& n, double delta, Vec3* grad,
+                                        Mat3* hess, double* eta0) {
+  const HighOrderTriangleRule& rule = ruleOf(pre.type);
   const int nn = rule.nodes;
-  const bool derivs = freeLocal >= 0 && freeLocal < nn && (grad || hess);
+  const int k = pre.freeLocal;
+  const bool derivs = k >= 0 && (grad || hess);
   const Mat2& Winv = equilateralWinv();
   constexpr double kInf = std::numeric_limits<double>::infinity();
+  // J at a point: the fixed nodes' part plus the free node's term.
+  auto jacobian = [&](const Jacobian32& rest, const Eigen::Vector2d* g) {
+    if (k < 0) return rest;
+    Jacobian32 J = rest;
+    J.col(0) += g[k].x() * xFree;
+    J.col(1) += g[k].y() * xFree;
+    return J;
+  };
 
   ElementEval r;
   r.minSigma = kInf;
   bool infinite = false;
 
   // Validity at the element's nodes.
-  for (int k = 0; k < nn; ++k) {
+  for (int q = 0; q < nn; ++q) {
     const Jacobian32 J =
-        jacobianAt(x, rule.gradAtNode.data() + static_cast<std::size_t>(k) * nn, nn);
+        jacobian(pre.atNode[q], rule.gradAtNode.data() + static_cast<std::size_t>(q) * nn);
     const ElementEval e = jacobianValidity(J, Winv, n);
     r.minSigma = std::min(r.minSigma, e.minSigma);
     r.tangled = r.tangled || e.tangled;
@@ -82,13 +126,12 @@ ElementEval highOrderTriangleDistortion(const PlanarMeasure& m, ElementType type
   Mat3 Hsum = Mat3::Zero();
   for (std::size_t q = 0; q < quad.points.size(); ++q) {
     const Eigen::Vector2d* gq = rule.gradAtPoint.data() + q * static_cast<std::size_t>(nn);
-    const Jacobian32 J = jacobianAt(x, gq, nn);
+    const Jacobian32 J = jacobian(pre.atPoint[q], gq);
     Vec3 g = Vec3::Zero();
     Mat3 H = Mat3::Zero();
     const ElementEval e =
-        derivs
-            ? jacobianDistortion(m, J, Winv, n, delta, gq + freeLocal, &g, hess ? &H : nullptr, e0p)
-            : jacobianDistortion(m, J, Winv, n, delta, nullptr, nullptr, nullptr, e0p);
+        derivs ? jacobianDistortion(m, J, Winv, n, delta, gq + k, &g, hess ? &H : nullptr, e0p)
+               : jacobianDistortion(m, J, Winv, n, delta, nullptr, nullptr, nullptr, e0p);
     r.minSigma = std::min(r.minSigma, e.minSigma);
     r.tangled = r.tangled || e.tangled;
     const double w = quad.weights[q];

@@ -6,11 +6,6 @@
 namespace surfmesh {
 
 namespace {
-Mat3 crossMatrix(const Vec3& w) {
-  Mat3 m;
-  m << 0.0, -w.z(), w.y(), w.z(), 0.0, -w.x(), -w.y(), w.x(), 0.0;
-  return m;
-}
 constexpr double kInf = std::numeric_limits<double>::infinity();
 }  // namespace
 
@@ -95,16 +90,18 @@ ElementEval jacobianDistortion(const PlanarMeasure& m, const Jacobian32& J, cons
       nu = gamma * c / cn;
     else
       nu = n.normalized();
-    const Vec3 gs = detWinv * nu.cross(w);
+    const Vec3 mw = nu.cross(w);
+    const Vec3 gs = detWinv * mw;
     if (grad) *grad = d.hF * gF + d.hs * gs;
     if (hess) {
       Mat3 H = d.hFF * gF * gF.transpose() + d.hFs * (gF * gs.transpose() + gs * gF.transpose()) +
                d.hss * gs * gs.transpose();
       H.diagonal().array() += d.hF * 2.0 * beta.squaredNorm();
       if (regular) {
-        const Mat3 Wx = crossMatrix(w);
-        const Mat3 P = Mat3::Identity() - nu * nu.transpose();
-        H += d.hs * detWinv * gamma * (Wx.transpose() * P * Wx) / cn;
+        // [w]×ᵀ (I − ν νᵀ) [w]× = ‖w‖² I − w wᵀ − (ν × w)(ν × w)ᵀ
+        Mat3 Q = -w * w.transpose() - mw * mw.transpose();
+        Q.diagonal().array() += w.squaredNorm();
+        H += (d.hs * detWinv * gamma / cn) * Q;
       }
       *hess = H;
     }

@@ -578,9 +578,22 @@ struct State {
     return en > b ? s / static_cast<double>(en - b) : 0.0;
   }
 
+  /// The Jacobians of high-order triangle e at its nodes and quadrature points without the
+  /// term of its node `local` (see HighOrderJacobians), at the current positions.
+  void highOrderRest(std::size_t e, int local, HighOrderJacobians* out) const {
+    Vec3 xs[kMaxElementNodes];
+    const std::int32_t* nd = mesh.elementNodes(e);
+    const int cnt = mesh.elementSize(e);
+    for (int k = 0; k < cnt; ++k) xs[k] = xyz[static_cast<std::size_t>(nd[k])];
+    highOrderJacobians(mesh.elemType[e], xs, local, out);
+  }
+
   /// Element e with node `local` at x (others at their positions) and reference normal n.
+  /// `pre`: for a high-order triangle, highOrderRest(e, local) when the other nodes have not
+  /// moved since (a line search), or null.
   ElemOut evalElement(std::size_t e, int local, const Vec3& x, const Vec3& n, double delta,
-                      bool wantEta0, Vec3* grad, Mat3* hess) const {
+                      bool wantEta0, Vec3* grad, Mat3* hess,
+                      const HighOrderJacobians* pre = nullptr) const {
     const std::int32_t* nd = mesh.elementNodes(e);
     if (mesh.elemType[e] == ElementType::Tri3) {
       const int k1 = local == 2 ? 0 : local + 1, k2 = local == 0 ? 2 : local - 1;
@@ -588,13 +601,19 @@ struct State {
                             xyz[static_cast<std::size_t>(nd[k2])], n, delta, wantEta0, grad, hess,
                             relaxTangled);
     }
-    Vec3 xs[kMaxElementNodes];
-    const int cnt = mesh.elementSize(e);
-    for (int k = 0; k < cnt; ++k) xs[k] = (k == local) ? x : xyz[static_cast<std::size_t>(nd[k])];
     const Vec3 nu = n.normalized();
     double eta0 = kInf;  // η with δ = 0, from the same pass over the element
-    const ElementEval ev = elementDistortion(measure, mesh.elemType[e], xs, nu, delta, local, grad,
-                                             hess, wantEta0 ? &eta0 : nullptr);
+    ElementEval ev;
+    if (pre) {
+      ev = highOrderTriangleDistortion(measure, *pre, x, nu, delta, grad, hess,
+                                       wantEta0 ? &eta0 : nullptr);
+    } else {
+      Vec3 xs[kMaxElementNodes];
+      const int cnt = mesh.elementSize(e);
+      for (int k = 0; k < cnt; ++k) xs[k] = (k == local) ? x : xyz[static_cast<std::size_t>(nd[k])];
+      ev = elementDistortion(measure, mesh.elemType[e], xs, nu, delta, local, grad, hess,
+                             wantEta0 ? &eta0 : nullptr);
+    }
     ElemOut r;
     r.eta = ev.eta;
     r.minSigma = ev.minSigma;
@@ -605,7 +624,8 @@ struct State {
 
   /// evalElement with the Hessian projected on the tangent basis T (as (h00, h01, h11)).
   ElemOut evalElementUV(std::size_t e, int local, const Vec3& x, const Vec3& n, double delta,
-                        bool wantEta0, const Tangent& T, Vec3* grad, Vec3* hessUV) const {
+                        bool wantEta0, const Tangent& T, Vec3* grad, Vec3* hessUV,
+                        const HighOrderJacobians* pre = nullptr) const {
     if (mesh.elemType[e] == ElementType::Tri3) {
       const std::int32_t* nd = mesh.elementNodes(e);
       const int k1 = local == 2 ? 0 : local + 1, k2 = local == 0 ? 2 : local - 1;
@@ -614,7 +634,7 @@ struct State {
                               hessUV, relaxTangled);
     }
     Mat3 H;
-    const ElemOut r = evalElement(e, local, x, n, delta, wantEta0, grad, &H);
+    const ElemOut r = evalElement(e, local, x, n, delta, wantEta0, grad, &H, pre);
     if (std::isfinite(r.eta)) {
       const Vec3 Hdu = H * T.du, Hdv = H * T.dv;
       *hessUV = Vec3(T.du.dot(Hdu), T.du.dot(Hdv), T.dv.dot(Hdv));
@@ -652,6 +672,7 @@ struct alignas(64) Worker {
     keptSig.resize(s.maxDegree);
     normals.resize(s.maxDegree);
     baseNormal.resize(s.maxDegree);
+    if (!s.allTri3) highOrder.resize(s.maxDegree);
   }
   ThreadGeometry geo;
   std::vector<double> eta0, sig;  // trial's per-element η(δ=0) and scaled det S
@@ -660,6 +681,8 @@ struct alignas(64) Worker {
   std::vector<double> keptEta0, keptSig;
   std::vector<Vec3> normals;     // trial's corner normals of a sliding node
   std::vector<Vec3> baseNormal;  // per incident element: its normal without the free corner
+  // Per incident high-order triangle: its Jacobians without the free node's term.
+  std::vector<HighOrderJacobians> highOrder;
   double maxRelMove = 0.0;
   std::size_t updated = 0, moved = 0;
   char pad[64];
@@ -1055,13 +1078,22 @@ class NodeUpdater {
         base[j] = corner ? s_.rawNormal(e, static_cast<std::int64_t>(i), Vec3::Zero(), old(j))
                          : s_.rawNormal(e, -1, Vec3::Zero(), Vec3::Zero());
       const Vec3 nref = s_.usableNormal(e, corner ? Vec3(base[j] + nfree(j)) : base[j]);
+      // A high-order triangle's Jacobians without the free node's term: the same for every
+      // trial of this update too.
+      HighOrderJacobians* pre = nullptr;
+      const ElementType type = s_.mesh.elemType[e];
+      if (type != ElementType::Tri3 && type != ElementType::Quad4) {
+        pre = &w_.highOrder[j];
+        if (!cur) s_.highOrderRest(e, local, pre);
+      }
       const double delta = s_.deltaHat * s_.deltaScale[e];
       Vec3 ge;
       Mat3 He;
       Vec3 heUV = Vec3::Zero();
-      const ElemOut ev = HUV ? s_.evalElementUV(e, local, x, nref, delta, needEta0, *T, &ge, &heUV)
-                             : s_.evalElement(e, local, x, nref, delta, needEta0, g ? &ge : nullptr,
-                                              H ? &He : nullptr);
+      const ElemOut ev =
+          HUV ? s_.evalElementUV(e, local, x, nref, delta, needEta0, *T, &ge, &heUV, pre)
+              : s_.evalElement(e, local, x, nref, delta, needEta0, g ? &ge : nullptr,
+                               H ? &He : nullptr, pre);
       if (cur) {
         w_.eta0[j] = ev.eta0;
         w_.sig[j] = ev.minSigma;

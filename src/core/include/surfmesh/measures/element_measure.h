@@ -102,6 +102,30 @@ ElementEval highOrderTriangleDistortion(const PlanarMeasure& m, ElementType type
                                         const Vec3& n, double delta, int freeLocal, Vec3* grad,
                                         Mat3* hess, double* eta0 = nullptr);
 
+/// Most quadrature points of a high-order triangle's rule (Dunavant's degree 10, order 5).
+constexpr int kMaxQuadraturePoints = 25;
+
+/// A high-order triangle's Jacobians J(ξ) = Σ_i x_i ∇N_i(ξ)ᵀ at its nodes and at its quadrature
+/// points, with the term of one free node left out (all terms when freeLocal < 0). A line search
+/// that moves that node alone then evaluates the element in O(points) instead of
+/// O(points × nodes): J = J_rest + x ∇N_free(ξ)ᵀ.
+struct HighOrderJacobians {
+  ElementType type = ElementType::Tri6;
+  int freeLocal = -1;
+  Jacobian32 atNode[kMaxElementNodes];
+  Jacobian32 atPoint[kMaxQuadraturePoints];
+};
+
+/// Fills `out` for the high-order triangle with nodes x (Gmsh order) and free node
+/// `freeLocal` (< 0: none). Throws std::invalid_argument for a quadrilateral.
+void highOrderJacobians(ElementType type, const Vec3* x, int freeLocal, HighOrderJacobians* out);
+
+/// highOrderTriangleDistortion with the free node (pre.freeLocal) at xFree and the other nodes
+/// as in `pre`; derivatives with respect to the free node (none when pre.freeLocal < 0).
+ElementEval highOrderTriangleDistortion(const PlanarMeasure& m, const HighOrderJacobians& pre,
+                                        const Vec3& xFree, const Vec3& n, double delta, Vec3* grad,
+                                        Mat3* hess, double* eta0 = nullptr);
+
 /// Carries a gradient g (3) and Hessian H (3×3) in x to the surface parameters (u,v) through
 /// x = φ(u,v): g_u = Jᵀ g, H_u = Jᵀ H J + Σ_m g_m ∇²φ_m, with J = [φ_u φ_v].
 void chainToSurface(const SurfaceD2& d, const Vec3& g, const Mat3& H, Vec2* gu, Mat2* Hu);
