@@ -39,15 +39,35 @@
 namespace surfmesh {
 
 namespace {
-/// Σ_i x_i ∇N_i(ξ)ᵀ over the element's nodes but `skip` (< 0: every node).
-Jacobian32 jacobianAt(const Vec3* x, const Eigen::Vector2d* grad, int n, int skip) {
-  Jacobian32 J = Jacobian32::Zero();
-  for (int i = 0; i < n; ++i) {
-    if (i == skip) continue;
-    J.col(0) += grad[i].x() * x[i];
-    J.col(1) += grad[i].y() * x[i];
+/// Σ_i x_i ∇N_i(ξ)ᵀ over the element's N nodes (N known at compile time: unrolled), row by
+/// row: row r of J accumulates x_i[r] ∇N_i (one packed operation).
+template <int N>
+Jacobian32 jacobianAt(const Vec3* x, const Eigen::Vector2d* grad, int n) {
+  const int count = N > 0 ? N : n;
+  Eigen::Vector2d r0 = Eigen::Vector2d::Zero(), r1 = r0, r2 = r0;
+  for (int i = 0; i < count; ++i) {
+    r0 += x[i].x() * grad[i];
+    r1 += x[i].y() * grad[i];
+    r2 += x[i].z() * grad[i];
   }
+  Jacobian32 J;
+  J.row(0) = r0.transpose();
+  J.row(1) = r1.transpose();
+  J.row(2) = r2.transpose();
   return J;
+}
+
+/// Fills `out` with the Jacobians of nodes x (the free node's entry already zero).
+template <int N>
+void restJacobians(const HighOrderTriangleRule& rule, const Vec3* x, HighOrderJacobians* out) {
+  const int nn = rule.nodes;
+  for (int k = 0; k < nn; ++k)
+    out->atNode[k] =
+        jacobianAt<N>(x, rule.gradAtNode.data() + static_cast<std::size_t>(k) * nn, nn);
+  const std::size_t nq = rule.quadrature->points.size();
+  for (std::size_t q = 0; q < nq; ++q)
+    out->atPoint[q] =
+        jacobianAt<N>(x, rule.gradAtPoint.data() + q * static_cast<std::size_t>(nn), nn);
 }
 
 const HighOrderTriangleRule& ruleOf(ElementType type) {
@@ -66,13 +86,21 @@ void highOrderJacobians(ElementType type, const Vec3* x, int freeLocal, HighOrde
   const int nn = rule.nodes;
   out->type = type;
   out->freeLocal = freeLocal >= 0 && freeLocal < nn ? freeLocal : -1;
-  for (int k = 0; k < nn; ++k)
-    out->atNode[k] = jacobianAt(x, rule.gradAtNode.data() + static_cast<std::size_t>(k) * nn, nn,
-                                out->freeLocal);
-  const std::size_t nq = rule.quadrature->points.size();
-  for (std::size_t q = 0; q < nq; ++q)
-    out->atPoint[q] = jacobianAt(x, rule.gradAtPoint.data() + q * static_cast<std::size_t>(nn), nn,
-                                 out->freeLocal);
+  // The free node's term left out as a zero term: the same sums as skipping it.
+  Vec3 xs[kMaxElementNodes];
+  for (int i = 0; i < nn; ++i) xs[i] = i == out->freeLocal ? Vec3::Zero() : x[i];
+  switch (nn) {
+    case 6:
+      return restJacobians<6>(rule, xs, out);
+    case 10:
+      return restJacobians<10>(rule, xs, out);
+    case 15:
+      return restJacobians<15>(rule, xs, out);
+    case 21:
+      return restJacobians<21>(rule, xs, out);
+    default:
+      return restJacobians<0>(rule, xs, out);
+  }
 }
 
 ElementEval highOrderTriangleDistortion(const PlanarMeasure& m, ElementType type, const Vec3* x,
