@@ -16,19 +16,33 @@ namespace {
 /// element).
 struct JacobianPlane {
   Jacobian32 K;
-  double F, detWinv;
+  double F = 0.0, detWinv = 0.0;
   Vec3 c;
-  double cn;
+  double cn = 0.0;
   bool finite = false, regular = false;
   double gamma = -1.0, sigma = 0.0;
 
-  JacobianPlane(const Jacobian32& J, const Mat2& Winv, const Vec3& n)
-      : K(J * Winv), F(K.squaredNorm()), detWinv(Winv.determinant()), c(J.col(0).cross(J.col(1))) {
-    cn = c.norm();
+  // Scalar arithmetic, inlined: Eigen's products here store K's entries one by one and read
+  // them back in pairs before the stores complete, which stalled every evaluation (the plane
+  // is computed at every node and quadrature point of high-order elements).
+  __attribute__((always_inline))
+  JacobianPlane(const Jacobian32& J, const Mat2& Winv, const Vec3& n) {
+    const double w00 = Winv(0, 0), w01 = Winv(0, 1), w10 = Winv(1, 0), w11 = Winv(1, 1);
+    const double a0 = J(0, 0), a1 = J(1, 0), a2 = J(2, 0);  // J₁
+    const double b0 = J(0, 1), b1 = J(1, 1), b2 = J(2, 1);  // J₂
+    const double k00 = a0 * w00 + b0 * w10, k10 = a1 * w00 + b1 * w10, k20 = a2 * w00 + b2 * w10;
+    const double k01 = a0 * w01 + b0 * w11, k11 = a1 * w01 + b1 * w11, k21 = a2 * w01 + b2 * w11;
+    F = (k00 * k00 + k10 * k10 + k20 * k20) + (k01 * k01 + k11 * k11 + k21 * k21);
+    detWinv = w00 * w11 - w01 * w10;
+    const double c0 = a1 * b2 - a2 * b1, c1 = a2 * b0 - a0 * b2, c2 = a0 * b1 - a1 * b0;
+    const double cc = c0 * c0 + c1 * c1 + c2 * c2;
+    cn = std::sqrt(cc);
+    K << k00, k01, k10, k11, k20, k21;
+    c = Vec3(c0, c1, c2);
     finite = std::isfinite(F) && std::isfinite(cn) && F > 0.0;
     if (!finite) return;
-    const double orient = c.dot(n);
-    regular = cn > 1e-14 * F && orientationDefined(orient, cn * cn, n.squaredNorm());
+    const double orient = c0 * n.x() + c1 * n.y() + c2 * n.z();
+    regular = cn > 1e-14 * F && orientationDefined(orient, cc, n.squaredNorm());
     gamma = (regular && orient > 0.0) ? 1.0 : -1.0;
     sigma = regular ? gamma * cn * detWinv : 0.0;
   }
