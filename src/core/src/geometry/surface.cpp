@@ -58,13 +58,4 @@ Vec2 Surface::clampToBounds(const Vec2& uv) const {
   return r;
 }
 
-bool isDegenerate(const SurfaceD1& d) {
-  // Squared: ‖c‖² ≤ tol² · max(‖φ_u‖², ‖φ_v‖²)² (no square roots on the optimizer's path).
-  const double a2 = d.du.squaredNorm();
-  const double b2 = d.dv.squaredNorm();
-  if (!(a2 > 0.0) || !(b2 > 0.0)) return true;
-  const double t = kDegenerateTol * std::max(a2, b2);
-  return d.du.cross(d.dv).squaredNorm() <= t * t;
-}
-
 }  // namespace surfmesh

@@ -1211,7 +1211,7 @@ class NodeUpdater {
         s_.d2Valid[i] = 1;
       }
       const NodeD2& d = s_.d2[i];
-      if (isDegenerate({Vec3::Zero(), d.du, d.dv})) return moved;  // a pole: stays fixed
+      if (isDegenerate(d.du, d.dv)) return moved;  // a pole: stays fixed
       const Vec3 n0 = s_.nodeNormal[i];
       Tangent T;
       T.du = d.du;
@@ -1251,7 +1251,7 @@ class NodeUpdater {
         const Vec2 uvT = surf.wrap(uv0 + step);
         if (!surf.contains(uvT.x(), uvT.y())) return false;
         const SurfaceD2 dT = surf.d2(uvT.x(), uvT.y());
-        if (isDegenerate({dT.p, dT.du, dT.dv})) return false;
+        if (isDegenerate(dT.du, dT.dv)) return false;
         const Vec3 c = dT.du.cross(dT.dv);
         const Vec3 nT = (orient / c.norm()) * c;
         const LocalEval tr = evalLocal(
@@ -1334,7 +1334,7 @@ class NodeUpdater {
             const Vec2 uvT = surf.wrap(uv0 + a * (targets[k] - uv0));
             if (!surf.contains(uvT.x(), uvT.y())) continue;
             const SurfaceD2 dT = surf.d2(uvT.x(), uvT.y());
-            if (isDegenerate({dT.p, dT.du, dT.dv})) continue;
+            if (isDegenerate(dT.du, dT.dv)) continue;
             const Vec3 cr = dT.du.cross(dT.dv);
             const Vec3 nT = (orient / cr.norm()) * cr;
             const LocalEval tr = evalLocal(

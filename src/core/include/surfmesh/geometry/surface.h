@@ -107,8 +107,23 @@ class Surface {
 /// ‖φ_u × φ_v‖ ≤ kDegenerateTol · max(‖φ_u‖, ‖φ_v‖)² (or either derivative vanishes).
 constexpr double kDegenerateTol = 1e-12;
 
-/// True where the parameterization is degenerate (φ_u × φ_v ≈ 0).
-bool isDegenerate(const SurfaceD1& d);
+/// True where the parameterization is degenerate (φ_u × φ_v ≈ 0), given φ_u and φ_v. Inline
+/// and in scalar arithmetic: the optimizer asks at every node update and trial, with
+/// derivatives it has just computed.
+inline bool isDegenerate(const Vec3& du, const Vec3& dv) {
+  // Squared: ‖c‖² ≤ tol² · max(‖φ_u‖², ‖φ_v‖²)² (no square roots on the optimizer's path).
+  const double a2 = (du.x() * du.x() + du.y() * du.y()) + du.z() * du.z();
+  const double b2 = (dv.x() * dv.x() + dv.y() * dv.y()) + dv.z() * dv.z();
+  if (!(a2 > 0.0) || !(b2 > 0.0)) return true;
+  const double t = kDegenerateTol * (a2 < b2 ? b2 : a2);
+  const double c0 = du.y() * dv.z() - du.z() * dv.y();
+  const double c1 = du.z() * dv.x() - du.x() * dv.z();
+  const double c2 = du.x() * dv.y() - du.y() * dv.x();
+  return (c0 * c0 + c1 * c1) + c2 * c2 <= t * t;
+}
+
+/// The same for d's φ_u and φ_v.
+inline bool isDegenerate(const SurfaceD1& d) { return isDegenerate(d.du, d.dv); }
 
 /// x shifted by whole periods into [lo, lo + period) (x itself when period ≤ 0 or x is not
 /// finite).
