@@ -111,12 +111,7 @@ ElementEval jacobianDistortion(const PlanarMeasure& m, const Jacobian32& J, cons
       Mat3 H = d.hFF * gF * gF.transpose() + d.hFs * (gF * gs.transpose() + gs * gF.transpose()) +
                d.hss * gs * gs.transpose();
       H.diagonal().array() += d.hF * 2.0 * beta.squaredNorm();
-      if (regular) {
-        // [w]×ᵀ (I − ν νᵀ) [w]× = ‖w‖² I − w wᵀ − (ν × w)(ν × w)ᵀ
-        Mat3 Q = -w * w.transpose() - mw * mw.transpose();
-        Q.diagonal().array() += w.squaredNorm();
-        H += (d.hs * detWinv * gamma / cn) * Q;
-      }
+      if (regular) H += (d.hs * detWinv * gamma / cn) * crossProjected(w, mw);
       *hess = H;
     }
   }

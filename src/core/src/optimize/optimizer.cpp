@@ -318,12 +318,7 @@ inline ElemOut triangleKernel(const PlanarMeasure& m, const Vec3& x0, const Vec3
              d.hFs * (P.gF * P.gs.transpose() + P.gs * P.gF.transpose()) +
              d.hss * P.gs * P.gs.transpose();
     H.diagonal().array() += d.hF * (8.0 / 3.0);  // 2 ‖β‖²
-    // [w]×ᵀ (I − ν νᵀ) [w]× = ‖w‖² I − w wᵀ − (ν × w)(ν × w)ᵀ
-    if (P.pcoef != 0.0) {
-      Mat3 Q = -P.w * P.w.transpose() - P.mw * P.mw.transpose();
-      Q.diagonal().array() += P.w.squaredNorm();
-      H += P.pcoef * Q;
-    }
+    if (P.pcoef != 0.0) H += P.pcoef * crossProjected(P.w, P.mw);
     *hess = H;
   }
   return r;

@@ -54,6 +54,15 @@ struct ElementEval {
 /// 3×2 Jacobian of an element's map from reference coordinates to R³ (columns: ∂x/∂ξ, ∂x/∂η).
 using Jacobian32 = Eigen::Matrix<double, 3, 2>;
 
+/// [w]×ᵀ (I − ν νᵀ) [w]× = ‖w‖² I − w wᵀ − (ν × w)(ν × w)ᵀ, from w and mw = ν × w: the
+/// curvature of an element plane's ‖J₁ × J₂‖ as one node moves (w the opposite side's
+/// direction as it enters J₁ × J₂, ν the plane's unit normal), without the two 3 × 3 products.
+inline Mat3 crossProjected(const Vec3& w, const Vec3& mw) {
+  Mat3 Q = -w * w.transpose() - mw * mw.transpose();
+  Q.diagonal().array() += w.squaredNorm();
+  return Q;
+}
+
 /// The distortion at one Jacobian J of a (possibly curved) element: S = T J W⁻¹ where T maps
 /// the plane spanned by J to R² oriented by n, so η = h(F, σ) with F = ‖J W⁻¹‖²,
 /// σ = γ‖J₁ × J₂‖ det W⁻¹, γ = sign((J₁ × J₂)·n).
