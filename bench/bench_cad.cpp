@@ -6,6 +6,8 @@
 //   bench_cad optimize SHAPE MESH.bin OUT.bin THREADS
 //
 // MESH.bin: int64 N, int64 E, N×3 float64 node positions, E×3 int32 0-based triangles.
+// Pairs of duplicate triangles (the same three corners) are left out of the recovery, the
+// measure and the optimization, as SurfMesh.optimize leaves them out ("duplicates_left_out").
 // OUT.bin: the same layout with the optimized positions. Prints one JSON object (optimize: also
 // the floor of the speed issue — one first-derivative evaluation per Face node —, the value
 // floor — that plus one shape value of each triangle around each Face node — and the time of
@@ -20,6 +22,8 @@
 #include "surfmesh/mesh/quality.h"
 #include "surfmesh/optimize/optimizer.h"
 
+#include <algorithm>
+#include <array>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -65,6 +69,43 @@ void writeDump(const std::string& path, const SurfaceMesh& m, const Dump& d) {
             static_cast<std::streamsize>(4 * d.tris.size()));
 }
 
+/// The mesh's triangles as CadMesh input, without the pairs of duplicate triangles (the same
+/// three corners as another triangle: one of the two is always inverted), as SurfMesh.optimize
+/// leaves them out; their nodes are marked as bordering the holes they leave. `leftOut`
+/// receives how many triangles were left out. The same rule for every tool's mesh, so that all
+/// are measured on the same triangles.
+MeshInput inputWithoutDuplicates(const Dump& d, std::size_t* leftOut) {
+  const std::size_t E = d.tris.size() / 3;
+  std::vector<std::array<std::int32_t, 4>> keys(E);  // sorted corners, triangle index
+  for (std::size_t e = 0; e < E; ++e) {
+    std::array<std::int32_t, 3> c = {d.tris[3 * e], d.tris[3 * e + 1], d.tris[3 * e + 2]};
+    std::sort(c.begin(), c.end());
+    keys[e] = {c[0], c[1], c[2], static_cast<std::int32_t>(e)};
+  }
+  std::sort(keys.begin(), keys.end());
+  std::vector<unsigned char> dup(E, 0);
+  for (std::size_t k = 1; k < E; ++k)
+    if (std::equal(keys[k].begin(), keys[k].begin() + 3, keys[k - 1].begin()))
+      dup[static_cast<std::size_t>(keys[k][3])] = dup[static_cast<std::size_t>(keys[k - 1][3])] = 1;
+  std::vector<std::int32_t> kept;
+  kept.reserve(d.tris.size());
+  std::vector<unsigned char> border(d.xyz.size() / 3, 0);
+  *leftOut = 0;
+  for (std::size_t e = 0; e < E; ++e) {
+    for (int k = 0; k < 3; ++k) {
+      const std::int32_t v = d.tris[3 * e + static_cast<std::size_t>(k)];
+      if (dup[e])
+        border[static_cast<std::size_t>(v)] = 1;
+      else
+        kept.push_back(v);
+    }
+    *leftOut += dup[e];
+  }
+  MeshInput in = triangleMeshInput(d.xyz, kept);
+  if (*leftOut > 0) in.leftOutNeighbour = std::move(border);
+  return in;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -83,7 +124,8 @@ int main(int argc, char** argv) {
     if (const char* v = std::getenv("BENCH_BOUNDARY")) bopt.boundary = v;
     // The CAD recovery runs on as many threads as the optimization (measure: all cores).
     if (mode == "optimize" && argc > 5) bopt.threads = std::atoi(argv[5]);
-    CadMesh cm(shape, triangleMeshInput(d.xyz, d.tris), bopt);
+    std::size_t leftOut = 0;
+    CadMesh cm(shape, inputWithoutDuplicates(d, &leftOut), bopt);
     const double tBridge = now() - t1;
     SurfaceMesh& m = cm.mesh();
     const PlanarMeasure& shapeMeasure = measureByName("shape");
@@ -108,9 +150,10 @@ int main(int argc, char** argv) {
           "{\"elements\": %zu, \"nodes\": %zu, \"min\": %.6f, \"min_with_face_node\": %.6f, "
           "\"max\": %.6f, "
           "\"mean\": %.6f, \"std\": %.6f, \"tangled\": %zu, \"below_0_2\": %zu, "
-          "\"max_distance\": %.3e, \"bridge_s\": %.3f, \"face_nodes\": %zu}\n",
+          "\"max_distance\": %.3e, \"bridge_s\": %.3f, \"face_nodes\": %zu, "
+          "\"duplicates_left_out\": %zu}\n",
           q.elements, m.nodeCount(), q.min, minFree, q.max, q.mean, q.stddev, q.tangled, poor,
-          rep.maxDistance, tBridge, rep.faceNodes);
+          rep.maxDistance, tBridge, rep.faceNodes, leftOut);
       return 0;
     }
     if (mode != "optimize" || argc < 6) throw std::runtime_error("bad arguments");

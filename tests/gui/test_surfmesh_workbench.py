@@ -120,12 +120,21 @@ try:
     check("cancelled" in panel.status.text(), "panel says cancelled")
     panel._hook = orig_hook
     panel.max_sweeps.setValue(200)
+    check(panel.monotone.isChecked() is SurfMesh.OPTIMIZE_DEFAULTS["monotone"]
+          and panel.over_relaxation.value() == SurfMesh.OPTIMIZE_DEFAULTS["over_relaxation"],
+          "panel starts from the optimizer's defaults")
+    panel.over_relaxation.setValue(1.5)
+    check("over_relaxation=1.5" in panel.command() and "monotone" not in panel.command(),
+          f"panel passes the options changed, only those ({panel.command()})")
     check(panel.accept() is True, "apply runs and closes the panel")
     FreeCADGui.updateGui()
     new = doc.getObject("TorusMesh_optimized")
     check(new is not None, "TorusMesh_optimized created")
     check(doc.UndoCount == undo0 + 1, "one undo transaction")
     check(SurfMesh.stats_of(new)["tangled"] == 0, "optimized mesh untangled")
+    check("over_relaxation=1.5" in new.SurfMeshRun.get("options", "")
+          and "max_sweeps=200" in new.SurfMeshRun.get("options", ""),
+          f"the run's options stored on the result ({dict(new.SurfMeshRun)})")
     check(len(new.SurfMeshColors) == len(new.FemMesh.Faces), "optimized mesh colored")
     mesh.ViewObject.Visibility = False
     FreeCADGui.updateGui()

@@ -390,6 +390,9 @@ def optimize_object(obj, shape=None, measure="shape", boundary="fixed", name=Non
             "sweeps": str(res.sweeps),
             "seconds": f"{res.seconds:.3f}",
             "reason": res.reason,
+            # The options given (the others: SurfMesh.OPTIMIZE_DEFAULTS), to repeat the run.
+            **({"options": ", ".join(f"{k}={v!r}" for k, v in sorted(options.items()))}
+               if options else {}),
             **({"warnings": " | ".join(res.warnings)} if res.warnings else {}),
         }
         _print_warnings(list(res.bridge.get("warnings", [])) + list(res.warnings))

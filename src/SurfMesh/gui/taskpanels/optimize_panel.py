@@ -1,4 +1,5 @@
-"""Task panel of SurfMesh_Optimize: measure, boundary mode, tolerances, sweeps, threads.
+"""Task panel of SurfMesh_Optimize: measure, boundary mode, tolerances, sweeps, monotone mode,
+over-relaxation, threads.
 
 OK (Apply) runs SurfMesh.optimize_object through FreeCADGui.doCommand with a progress hook
 that drives the panel's progress bar; Cancel (or Stop) during a run stops it and leaves the
@@ -67,6 +68,25 @@ class OptimizePanel:
         self.max_sweeps.setRange(1, 100000)
         self.max_sweeps.setValue(api.OPTIMIZE_DEFAULTS["max_sweeps"])
         lay.addRow("Max. sweeps", self.max_sweeps)
+        self.monotone = QtGui.QCheckBox("Never lower the minimum quality")
+        self.monotone.setObjectName("monotone")
+        self.monotone.setChecked(bool(api.OPTIMIZE_DEFAULTS["monotone"]))
+        self.monotone.setToolTip(
+            "Once the mesh is untangled, reject node moves that would lower its minimum quality "
+            "(off: minimize the sum of (eta - 1)^2 alone)"
+        )
+        lay.addRow("Monotone", self.monotone)
+        self.over_relaxation = QtGui.QDoubleSpinBox()
+        self.over_relaxation.setObjectName("over_relaxation")
+        self.over_relaxation.setDecimals(2)
+        self.over_relaxation.setRange(1.0, 1.99)
+        self.over_relaxation.setSingleStep(0.1)
+        self.over_relaxation.setValue(api.OPTIMIZE_DEFAULTS["over_relaxation"])
+        self.over_relaxation.setToolTip(
+            "Once untangled, a node first tries this multiple of its Newton step (kept only when "
+            "it lowers the objective); 1 = plain Gauss-Seidel"
+        )
+        lay.addRow("Over-relaxation", self.over_relaxation)
         self.threads = QtGui.QSpinBox()
         self.threads.setObjectName("threads")
         self.threads.setRange(0, 256)
@@ -95,6 +115,8 @@ class OptimizePanel:
             "tolerance": self.tolerance.value() or None,
             "rel_tol": self.rel_tol.value(),
             "max_sweeps": self.max_sweeps.value(),
+            "monotone": self.monotone.isChecked(),
+            "over_relaxation": self.over_relaxation.value(),
             "threads": self.threads.value(),
         }
 
@@ -107,7 +129,7 @@ class OptimizePanel:
         args.append(f"boundary={o['boundary']!r}")
         if o["tolerance"] is not None:
             args.append(f"tolerance={o['tolerance']!r}")
-        for k in ("rel_tol", "max_sweeps", "threads"):
+        for k in ("rel_tol", "max_sweeps", "monotone", "over_relaxation", "threads"):
             if o[k] != api.OPTIMIZE_DEFAULTS[k]:
                 args.append(f"{k}={o[k]!r}")
         return "SurfMesh.optimize_object(" + ", ".join(args) + ")"
