@@ -100,6 +100,10 @@ try:
     # ---- optimize through the task panel: cancel, then apply --------------------------------
     from SurfMesh.gui.taskpanels.optimize_panel import OptimizePanel
 
+    from SurfMesh.gui import preferences
+
+    # The panel opens with the last run's settings: start from the optimizer's defaults.
+    preferences.set_optimize_settings(dict(SurfMesh.OPTIMIZE_DEFAULTS, boundary="fixed"))
     n_objects = len(doc.Objects)
     undo0 = doc.UndoCount
     panel = OptimizePanel(mesh, tor)
@@ -135,6 +139,14 @@ try:
     check("over_relaxation=1.5" in new.SurfMeshRun.get("options", "")
           and "max_sweeps=200" in new.SurfMeshRun.get("options", ""),
           f"the run's options stored on the result ({dict(new.SurfMeshRun)})")
+    again = OptimizePanel(mesh, tor)
+    check(again.over_relaxation.value() == 1.5 and again.max_sweeps.value() == 200
+          and again.boundary.currentText() == "fixed" and again.monotone.isChecked(),
+          "the panel opens with the settings of the last run")
+    preferences.set_optimize_settings(dict(SurfMesh.OPTIMIZE_DEFAULTS, boundary="fixed"))
+    fresh = OptimizePanel(mesh, tor)
+    check(fresh.over_relaxation.value() == SurfMesh.OPTIMIZE_DEFAULTS["over_relaxation"],
+          "settings stored back")
     check(len(new.SurfMeshColors) == len(new.FemMesh.Faces), "optimized mesh colored")
     mesh.ViewObject.Visibility = False
     FreeCADGui.updateGui()

@@ -1,5 +1,5 @@
 """Task panel of SurfMesh_Optimize: measure, boundary mode, tolerances, sweeps, monotone mode,
-over-relaxation, threads.
+over-relaxation, threads (the panel opens with the settings of the last run applied).
 
 OK (Apply) runs SurfMesh.optimize_object through FreeCADGui.doCommand with a progress hook
 that drives the panel's progress bar; Cancel (or Stop) during a run stops it and leaves the
@@ -44,9 +44,11 @@ class OptimizePanel:
         if cur in names:
             self.measure.setCurrentIndex(names.index(cur))
         lay.addRow("Measure", self.measure)
+        last = preferences.optimize_settings()  # the settings of the last run applied
         self.boundary = QtGui.QComboBox()
         self.boundary.setObjectName("boundary")
         self.boundary.addItems(list(api.BOUNDARY_MODES))
+        self.boundary.setCurrentIndex(list(api.BOUNDARY_MODES).index(last["boundary"]))
         self.boundary.setToolTip("fixed: nodes on CAD edges stay; slide: they slide along edges")
         lay.addRow("Boundary", self.boundary)
         self.tolerance = QtGui.QDoubleSpinBox()
@@ -61,16 +63,16 @@ class OptimizePanel:
         self.rel_tol.setDecimals(8)
         self.rel_tol.setRange(1e-8, 1.0)
         self.rel_tol.setSingleStep(1e-5)
-        self.rel_tol.setValue(api.OPTIMIZE_DEFAULTS["rel_tol"])
+        self.rel_tol.setValue(last["rel_tol"])
         lay.addRow("Relative tolerance", self.rel_tol)
         self.max_sweeps = QtGui.QSpinBox()
         self.max_sweeps.setObjectName("max_sweeps")
         self.max_sweeps.setRange(1, 100000)
-        self.max_sweeps.setValue(api.OPTIMIZE_DEFAULTS["max_sweeps"])
+        self.max_sweeps.setValue(last["max_sweeps"])
         lay.addRow("Max. sweeps", self.max_sweeps)
         self.monotone = QtGui.QCheckBox("Never lower the minimum quality")
         self.monotone.setObjectName("monotone")
-        self.monotone.setChecked(bool(api.OPTIMIZE_DEFAULTS["monotone"]))
+        self.monotone.setChecked(bool(last["monotone"]))
         self.monotone.setToolTip(
             "Once the mesh is untangled, reject node moves that would lower its minimum quality "
             "(off: minimize the sum of (eta - 1)^2 alone)"
@@ -81,7 +83,7 @@ class OptimizePanel:
         self.over_relaxation.setDecimals(2)
         self.over_relaxation.setRange(1.0, 1.99)
         self.over_relaxation.setSingleStep(0.1)
-        self.over_relaxation.setValue(api.OPTIMIZE_DEFAULTS["over_relaxation"])
+        self.over_relaxation.setValue(last["over_relaxation"])
         self.over_relaxation.setToolTip(
             "Once untangled, a node first tries this multiple of its Newton step (kept only when "
             "it lowers the objective); 1 = plain Gauss-Seidel"
@@ -91,6 +93,7 @@ class OptimizePanel:
         self.threads.setObjectName("threads")
         self.threads.setRange(0, 256)
         self.threads.setSpecialValueText("all")
+        self.threads.setValue(last["threads"])
         lay.addRow("Threads", self.threads)
         self.bar = QtGui.QProgressBar()
         self.bar.setObjectName("progress")
@@ -159,6 +162,7 @@ class OptimizePanel:
         self.stop.setEnabled(True)
         self.bar.setValue(0)
         preferences.set_measure(self.measure.currentText())
+        preferences.set_optimize_settings(self.options())
         try:
             with progress.hook(self._hook):
                 new = runner.run(self.command())
