@@ -96,6 +96,7 @@ class TestCli(unittest.TestCase):
         self.assertLess(T.torus_distance(x1, R, r).max(), 1e-9)  # .msh keeps 16 digits
         self.assertGreater(np.abs(x1 - x0).max(), 1e-3)
         data = json.load(open(rep))
+        self.assertEqual(data["hints"], "tolerance")  # a mesher's file: FreeCAD's FEM rule
         self.assertGreater(data["before"]["tangled"], 0)
         self.assertEqual(data["after"]["tangled"], 0)
         self.assertEqual(data["after"]["elements"], len(e0))
@@ -129,6 +130,7 @@ class TestCli(unittest.TestCase):
         rep0 = os.path.join(self.dir, "stl.json")
         code, so, se = run_cli("optimize", self.brep, src, "-o", out, "--report", rep0)
         after = json.load(open(rep0))["after"]
+        self.assertEqual(json.load(open(rep0))["hints"], "none")  # a triangulation: no hints
         self.assertEqual(after["tangled"], 0)
         rep = os.path.join(self.dir, "measure.json")
         code, so, se = run_cli("measure", self.brep, out, "--report", rep)

@@ -110,6 +110,24 @@ class GmshCase(unittest.TestCase):
             np.testing.assert_array_equal(r_core["node_entity"], r_fc["node_entity"], name)
             self.assertEqual(r_core.get("skipped_elements", []), r_fc.get("skipped_elements", []))
             self.assertEqual(r_core["hints_rejected"], 0)
+            # The same mesh as plain arrays (a FEM mesher's file read by the CLI): "tolerance"
+            # applies the rule whatever the input, "auto" only to FEM inputs, so the arrays get
+            # no hints from it.
+            arrays = conversion.MeshData(**{**conversion.read_mesh(mesh).__dict__,
+                                            "kind": "arrays"})
+            d_tol, h_tol = api.prepare(arrays, part.Shape, hints="tolerance")
+            np.testing.assert_array_equal(h_tol.report["node_class"], r_core["node_class"], name)
+            self.assertEqual(h_tol.report.get("skipped_elements", []),
+                             r_core.get("skipped_elements", []))
+            arrays = conversion.MeshData(**{**conversion.read_mesh(mesh).__dict__,
+                                            "kind": "arrays"})
+            d_auto, h_auto = api.prepare(arrays, part.Shape, hints="auto")
+            d_none, h_none = api.prepare(mesh, part.Shape, hints="none")
+            np.testing.assert_array_equal(h_auto.report["node_class"],
+                                          h_none.report["node_class"], name)
+            if name == "occt_crankarm.brep":  # where the rule decides (see above)
+                self.assertGreater(int((h_none.report["node_class"]
+                                        != r_core["node_class"]).sum()), 0)
 
     def test_crankarm_untangled(self):
         part = self.part("occt_crankarm.brep")

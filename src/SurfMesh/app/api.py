@@ -192,8 +192,10 @@ def prepare(mesh, shape, boundary="fixed", tolerance=None, hints="auto", collaps
     hints: "auto" (FEM inputs: a node within a CAD vertex's or a single CAD edge's own
     tolerance is hinted to it — the rule of FreeCAD's ``getNodesByVertex/Edge``, applied by the
     core with a box grid instead of a distance query per node and entity: seconds instead of
-    minutes on big parts; face nodes are classified by the core), "all" (FreeCAD's own
-    ``getNodesByVertex/Edge/Face`` queries: slow on big parts), "none", or "given" (the
+    minutes on big parts; face nodes are classified by the core; other inputs: no hints),
+    "tolerance" (that rule whatever the input: for the arrays of a FEM mesher's mesh read
+    from a file, whose nodes on CAD edges were put there by the mesher), "all" (FreeCAD's
+    own ``getNodesByVertex/Edge/Face`` queries: slow on big parts), "none", or "given" (the
     MeshData's hint arrays are used as they are).
 
     collapsed: what to do with elements that repeat a node (zero area: Gmsh meshes made
@@ -274,11 +276,13 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, duplicates="glu
         )
     if data.volume_elements:
         data = _surface_nodes_only(data)
-    if hints not in ("auto", "all", "none", "given"):
-        raise ValueError(f"unknown hints mode {hints!r}; use 'auto', 'all' or 'none'")
+    if hints not in ("auto", "tolerance", "all", "none", "given"):
+        raise ValueError(
+            f"unknown hints mode {hints!r}; use 'auto', 'tolerance', 'all', 'none' or 'given'"
+        )
     if data.kind == "fem" and hints == "all" and part_shape is not None:
         conversion.fem_hints(data, part_shape, faces=True)
-    tolerance_hints = data.kind == "fem" and hints == "auto"
+    tolerance_hints = hints == "tolerance" or (data.kind == "fem" and hints == "auto")
     glue = None
     if duplicates == "glue":
         data, glue = _glue_coincident(data)

@@ -53,6 +53,13 @@ def build_parser():
         sp.add_argument("--duplicates", default="glue", choices=["glue", "error"],
                         help="nodes at the same position as another (a crack): move them "
                         "together (glue, default) or stop with an error")
+        sp.add_argument("--hints", default="auto", choices=["auto", "tolerance", "none"],
+                        help="tolerance: a node within a CAD vertex's or a single CAD edge's "
+                        "own tolerance lies on it (FreeCAD's rule for FEM meshes); none: the "
+                        "nodes' places follow from the geometry and the elements alone; auto "
+                        "(default): tolerance for a FEM mesher's files (Gmsh, FEM formats, "
+                        "FCStd FEM meshes), none for triangulations (.stl/.obj/.ply/.off, "
+                        "FCStd Mesh objects)")
 
     m = sub.add_parser("measure", help="quality statistics of a mesh on a shape")
     common(m)
@@ -107,11 +114,14 @@ def run(argv):
         fileio.check_output(args.output, mf)
     if args.report:
         fileio.check_output(args.report, what="report")
+    hints = args.hints
+    if hints == "auto":
+        hints = "none" if mf.fmt == "mesh" else "tolerance"
     out = {"command": args.command, "shape": os.path.abspath(args.shape),
-           "mesh": _mesh_summary(mf), "measure": args.measure}
+           "mesh": _mesh_summary(mf), "measure": args.measure, "hints": hints}
     if args.command == "measure":
         rep = sm.measure(mf.data, shape, measure=args.measure, tolerance=args.tolerance,
-                         hints="none", duplicates=args.duplicates)
+                         hints=hints, duplicates=args.duplicates)
         print(reports.format_table([(args.measure, os.path.basename(args.mesh), rep.stats)]))
         out["stats"] = rep.stats
         out["bridge"] = _bridge_summary(rep.bridge)
@@ -130,7 +140,7 @@ def run(argv):
         if args.no_monotone:
             options["monotone"] = False
         res = sm.optimize(mf.data, shape, measure=args.measure, boundary=args.boundary,
-                          tolerance=args.tolerance, hints="none", duplicates=args.duplicates,
+                          tolerance=args.tolerance, hints=hints, duplicates=args.duplicates,
                           **options)
         fileio.write_mesh(args.output, mf, res.nodes, msh_version=args.msh_version)
         print(reports.format_table([(args.measure, "Initial", res.before.stats),
