@@ -876,7 +876,7 @@ class NodeUpdater {
     std::vector<Vec3> xyzSave, nSave;
     for (std::size_t e = 0; e < s_.mesh.elementCount(); ++e) {
       const ElementType type = s_.mesh.elemType[e];
-      if (frozen[e] || type == ElementType::Tri3 || type == ElementType::Quad4) continue;
+      if (frozen[e] || !isHighOrderTriangle(type)) continue;
       if ((cached && s_.minSigma[e] > 0.0) || !s_.evalWhole(e, 0.0).tangled) continue;
       const int face = s_.mesh.elemFace[e];
       const Surface& surf = *w_.geo.surfaces[static_cast<std::size_t>(face)];
@@ -1076,8 +1076,7 @@ class NodeUpdater {
       // A high-order triangle's Jacobians without the free node's term: the same for every
       // trial of this update too.
       HighOrderJacobians* pre = nullptr;
-      const ElementType type = s_.mesh.elemType[e];
-      if (type != ElementType::Tri3 && type != ElementType::Quad4) {
+      if (isHighOrderTriangle(s_.mesh.elemType[e])) {
         pre = &w_.highOrder[j];
         if (!cur) s_.highOrderRest(e, local, pre);
       }

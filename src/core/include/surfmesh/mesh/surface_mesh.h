@@ -42,6 +42,10 @@ int nodeCount(ElementType t);
 int elementOrder(ElementType t);
 /// Number of corner (vertex) nodes: 3 or 4.
 inline int cornerCount(ElementType t) { return t == ElementType::Quad4 ? 4 : 3; }
+/// Whether t is a curved (high-order) triangle: Tri6…Tri21.
+inline bool isHighOrderTriangle(ElementType t) {
+  return t != ElementType::Tri3 && t != ElementType::Quad4;
+}
 /// "tri3", "quad4", "tri6", "tri10", "tri15", "tri21".
 const char* elementTypeName(ElementType t);
 /// Inverse of elementTypeName; throws std::invalid_argument on an unknown name.
