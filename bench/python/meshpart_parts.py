@@ -22,7 +22,8 @@ Options by environment (freecadcmd takes no script options): SURFMESH_MP_CAD_DIR
 the shapes of built_shapes.py — a helical sweep, a loft, a revolved profile, poles —, written to
 a temporary directory); SURFMESH_MP_PARTS (comma list of files in SURFMESH_MP_CAD_DIR);
 SURFMESH_MP_AMPS (e.g. "0.3,0.6": also runs each mesh SurfMesh takes with its Face nodes moved
-in (u,v) by that many × their element size, as perturbed_fem.py does; default none) and
+in (u,v) by that many × their element size, as perturbed_fem.py does, none of them onto
+another CAD entity; default none) and
 SURFMESH_MP_SEEDS (default "1,2").
 """
 
@@ -40,7 +41,7 @@ from SurfMesh.app import api, conversion
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
-from perturb import local_sizes, perturbed  # noqa: E402
+from perturb import kept_classified, local_sizes, perturbed  # noqa: E402
 CAD = os.environ.get(
     "SURFMESH_MP_CAD_DIR", os.path.normpath(os.path.join(HERE, "..", "..", "..", "shared",
                                                          "data", "cad")))
@@ -145,9 +146,11 @@ def perturbed_mesh(mesh, shape, amp, seed):
     except ValueError:
         return None
     w = data if data.kept is None else data.subset(data.kept)
-    nodes, _ = perturbed(data, shape, np.asarray(handle.node_kinds()),
-                         np.asarray(handle.node_faces()), np.asarray(handle.uv()),
-                         local_sizes(data, w), amp, seed)
+    kinds = np.asarray(handle.node_kinds())
+    faces = np.asarray(handle.node_faces())
+    nodes, moved = perturbed(data, shape, kinds, faces, np.asarray(handle.uv()),
+                             local_sizes(data, w), amp, seed)
+    nodes, _ = kept_classified(data, shape, nodes, moved, kinds, faces)
     if data.glued is not None:
         nodes = nodes[data.glued]
     raw = conversion.read_mesh(mesh)  # the input's own elements (twins not glued)

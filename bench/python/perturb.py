@@ -3,6 +3,8 @@ perturbed_fem.py and meshpart_parts.py (run by freecadcmd)."""
 
 import numpy as np
 
+from SurfMesh.app import api, conversion
+
 
 def local_sizes(data, w):
     """Per node: the smallest mean corner-edge length of its elements."""
@@ -34,3 +36,25 @@ def perturbed(data, shape, kinds, faces, uv, size, amp, seed):
         nodes[i] = (p.x, p.y, p.z)
         moved.append(i)
     return nodes, np.asarray(moved, dtype=np.int64)
+
+
+def kept_classified(data, shape, nodes, moved, kinds, faces, **prepare_options):
+    """``nodes`` with the moved nodes put back that the perturbation took off their face as
+    SurfMesh (``api.prepare`` with ``prepare_options``, as the optimization will be called)
+    classifies them: a Face node moved within a CAD edge's own tolerance of that edge is an
+    Edge node by FreeCAD's node-on-entity rule for FEM meshes, held where it is; the
+    benchmark would then optimize another mesh than the one it perturbed. Also returns the
+    moved nodes left moved."""
+    nodes = nodes.copy()
+    moved = np.asarray(moved, dtype=np.int64)
+    for _ in range(4):  # putting a node back may reclassify its neighbours' elements
+        trial = conversion.MeshData(**{**data.__dict__, "nodes": nodes})
+        _, handle = api.prepare(trial, shape, **prepare_options)
+        k = np.asarray(handle.node_kinds())
+        f = np.asarray(handle.node_faces())
+        off = moved[(k[moved] != kinds[moved]) | (f[moved] != faces[moved])]
+        if len(off) == 0:
+            break
+        nodes[off] = data.nodes[off]
+        moved = np.setdiff1d(moved, off)
+    return nodes, moved

@@ -2,8 +2,10 @@
 
 Meshes each part with FreeCAD's Gmsh mesher (``examples.make_gmsh_mesh``, the mesh FreeCAD's
 FEM users get), moves every node SurfMesh classifies as a Face node to a random (u,v) on its
-face, ``amp`` × its local element size away (kept only when inside the face's trimmed domain:
-``Face.isPartOfDomain``), then runs ``SurfMesh.optimize`` with its defaults and prints one
+face, ``amp`` × its local element size away (kept only when inside the face's trimmed domain,
+``Face.isPartOfDomain``, and when SurfMesh still classifies it as a node of that face: a node
+moved within a CAD edge's own tolerance of that edge would be an Edge node by FreeCAD's rule,
+held there), then runs ``SurfMesh.optimize`` with its defaults and prints one
 Markdown table row per run: tangled elements before → after (how many of those left have a
 movable node), min / mean quality, sweeps, time, and the largest distance to its CAD face of
 a node the optimization moved, measured by FreeCAD (``Face.distToShape``, every such node), and
@@ -16,7 +18,7 @@ not IN, and measures it to the loop's 3D edge.
 
 Options by environment (freecadcmd takes no script options): SURFMESH_PF_PARTS (comma list of
 files in SURFMESH_PF_CAD_DIR, default ../shared/data/cad), SURFMESH_PF_DIV (element size =
-diagonal / DIV, 25), SURFMESH_PF_ORDER (2nd or 1st), SURFMESH_PF_AMPS (0.3,0.6),
+diagonal / DIV, 25), SURFMESH_PF_ORDER (2nd or 1st), SURFMESH_PF_AMPS (0,0.3,0.6; 0: the mesher's mesh as it is),
 SURFMESH_PF_SEEDS (1,2).
 """
 
@@ -34,7 +36,7 @@ from SurfMesh.app import api, conversion, examples
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
-from perturb import local_sizes, perturbed  # noqa: E402
+from perturb import kept_classified, local_sizes, perturbed  # noqa: E402
 
 
 def main():
@@ -44,7 +46,7 @@ def main():
                   "occt_crankarm.brep,nist_pmi_1.step,occt_screw.step,gmsh_rod_revolution.brep"),
         div=float(env("SURFMESH_PF_DIV", "25")),
         order=env("SURFMESH_PF_ORDER", "2nd"),
-        amps=env("SURFMESH_PF_AMPS", "0.3,0.6"),
+        amps=env("SURFMESH_PF_AMPS", "0,0.3,0.6"),
         seeds=env("SURFMESH_PF_SEEDS", "1,2"),
         cad_dir=env("SURFMESH_PF_CAD_DIR",
                     os.path.join(HERE, "..", "..", "..", "shared", "data", "cad")),
@@ -71,35 +73,46 @@ def main():
         size = local_sizes(data, w)
         label = f"tria{'6' if a.order == '2nd' else '3'} diag/{a.div:g} ({w.element_count} el., " \
                 f"Gmsh {t_gmsh:.0f} s)"
-        for amp in (float(x) for x in a.amps.split(",")):
-            for seed in (int(x) for x in a.seeds.split(",")):
-                nodes, moved = perturbed(data, shape, kinds, faces, uv, size, amp, seed)
-                trial = conversion.MeshData(**{**data.__dict__, "nodes": nodes})
-                try:
-                    # FreeCAD's node-on-entity rule, as for the FEM object itself (its
-                    # Face nodes moved, the others where the mesher put them).
-                    r = SurfMesh.optimize(trial, shape, hints="tolerance")
-                except Exception as err:  # one failing run must not hide the others
-                    print(f"| {name} | {label} | {amp} | {seed} | {len(moved)} | error: "
-                          f"{str(err)[:200]} | | | | | | |", flush=True)
-                    continue
-                # The nodes the optimization moved (after the perturbation).
-                shifted = moved[np.linalg.norm(r.nodes[moved] - nodes[moved], axis=1) > 0.0]
-                dist = surf_dist = 0.0
-                surfaces = {}
-                for i in shifted:
-                    p = Part.Vertex(FreeCAD.Vector(*map(float, r.nodes[i])))
-                    f = shape.Faces[int(faces[i])]
-                    dist = max(dist, f.distToShape(p)[0])
-                    if int(faces[i]) not in surfaces:
-                        surfaces[int(faces[i])] = f.Surface.toShape()
-                    surf_dist = max(surf_dist, surfaces[int(faces[i])].distToShape(p)[0])
-                movable = len(r.tangled_movable)
-                print(f"| {name} | {label} | {amp} | {seed} | {len(moved)} | "
-                      f"{r.before.stats['tangled']} → {r.after.stats['tangled']} ({movable}) | "
-                      f"{r.after.stats['min']:.4f} | {r.after.stats['mean']:.4f} | {r.sweeps} | "
-                      f"{r.seconds:.1f} | {dist / diag:.1e} × diag | {surf_dist / diag:.1e} × diag |",
-                      flush=True)
+        amps = [float(x) for x in a.amps.split(",")]
+        runs = [(amp, seed) for amp in amps if amp > 0 for seed in a.seeds.split(",")]
+        if 0.0 in amps:
+            runs.insert(0, (0.0, "-"))  # the mesher's own mesh
+        face_nodes = np.nonzero(kinds == 1)[0]
+        for amp, seed in runs:
+            if amp == 0.0:
+                nodes, moved = data.nodes, face_nodes[:0]
+            else:
+                nodes, moved = perturbed(data, shape, kinds, faces, uv, size, amp, int(seed))
+                # Not into a CAD edge's tolerance band: the rule below would hold it there.
+                nodes, moved = kept_classified(data, shape, nodes, moved, kinds, faces,
+                                               hints="tolerance")
+            trial = conversion.MeshData(**{**data.__dict__, "nodes": nodes})
+            try:
+                # FreeCAD's node-on-entity rule, as for the FEM object itself (its
+                # Face nodes moved, the others where the mesher put them).
+                r = SurfMesh.optimize(trial, shape, hints="tolerance")
+            except Exception as err:  # one failing run must not hide the others
+                print(f"| {name} | {label} | {amp} | {seed} | {len(moved)} | error: "
+                      f"{str(err)[:200]} | | | | | | |", flush=True)
+                continue
+            # The nodes the optimization moved (after the perturbation).
+            shifted = face_nodes[np.linalg.norm(r.nodes[face_nodes] - nodes[face_nodes],
+                                                axis=1) > 0.0]
+            dist = surf_dist = 0.0
+            surfaces = {}
+            for i in shifted:
+                p = Part.Vertex(FreeCAD.Vector(*map(float, r.nodes[i])))
+                f = shape.Faces[int(faces[i])]
+                dist = max(dist, f.distToShape(p)[0])
+                if int(faces[i]) not in surfaces:
+                    surfaces[int(faces[i])] = f.Surface.toShape()
+                surf_dist = max(surf_dist, surfaces[int(faces[i])].distToShape(p)[0])
+            movable = len(r.tangled_movable)
+            print(f"| {name} | {label} | {amp} | {seed} | {len(moved)} | "
+                  f"{r.before.stats['tangled']} → {r.after.stats['tangled']} ({movable}) | "
+                  f"{r.after.stats['min']:.4f} | {r.after.stats['mean']:.4f} | {r.sweeps} | "
+                  f"{r.seconds:.1f} | {dist / diag:.1e} × diag | {surf_dist / diag:.1e} × diag |",
+                  flush=True)
         FreeCAD.closeDocument(doc.Name)
 
 
