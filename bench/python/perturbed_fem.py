@@ -19,7 +19,8 @@ not IN, and measures it to the loop's 3D edge.
 Options by environment (freecadcmd takes no script options): SURFMESH_PF_PARTS (comma list of
 files in SURFMESH_PF_CAD_DIR, default ../shared/data/cad), SURFMESH_PF_DIV (element size =
 diagonal / DIV, 25), SURFMESH_PF_ORDER (2nd or 1st), SURFMESH_PF_AMPS (0,0.3,0.6; 0: the mesher's mesh as it is),
-SURFMESH_PF_SEEDS (1,2).
+SURFMESH_PF_SEEDS (1,2), SURFMESH_PF_RECOMBINE (1: Gmsh's quadrilaterals, RecombineAll; with the
+1st order).
 """
 
 import argparse  # Namespace only
@@ -48,6 +49,7 @@ def main():
         order=env("SURFMESH_PF_ORDER", "2nd"),
         amps=env("SURFMESH_PF_AMPS", "0,0.3,0.6"),
         seeds=env("SURFMESH_PF_SEEDS", "1,2"),
+        recombine=env("SURFMESH_PF_RECOMBINE", "0") == "1",
         cad_dir=env("SURFMESH_PF_CAD_DIR",
                     os.path.join(HERE, "..", "..", "..", "shared", "data", "cad")),
     )
@@ -63,7 +65,8 @@ def main():
         shape = part.Shape
         diag = shape.BoundBox.DiagonalLength
         t = time.perf_counter()
-        mesh = examples.make_gmsh_mesh(doc, part, diag / a.div, order=a.order)
+        mesh = examples.make_gmsh_mesh(doc, part, diag / a.div, order=a.order,
+                                       recombine=a.recombine)
         t_gmsh = time.perf_counter() - t
         data, handle = api.prepare(mesh, shape)
         w = data if data.kept is None else data.subset(data.kept)
@@ -71,8 +74,9 @@ def main():
         faces = np.asarray(handle.node_faces())
         uv = np.asarray(handle.uv())
         size = local_sizes(data, w)
-        label = f"tria{'6' if a.order == '2nd' else '3'} diag/{a.div:g} ({w.element_count} el., " \
-                f"Gmsh {t_gmsh:.0f} s)"
+        kind = {(False, "1st"): "tria3", (False, "2nd"): "tria6", (True, "1st"): "quad4",
+                (True, "2nd"): "quad8"}[(a.recombine, a.order)]
+        label = f"{kind} diag/{a.div:g} ({w.element_count} el., Gmsh {t_gmsh:.0f} s)"
         amps = [float(x) for x in a.amps.split(",")]
         runs = [(amp, seed) for amp in amps if amp > 0 for seed in a.seeds.split(",")]
         if 0.0 in amps:

@@ -330,11 +330,16 @@ class BadInputApi(unittest.TestCase):
         self.expect_error(arrays(self.nodes, tris), "non-manifold", f"nodes {lo} and {hi}")
         # FEM: named by FEM node ids. (A Mesh.Mesh cannot hold it: FreeCAD's mesh kernel drops
         # such facets itself when the mesh is built.)
-        self.expect_error(
+        msg = self.expect_error(
             make_fem(self.nodes, tris),
             "non-manifold",
             f"nodes {FEM_NODE_ID0 + lo} and {FEM_NODE_ID0 + hi}",
-        )
+        )[0]
+        # The elements by their FEM ids (the third one is the last), the face by its name.
+        self.assertIn(f"{FEM_ELEM_ID0 + len(tris) - 1})", msg)
+        face = next(k + 1 for k, f in enumerate(self.shape.Faces)
+                    if f.distToShape(Part.Vertex(App.Vector(*self.nodes[i])))[0] < 1e-9)
+        self.assertIn(f"on Face{face}", msg)
 
     def test_unsupported_element_types(self):
         # FEM quad8 (8-node quadrilateral) faces.
@@ -456,6 +461,43 @@ class BadInputApi(unittest.TestCase):
                 listed = ", ".join(str(i) for i in ids)
                 self.expect_error(mesh, "wound against the rest of their face",
                                   f"element(s) {listed}", call=("optimize",))
+
+    def test_degenerate_spot_left_out(self):
+        """A mesher's degenerate spot (Gmsh's recombined quads where a fillet ends in a point:
+        collapsed elements with, around them, a third element on one edge and elements wound
+        against their face's mesh) is left out, with the collapsed elements, instead of refusing
+        the whole mesh; the same non-manifold edge or reversed element away from collapsed
+        elements is still refused (test_non_manifold_edge and the test above)."""
+        i = interior_node(self.nodes)
+        around = [int(e) for e in np.nonzero((self.tris == i).any(axis=1))[0]]
+        a, b, c = (int(k) for k in self.tris[around[0]])
+        axis = next(d for d in range(3) if self.nodes[i][d] in (0.0, 10.0))
+        far = next(k for k in range(len(self.nodes))
+                   if self.nodes[k][axis] == self.nodes[i][axis]
+                   and np.linalg.norm(self.nodes[k] - self.nodes[i]) > 4.0 and k != c)
+        collapsed = [i, i, far]                # a repeated node: zero area
+        third = [a, b, far]                    # a third element on edge (a, b), next to node i
+        flipped = around[-1]                   # reversed, next to node i
+        tris = [list(map(int, t)) for t in self.tris]
+        tris[flipped][1], tris[flipped][2] = tris[flipped][2], tris[flipped][1]
+        tris += [collapsed, third]
+        E = len(self.tris)
+        res = SurfMesh.optimize(arrays(self.nodes, tris), self.shape)
+        left = set(res.bridge["skipped_elements"])
+        # The two elements of the original mesh on edge (a, b) and the third one: all three
+        # touch node i of the collapsed element, so none of them can be told apart as wrong.
+        on_ab = {e for e in range(E) if {a, b} <= set(map(int, self.tris[e]))}
+        self.assertEqual(len(on_ab), 2)
+        self.assertEqual(left, {E, E + 1, flipped} | on_ab)
+        warning = next(w for w in res.bridge["warnings"] if w.startswith("left out"))
+        for f in ("1 collapsed element", "3 element(s) overlapping around those",
+                  "1 element(s) wound against their face's mesh next to those"):
+            self.assertIn(f, warning)
+        self.assertEqual(res.after.stats["elements"], len(tris) - len(left))
+        self.assertEqual(res.after.stats["tangled"], 0)
+        # Without the collapsed element the same mesh is refused (non-manifold edge).
+        self.expect_error(arrays(self.nodes, tris[:-2] + [third]), "non-manifold",
+                          call=("optimize",))
 
     def test_volume_mesh_is_measured_but_not_moved(self):
         # Moving the surface nodes of a volume mesh would leave its interior nodes behind and

@@ -290,8 +290,16 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, duplicates="glu
     dup = data.duplicate_elements() & ~bad
     work = data
     data.kept = None
+    crowded = np.zeros(data.element_count, dtype=bool)
     if collapsed == "skip":
         bad = bad | dup
+        # Overlapping elements around the collapsed ones (a mesher's degenerate spot).
+        for _ in range(8):
+            more = data.crowded_edge_elements(bad | crowded) & ~crowded
+            if not more.any():
+                break
+            crowded |= more
+        bad = bad | crowded
     if bad.any():
         ids = data.element_ids[bad]
         if collapsed == "error" or bad.all():
@@ -334,28 +342,46 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, duplicates="glu
     reasons = []
     if bad.any():
         n_dup = int(dup.sum()) if collapsed == "skip" else 0
-        if int(bad.sum()) - n_dup:
-            reasons.append(f"{int(bad.sum()) - n_dup} collapsed element(s) (a repeated node)")
+        n_crowded = int(crowded.sum())
+        if int(bad.sum()) - n_dup - n_crowded:
+            reasons.append(
+                f"{int(bad.sum()) - n_dup - n_crowded} collapsed element(s) (a repeated node)")
         if n_dup:
             reasons.append(f"{n_dup} element(s) with the same nodes as another one (folded pairs)")
+        if n_crowded:
+            reasons.append(f"{n_crowded} element(s) overlapping around those (more than two on "
+                           "one edge)")
     if collapsed == "skip":
         # Slivers whose nodes all lie on one CAD edge and its vertices (Gmsh leaves such
         # "invalid" elements along some edges): no node can leave the edge, so no optimizer can
         # make them valid. They are left out like collapsed elements.
         flat, shape_measure = _flat_boundary_elements(work, handle)
-        if flat.any():
+        # Elements wound against their face's mesh next to the elements left out (a mesher's
+        # degenerate spot): tangled wherever their nodes are. Elsewhere (an STL with flipped
+        # facets) they stay: measure counts them, optimize refuses and names them.
+        miswound = np.zeros(work.element_count, dtype=bool)
+        if bad.any():
+            near = np.zeros(data.node_count, dtype=bool)
+            near[data.subset(bad).conn] = True
+            for e in np.asarray(handle.report.get("miswound_elements", []), dtype=np.int64):
+                miswound[e] = near[work.element(int(e))].any()
+        if flat.any() or miswound.any():
             keep = ~bad if bad.any() else np.ones(data.element_count, dtype=bool)
             idx = np.nonzero(keep)[0]
-            keep[idx[flat]] = False
+            keep[idx[flat | miswound]] = False
             bad = ~keep
             work = data.subset(keep)
             data.kept = keep
             handle = build(work, same_nodes_as=handle)
             shape_measure = None  # measured on the handle replaced here
-            reasons.append(
-                f"{int(flat.sum())} flat element(s) on one CAD edge or with two nodes on one "
-                "CAD vertex"
-            )
+            if flat.any():
+                reasons.append(
+                    f"{int(flat.sum())} flat element(s) on one CAD edge or with two nodes on "
+                    "one CAD vertex"
+                )
+            if miswound.any():
+                reasons.append(f"{int(miswound.sum())} element(s) wound against their face's "
+                               "mesh next to those")
     handle.release_node_search()  # kept only for the second recovery
     if data.kept is not None:
         ids = data.element_ids[bad]
@@ -397,13 +423,15 @@ _UNUSED_NODES = re.compile(r"^\d+ nodes belong(?= to no element)")
 _ID_LIST = r"(\d+(?:(?:, | and | )\d+(?!\d|\.\d))*)"
 _NODE_REF = re.compile(r"\b(nodes?|row) " + _ID_LIST)
 _ELEMENT_REF = re.compile(r"\b(elements?) " + _ID_LIST)
+_FACE_INDEX = re.compile(r"\bon face (\d+)\b")
 
 
 def _name_by_ids(message, data):
     """The core names nodes and elements by their 0-based position in the arrays it was given;
     users know them by their ids (FEM node and element ids, which need not start at 0 or 1).
     Rewrites "node 5", "nodes 2 and 7", "nodes 2, 7 and 9", "nodes 7 19 32", "row 5" (a row
-    of the node array) and "element 3" (every id of a list)."""
+    of the node array) and "element 3" (every id of a list); "on face 4" (the core's face
+    index) becomes FreeCAD's name, "on Face5"."""
     def ids_of(table, label_row=False):
         def one(m):
             k = int(m.group(0))
@@ -418,7 +446,8 @@ def _name_by_ids(message, data):
         message = _NODE_REF.sub(ids_of(data.node_ids, label_row=True), message)
     if getattr(data, "element_ids", None) is not None:
         message = _ELEMENT_REF.sub(ids_of(data.element_ids), message)
-    return message
+    # The core's face index (the shape's faces counted from 0) as FreeCAD names the face.
+    return _FACE_INDEX.sub(lambda m: f"on Face{int(m.group(1)) + 1}", message)
 
 
 def _flat_boundary_elements(work, handle):

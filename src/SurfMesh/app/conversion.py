@@ -139,6 +139,46 @@ class MeshData:
             out[sel[order[hit]]] = True
         return out
 
+    def crowded_edge_elements(self, left_out):
+        """Bool mask of the elements not ``left_out`` (a bool mask) around a corner edge that
+        more than two of them share, when every one of those touches a node of a left-out
+        element: a mesher's degenerate spot (Gmsh's recombination where it merged nodes at a
+        point, e.g. where a fillet ends) left overlapping elements around its collapsed ones.
+        A non-manifold edge elsewhere is not touched (the core refuses it)."""
+        left_out = np.asarray(left_out, dtype=bool)
+        out = np.zeros(self.element_count, dtype=bool)
+        if not left_out.any():
+            return out
+        near = np.zeros(self.node_count, dtype=bool)
+        near[self.subset(left_out).conn] = True
+        corners = np.where(self.types == ELEMENT_TYPES["quad4"], 4, 3)
+        a_all, b_all, e_all = [], [], []
+        for k in (3, 4):
+            sel = np.nonzero((corners == k) & ~left_out)[0]
+            if sel.size == 0:
+                continue
+            idx = self.offsets[sel][:, None] + np.arange(k)[None, :]
+            c = self.conn[idx]
+            nxt = np.roll(c, -1, axis=1)
+            a_all.append(np.minimum(c, nxt).ravel())
+            b_all.append(np.maximum(c, nxt).ravel())
+            e_all.append(np.repeat(sel, k))
+        if not a_all:
+            return out
+        a, b, e = np.concatenate(a_all), np.concatenate(b_all), np.concatenate(e_all)
+        touches = near[self.conn[self.offsets[e][:, None] + np.arange(3)[None, :]]].any(axis=1)
+        for k in (4,):  # a quad's fourth corner
+            q = np.nonzero(corners[e] == k)[0]
+            touches[q] |= near[self.conn[self.offsets[e[q]] + 3]]
+        order = np.lexsort((b, a))
+        a, b, e, touches = a[order], b[order], e[order], touches[order]
+        start = np.r_[0, np.nonzero((a[1:] != a[:-1]) | (b[1:] != b[:-1]))[0] + 1]
+        count = np.diff(np.r_[start, a.size])
+        for s0, n in zip(start[count > 2], count[count > 2]):
+            if touches[s0:s0 + n].all():
+                out[e[s0:s0 + n]] = True
+        return out
+
     def subset(self, keep):
         """A MeshData with only the elements where ``keep`` is True (same nodes)."""
         keep = np.asarray(keep, dtype=bool)

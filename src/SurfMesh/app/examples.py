@@ -25,9 +25,10 @@ def make_torus(doc, name="Torus", R=TORUS_R, r=TORUS_r):
     return tor
 
 
-def make_gmsh_mesh(doc, part, size, name=None, order="1st"):
-    """A 2D Gmsh FEM mesh (FemMeshGmsh) of ``part`` with characteristic length ``size``.
-    Returns the mesh object; RuntimeError when Gmsh produced no mesh."""
+def make_gmsh_mesh(doc, part, size, name=None, order="1st", recombine=False):
+    """A 2D Gmsh FEM mesh (FemMeshGmsh) of ``part`` with characteristic length ``size``
+    (``recombine``: quadrilaterals, Gmsh's RecombineAll). Returns the mesh object;
+    RuntimeError when Gmsh produced no mesh."""
     import ObjectsFem
     from femmesh.gmshtools import GmshTools
 
@@ -36,6 +37,7 @@ def make_gmsh_mesh(doc, part, size, name=None, order="1st"):
     obj.ElementDimension = "2D"
     obj.ElementOrder = order
     obj.CharacteristicLengthMax = float(size)
+    obj.RecombineAll = bool(recombine)
     doc.recompute()
     message = GmshTools(obj).create_mesh()
     if obj.FemMesh.FaceCount == 0:

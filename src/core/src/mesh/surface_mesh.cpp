@@ -281,7 +281,7 @@ void checkTopology(const SurfaceMesh& m) {
     std::ostringstream s;
     s << "mesh is non-manifold: " << bad << " edge" << (bad > 1 ? "s are" : " is")
       << " shared by more than two elements of one face, e.g. the edge between nodes " << u.a
-      << " and " << u.b << " is shared by " << (firstEnd - firstBegin) << " elements (";
+      << " and " << u.b << " is shared by " << (firstEnd - firstBegin) << " elements (elements ";
     for (std::size_t k = firstBegin; k < firstEnd; ++k)
       s << (k > firstBegin ? ", " : "") << uses[k].elem;
     s << ") on face " << u.face;
