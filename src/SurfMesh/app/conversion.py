@@ -166,10 +166,10 @@ class MeshData:
         if not a_all:
             return out
         a, b, e = np.concatenate(a_all), np.concatenate(b_all), np.concatenate(e_all)
+        # Whether each use's element touches such a node (its corners; a quad's fourth too).
         touches = near[self.conn[self.offsets[e][:, None] + np.arange(3)[None, :]]].any(axis=1)
-        for k in (4,):  # a quad's fourth corner
-            q = np.nonzero(corners[e] == k)[0]
-            touches[q] |= near[self.conn[self.offsets[e[q]] + 3]]
+        q = np.nonzero(corners[e] == 4)[0]
+        touches[q] |= near[self.conn[self.offsets[e[q]] + 3]]
         order = np.lexsort((b, a))
         a, b, e, touches = a[order], b[order], e[order], touches[order]
         start = np.r_[0, np.nonzero((a[1:] != a[:-1]) | (b[1:] != b[:-1]))[0] + 1]
