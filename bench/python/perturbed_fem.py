@@ -106,7 +106,8 @@ def main():
             dist = surf_dist = 0.0
             surfaces = {}
             for i in shifted:
-                p = Part.Vertex(FreeCAD.Vector(*map(float, r.nodes[i])))
+                q = FreeCAD.Vector(*map(float, r.nodes[i]))
+                p = Part.Vertex(q)
                 f = shape.Faces[int(faces[i])]
                 dist = max(dist, f.distToShape(p)[0])
                 if int(faces[i]) not in surfaces:
@@ -114,7 +115,6 @@ def main():
                 # OCC's extrema miss the foot point of some points on B-spline surfaces (1.9e-5
                 # for a point 1.6e-14 from its surface on nist_pmi_1): the smaller of that and
                 # the distance to the surface's own projection (Surface.parameter).
-                q = FreeCAD.Vector(*map(float, r.nodes[i]))
                 u, v = f.Surface.parameter(q)
                 surf_dist = max(surf_dist, min(surfaces[int(faces[i])].distToShape(p)[0],
                                                (f.Surface.value(u, v) - q).Length))

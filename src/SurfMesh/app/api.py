@@ -319,8 +319,7 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, duplicates="glu
         # boundary (the core puts them on a CAD edge only when they lie on it).
         left_out = None
         if data.kept is not None:
-            left_out = np.zeros(len(data.nodes), dtype=bool)
-            left_out[data.subset(~data.kept).conn] = True
+            left_out = data.nodes_of(~data.kept)
         try:
             h = core().cad_mesh(
                 cshape, w.nodes, w.types, w.offsets, w.conn,
@@ -361,8 +360,7 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, duplicates="glu
         # facets) they stay: measure counts them, optimize refuses and names them.
         miswound = np.zeros(work.element_count, dtype=bool)
         if bad.any():
-            near = np.zeros(data.node_count, dtype=bool)
-            near[data.subset(bad).conn] = True
+            near = data.nodes_of(bad)
             for e in np.asarray(handle.report.get("miswound_elements", []), dtype=np.int64):
                 miswound[e] = near[work.element(int(e))].any()
         if flat.any() or miswound.any():

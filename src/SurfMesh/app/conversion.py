@@ -149,8 +149,7 @@ class MeshData:
         out = np.zeros(self.element_count, dtype=bool)
         if not left_out.any():
             return out
-        near = np.zeros(self.node_count, dtype=bool)
-        near[self.subset(left_out).conn] = True
+        near = self.nodes_of(left_out)
         corners = np.where(self.types == ELEMENT_TYPES["quad4"], 4, 3)
         a_all, b_all, e_all = [], [], []
         for k in (3, 4):
@@ -177,6 +176,13 @@ class MeshData:
         for s0, n in zip(start[count > 2], count[count > 2]):
             if touches[s0:s0 + n].all():
                 out[e[s0:s0 + n]] = True
+        return out
+
+    def nodes_of(self, elements):
+        """Bool mask of the nodes used by the elements where ``elements`` (a bool mask) is
+        True."""
+        out = np.zeros(self.node_count, dtype=bool)
+        out[self.subset(elements).conn] = True
         return out
 
     def subset(self, keep):
