@@ -650,7 +650,6 @@ struct State {
 struct LocalEval {
   double f = 0.0;           // Σ (η − 1)² with the sweep's δ
   int tangled = 0;          // elements with det S ≤ 0
-  int across = 0;           // linear triangles against a corner's own normal (see evalLocal)
   double minQuality = 1.0;  // min 1/η with δ = 0 (0 when tangled); when asked
   double maxEta = 1.0;      // largest η (sweep's δ) of the submesh
   bool finite = true;
@@ -690,9 +689,6 @@ class NodeUpdater {
 
   /// One safeguarded Newton step (with line search) on node i; returns the 3D move.
   double update(std::size_t i) {
-    // Sliding nodes are not held to it: an Edge node's triangles meet the CAD edge's other face
-    // (where sliding untangles folds that a fixed boundary leaves), and its guard blocked that.
-    guardAcross_ = !s_.relaxTangled && s_.mesh.nodeKind[i] == NodeKind::Face;
     if (s_.mesh.nodeKind[i] == NodeKind::Face) return updateFaceNode(i);
     if (s_.mesh.nodeKind[i] == NodeKind::Edge) return updateEdgeNode(i);
     return 0.0;
@@ -770,8 +766,6 @@ class NodeUpdater {
         auto countTangled = [&]() { return tangledAmong(elems); };
         const std::size_t t0 = countTangled();
         if (t0 == 0) continue;  // nothing to gain here (the cache is from the last sweep)
-        // A layout is kept only when it also stands no more triangles across the surface.
-        const std::size_t a0 = acrossAmong(elems);
         // Neighbour lists of the patch nodes (corners of their elements).
         nbrOffset.assign(1, 0);
         nbrIndex.clear();
@@ -817,7 +811,7 @@ class NodeUpdater {
         save(patch, &uvSave, &xyzSave, &nSave);
         const bool ok = placeAll(patch, iter, face, surf);
         const std::size_t t1 = ok ? countTangled() : t0;
-        if (ok && t1 < t0 && acrossAmong(elems) <= a0) {
+        if (ok && t1 < t0) {
           kept = true;
           gained += t0 - t1;
           continue;
@@ -835,7 +829,7 @@ class NodeUpdater {
           ++relaxTries_;
           relaxed = true;
           t2 = relaxPatch(patch, countTangled, t0);
-          if (t2 < t0 && acrossAmong(elems) <= a0) {
+          if (t2 < t0) {
             kept = true;
             gained += t0 - t2;
             continue;
@@ -846,7 +840,7 @@ class NodeUpdater {
           ++relaxTries_;
           relaxed = true;
           t2 = relaxPatch(patch, countTangled, t0);
-          if (t2 < t0 && acrossAmong(elems) <= a0) {
+          if (t2 < t0) {
             kept = true;
             gained += t0 - t2;
             continue;
@@ -951,19 +945,6 @@ class NodeUpdater {
     return t;
   }
 
-  /// Linear triangles among `elems` standing across their surface at a corner (acrossAt), at
-  /// the current positions.
-  std::size_t acrossAmong(const std::vector<std::size_t>& elems) const {
-    std::size_t t = 0;
-    for (std::size_t q : elems) {
-      if (s_.mesh.elemType[q] != ElementType::Tri3) continue;
-      const std::size_t j = static_cast<std::size_t>(s_.mesh.elementNodes(q)[0]);
-      const Vec3 nj = s_.mesh.nodeKind[j] == NodeKind::Face ? s_.nodeNormal[j] : Vec3::Zero();
-      if (acrossAt(q, 0, s_.xyz[j], nj, Vec3::Zero())) ++t;
-    }
-    return t;
-  }
-
   void save(const std::vector<std::size_t>& nodes, std::vector<Vec2>* uv, std::vector<Vec3>* xyz,
             std::vector<Vec3>* normal) const {
     uv->clear();
@@ -1063,9 +1044,6 @@ class NodeUpdater {
  private:
   State& s_;
   Worker& w_;
-  // Whether a move may not raise the number of triangles standing across the surface (acrossAt):
-  // Face node updates outside the patch untangling.
-  bool guardAcross_ = false;
 
   /// Submesh of node i with the node at x. `nfree(j)` gives the node's corner normal in the
   /// j-th incident element, `old(j)` its normal there before the move (Edge nodes).
@@ -1101,11 +1079,6 @@ class NodeUpdater {
       if (isHighOrderTriangle(s_.mesh.elemType[e])) {
         pre = &w_.highOrder[j];
         if (!cur) s_.highOrderRest(e, local, pre);
-      }
-      if (corner && s_.mesh.elemType[e] == ElementType::Tri3 &&
-          acrossAt(e, local, x, nfree(j), old(j))) {
-        ++r.across;
-        if (cur && r.across > cur->across && guardAcross_) return reject();
       }
       const double delta = s_.deltaHat * s_.deltaScale[e];
       Vec3 ge;
@@ -1155,27 +1128,6 @@ class NodeUpdater {
     return r;
   }
 
-  /// Whether linear triangle e, with its node `local` at x (corner normal nFree there, oldFree
-  /// its normal before the move for an Edge node, else zero), is wound against the surface's
-  /// own normal at one of its corners (c·n < 0, c = J₀ × J₁): it stands across its surface,
-  /// however it is oriented against the sum of its corner normals (the reference normal that
-  /// decides σ's sign). Non-Face corners are checked by the sum of their normals. A move may
-  /// not raise the number of such triangles of the submesh (acceptable): the paper's measure
-  /// does not see them — it measures a triangle in its own plane — and on a surface curved at
-  /// the mesh's scale (a thin tube) smoothing and untangling would otherwise turn triangles
-  /// across it, valid by a sign, cutting through the tube.
-  bool acrossAt(std::size_t e, int local, const Vec3& x, const Vec3& nFree,
-                const Vec3& oldFree) const {
-    const std::int32_t* nd = s_.mesh.elementNodes(e);
-    const int k1 = local == 2 ? 0 : local + 1, k2 = local == 0 ? 2 : local - 1;
-    const std::size_t a = static_cast<std::size_t>(nd[k1]), b = static_cast<std::size_t>(nd[k2]);
-    const Vec3 c = (s_.xyz[a] - x).cross(s_.xyz[b] - x);
-    if (c.dot(nFree) < 0.0) return true;
-    for (std::size_t o : {a, b})
-      if (s_.mesh.nodeKind[o] == NodeKind::Face && c.dot(s_.nodeNormal[o]) < 0.0) return true;
-    return c.dot(s_.fixedNormal[e] - oldFree) < 0.0;
-  }
-
   static LocalEval reject() {
     LocalEval r;
     r.finite = false;
@@ -1187,7 +1139,6 @@ class NodeUpdater {
   bool acceptable(const LocalEval& cur, const LocalEval& trial) const {
     if (!trial.finite) return false;
     if (trial.tangled > cur.tangled && !s_.relaxTangled) return false;
-    if (trial.across > cur.across && guardAcross_) return false;
     if (!(trial.f < cur.f)) return false;
     if (s_.opt.monotone && cur.tangled == 0 && trial.minQuality < qualityBar(cur)) return false;
     return true;
@@ -1382,7 +1333,7 @@ class NodeUpdater {
             const Vec3 nT = (orient / cr.norm()) * cr;
             const LocalEval tr = evalLocal(
                 i, dT.p, [&](std::size_t) { return nT; }, zero, false, nullptr, nullptr, nullptr);
-            if (!tr.finite || tr.across > cur.across) continue;
+            if (!tr.finite) continue;
             if (tr.tangled < bestTangled ||
                 (tr.tangled == bestTangled && tr.f < bestF && bestF < kInf)) {
               bestTangled = tr.tangled;

@@ -10,15 +10,6 @@
 // (Escobar et al. 2003):  δ = √(ε(ε − σ_min)) when σ_min < ε, else 0, with ε = deltaEpsilon.
 // Scaled means divided by a local size² of the node's submesh, so the policy does not depend
 // on units. Once no element is tangled, δ = 0: the barrier measure keeps the mesh valid.
-// The measure takes a triangle in its own plane, oriented by the sum n of its corner normals:
-// a triangle standing across a surface curved at the mesh's scale (a thin tube with a few
-// elements around it) is valid by the sign of c·n (c = J₀ × J₁) and may be well shaped, while
-// it cuts through the tube; its σ = ±‖c‖ det W⁻¹ jumps as it stands up, so nothing in the
-// objective keeps the sweeps from turning triangles so. Hence no Face node's move (nor an
-// escape's layout) may raise the number of linear triangles of its submesh wound against the
-// surface normal at one of their corners (c·n_k < 0; corners off the face's interior checked
-// by the sum of their normals). Sliding nodes are not held to it: their triangles meet the
-// CAD edge's other face, where sliding untangles folds a fixed boundary leaves.
 //
 // Nodes are swept color by color (no two nodes of one color share an element), which makes
 // the result independent of the number of threads: a persistent team of `threads` workers
@@ -56,10 +47,9 @@
 // the rest of the mesh is smoothed with δ = 0, and they are reported in tangledMovable.
 //
 // Guarantees: the number of tangled elements of a node's submesh never increases (so the
-// mesh's never does), nor, for a Face node's move, that of its linear triangles standing across the
-// surface (above); in monotone mode the minimum quality of a valid mesh never decreases (see
-// OptimizeOptions::monotone); Face nodes stay exactly at φ(u,v) inside the surface's domain
-// (contains()), Edge nodes exactly at C(t) between their edge neighbours.
+// mesh's never does); in monotone mode the minimum quality of a valid mesh never decreases
+// (see OptimizeOptions::monotone); Face nodes stay exactly at φ(u,v) inside the surface's
+// domain (contains()), Edge nodes exactly at C(t) between their edge neighbours.
 #pragma once
 
 #include "surfmesh/mesh/quality.h"
