@@ -151,9 +151,9 @@ int main(int argc, char** argv) {
           "\"max\": %.6f, "
           "\"mean\": %.6f, \"std\": %.6f, \"tangled\": %zu, \"below_0_2\": %zu, "
           "\"max_distance\": %.3e, \"bridge_s\": %.3f, \"face_nodes\": %zu, "
-          "\"duplicates_left_out\": %zu}\n",
+          "\"duplicates_left_out\": %zu, \"across\": %zu}\n",
           q.elements, m.nodeCount(), q.min, minFree, q.max, q.mean, q.stddev, q.tangled, poor,
-          rep.maxDistance, tBridge, rep.faceNodes, leftOut);
+          rep.maxDistance, tBridge, rep.faceNodes, leftOut, q.across);
       return 0;
     }
     if (mode != "optimize" || argc < 6) throw std::runtime_error("bad arguments");

@@ -36,6 +36,7 @@ py::dict statsDict(const QualityStats& s) {
   d["std"] = s.stddev;
   d["tangled"] = s.tangled;
   d["elements"] = s.elements;
+  d["across"] = s.across;
   return d;
 }
 
@@ -57,6 +58,9 @@ py::dict qualityDict(const MeshQuality& q) {
   for (std::size_t i = 0; i < q.tangled.size(); ++i) p[i] = q.tangled[i] != 0;
   d["tangled"] = tangled;
   d["min_sigma"] = fromDoubles(q.minSigma);
+  py::array_t<bool> across(static_cast<py::ssize_t>(q.across.size()));
+  for (std::size_t i = 0; i < q.across.size(); ++i) across.mutable_data()[i] = q.across[i] != 0;
+  d["across"] = across;
   d["stats"] = statsDict(q.stats);
   return d;
 }
@@ -142,7 +146,9 @@ MeshClass bind_mesh(py::module_& m) {
           },
           py::arg("measure") = "shape",
           "Per-element quality: dict with quality (1/η, 0 tangled), distortion (η), tangled "
-          "(bool), min_sigma and stats (min, max, mean, std, tangled, elements)");
+          "(bool), min_sigma, across (bool: standing across the surface — wound along its "
+          "normal at some corners and against it at others) and stats (min, max, mean, std, "
+          "tangled, elements, across)");
 
   m.def(
       "single_surface_mesh",

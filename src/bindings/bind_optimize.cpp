@@ -73,6 +73,7 @@ void bind_optimize(MeshClass& cls) {
           given.stddev = b["std"].cast<double>();
           given.tangled = b["tangled"].cast<std::size_t>();
           given.elements = b["elements"].cast<std::size_t>();
+          if (b.contains("across")) given.across = b["across"].cast<std::size_t>();
           if (given.elements != mesh.elementCount())
             throw std::invalid_argument("before: stats of " + std::to_string(given.elements) +
                                         " elements for a mesh of " +

@@ -235,6 +235,57 @@ TEST(SurfaceMeasure, FlippedTriangleIsTangledOnCurvedSurfaces) {
   }
 }
 
+// Elements standing across their surface (standsAcross): on a cylinder of radius 1, corners
+// at angles 0°, 100°, 200° (heights 0, 0, 1). By hand, with n_k = (cos θ_k, sin θ_k, 0):
+// c·n = 0.985, 0.985, −1.327 and c·(n_0 + n_1 + n_2) = 0.643 — valid by the paper's measure
+// (the sum of the corner normals), its plane wound against the surface at the third corner.
+TEST(SurfaceMeasure, ElementsStandingAcrossTheSurfaceAreCounted) {
+  const CylinderSurface cyl(1, 0, 1);
+  const double deg = kPi / 180.0;
+  const std::vector<Vec2> uv = {{0, 0},   {100 * deg, 0},  {200 * deg, 1},    // across
+                                {0, 0.5}, {30 * deg, 0.5}, {15 * deg, 1},     // small, valid
+                                {0, 0.2}, {15 * deg, 0.4}, {30 * deg, 0.2}};  // flipped
+  const std::vector<std::int32_t> conn = {0, 1, 2, 3, 4, 5, 6, 7, 8};
+  const SurfaceMesh m =
+      makeSingleSurfaceMesh(cyl, uv, ElementType::Tri3, conn, {0, 1, 2, 3, 4, 5, 6, 7, 8});
+  // The reference, from the definition: signs of c·n_k and of c·Σn_k.
+  const Vec3 p0(1, 0, 0), p1(std::cos(100 * deg), std::sin(100 * deg), 0),
+      p2(std::cos(200 * deg), std::sin(200 * deg), 1);
+  const Vec3 c = (p1 - p0).cross(p2 - p0);
+  const Vec3 n0(1, 0, 0), n1(p1.x(), p1.y(), 0), n2(p2.x(), p2.y(), 0);
+  EXPECT_NEAR(c.dot(n0), 0.985, 1e-3);
+  EXPECT_NEAR(c.dot(n1), 0.985, 1e-3);
+  EXPECT_NEAR(c.dot(n2), -1.327, 1e-3);
+  EXPECT_NEAR(c.dot(n0 + n1 + n2), 0.643, 1e-3);
+  const MeshQuality mq = measureQuality(m, measureByName("shape"));
+  ASSERT_EQ(mq.across.size(), 3u);
+  EXPECT_EQ(mq.across[0], 1);
+  EXPECT_EQ(mq.tangled[0], 0) << "valid by the paper's measure";
+  EXPECT_GT(mq.quality[0], 0.0);
+  EXPECT_EQ(mq.across[1], 0);
+  EXPECT_EQ(mq.tangled[1], 0);
+  EXPECT_EQ(mq.across[2], 0) << "wound against every corner: tangled, not across";
+  EXPECT_EQ(mq.tangled[2], 1);
+  EXPECT_EQ(mq.stats.across, 1u);
+  EXPECT_EQ(mq.stats.tangled, 1u);
+  // The same triangle as a corner of a quadrilateral, and a straight-sided second-order one.
+  const Vec3 x[3] = {p0, p1, p2};
+  const Vec3 nk[4] = {n0, n1, n2, Vec3::Zero()};
+  EXPECT_TRUE(standsAcross(ElementType::Tri3, x, nk));
+  const Vec3 x6[6] = {p0, p1, p2, 0.5 * (p0 + p1), 0.5 * (p1 + p2), 0.5 * (p2 + p0)};
+  EXPECT_TRUE(standsAcross(ElementType::Tri6, x6, nk));
+  const Vec3 none[3] = {Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};
+  EXPECT_FALSE(standsAcross(ElementType::Tri3, x, none)) << "no normal (poles): no verdict";
+  // A planar square on the plane z = 0 with the normal +z: no corner against.
+  const Vec3 q[4] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
+  const Vec3 up[4] = {Vec3::UnitZ(), Vec3::UnitZ(), Vec3::UnitZ(), Vec3::UnitZ()};
+  EXPECT_FALSE(standsAcross(ElementType::Quad4, q, up));
+  // With the normal turned over at corner 2 only, the corner triangle there is wound against
+  // it and the others along theirs.
+  const Vec3 upDown[4] = {Vec3::UnitZ(), Vec3::UnitZ(), -Vec3::UnitZ(), Vec3::UnitZ()};
+  EXPECT_TRUE(standsAcross(ElementType::Quad4, q, upDown));
+}
+
 TEST(SurfaceMeasure, RestrictedDerivativesOnTorusMatchFiniteDifferences) {
   const TorusSurface torus(10, 4);
   const Vec2 uv[3] = {{0.31, 1.2}, {0.45, 1.25}, {0.36, 1.42}};

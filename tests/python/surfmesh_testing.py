@@ -76,6 +76,34 @@ def reference_tri_quality(nodes, tris, face):
     return q, tangled
 
 
+def reference_across(nodes, tris, faces, shape, which=None):
+    """Per triangle (of those indexed by ``which``, default all): whether it stands across its
+    face, computed without SurfMesh: its normal (x1 − x0) × (x2 − x0) points along the face's
+    outward normal (FreeCAD's Face.normalAt at each corner's Surface.parameter) at some
+    corners and against it at others. ``faces``: per triangle, its face's index in
+    shape.Faces."""
+    import FreeCAD
+
+    which = np.arange(len(tris)) if which is None else np.asarray(which)
+    normal = {}  # (node, face) → the face's normal there
+
+    def normal_at(k, f):
+        if (k, f) not in normal:
+            face = shape.Faces[f]
+            u, v = face.Surface.parameter(FreeCAD.Vector(*map(float, nodes[k])))
+            n = face.normalAt(u, v)
+            normal[k, f] = (n.x, n.y, n.z)
+        return normal[k, f]
+
+    out = np.zeros(len(which), dtype=bool)
+    for j, e in enumerate(which):
+        t = tris[e]
+        c = np.cross(nodes[t[1]] - nodes[t[0]], nodes[t[2]] - nodes[t[0]])
+        signs = [float(np.dot(c, normal_at(int(k), int(faces[e])))) > 0.0 for k in t]
+        out[j] = any(signs) and not all(signs)
+    return out
+
+
 def coincident_groups(points):
     """Index arrays of the points that share one position exactly (groups of two or more)."""
     _, group, counts = np.unique(points, axis=0, return_inverse=True, return_counts=True)

@@ -78,7 +78,8 @@ class QualityReport:
     tangled: np.ndarray  # (E,) bool
     distortion: np.ndarray  # (E,) float64 η ≥ 1, inf for tangled elements
     min_sigma: np.ndarray  # (E,) float64 smallest scaled det S (≤ 0: tangled)
-    stats: dict  # min, max, mean, std, tangled, elements (measured), skipped (left out)
+    # min, max, mean, std, tangled, elements (measured), skipped (left out), across (see below)
+    stats: dict
     element_ids: np.ndarray  # (E,) int64 ids of the elements (FEM ids, or facet indices)
     element_types: list = dataclasses.field(default_factory=list)
     bridge: dict = dataclasses.field(default_factory=dict)  # how nodes were put on the shape
@@ -86,6 +87,12 @@ class QualityReport:
     # (E,) int64: 0-based index in shape.Faces of the CAD face each element lies on (FreeCAD's
     # Face1 is 0), -1 for the elements left out
     element_faces: np.ndarray = None
+    # (E,) bool: elements standing across their surface — their plane wound along the face's
+    # normal at some corners and against it at others (e.g. a triangle spanning more than half
+    # the way round a thin tube: its plane cuts through the part). The measure (the paper's)
+    # orients an element by the sum of its corner normals, so such an element can count as
+    # valid and well shaped; ``stats["across"]`` counts them, tangled or not.
+    across: np.ndarray = None
 
     def __repr__(self):
         s = self.stats
@@ -492,6 +499,7 @@ def _report(data, handle, name, bridge=None, measured=None) -> QualityReport:
     tangled = np.asarray(r["tangled"], dtype=bool)
     distortion = np.asarray(r["distortion"], dtype=np.float64)
     min_sigma = np.asarray(r["min_sigma"], dtype=np.float64)
+    across = np.asarray(r["across"], dtype=bool)
     faces = np.asarray(handle.element_faces(), dtype=np.int64)
     skipped = np.zeros(data.element_count, dtype=bool)
     kept = getattr(data, "kept", None)
@@ -504,6 +512,7 @@ def _report(data, handle, name, bridge=None, measured=None) -> QualityReport:
             return out
 
         quality, tangled = expand(quality, 0.0), expand(tangled, False)
+        across = expand(across, False)
         distortion, min_sigma = expand(distortion, np.inf), expand(min_sigma, 0.0)
         faces = expand(faces, -1)
     stats["skipped"] = int(skipped.sum())
@@ -519,6 +528,7 @@ def _report(data, handle, name, bridge=None, measured=None) -> QualityReport:
         bridge=bridge if bridge is not None else _bridge_report(handle),
         skipped=skipped,
         element_faces=faces,
+        across=across,
     )
 
 
@@ -606,7 +616,8 @@ def optimize(
     before = _report(data, handle, measure, bridge,
                      measured=measured if measure == "shape" else None)
     t1 = time.perf_counter()
-    stats = {k: before.stats[k] for k in ("min", "max", "mean", "std", "tangled", "elements")}
+    stats = {k: before.stats[k]
+             for k in ("min", "max", "mean", "std", "tangled", "elements", "across")}
     fewest = {"tangled": None, "sweep": 0}  # when the run last reached fewer tangled elements
 
     def track(p):
@@ -661,6 +672,20 @@ def optimize(
             f"{len(movable)} element(s) stay tangled although some of their nodes may move "
             f"({hint}): elements {_id_list(movable)}"
             f"{_where(data, handle, new_nodes, core_movable)}"
+        )
+    n_across0, n_across = int(before.stats["across"]), int(after.stats["across"])
+    if n_across:
+        mask = after.across if data.kept is None else after.across[data.kept]
+        core_across = [int(k) for k in np.nonzero(mask)[0]]
+        warnings.append(
+            f"{n_across} element(s) stand across the surface after the run ({n_across0} "
+            "before): each is wound along its face's normal at some corners and against it at "
+            "others, like a triangle spanning more than half the way round a thin tube, whose "
+            "plane cuts through the part. The measure (the paper's: the element in its own "
+            "plane, oriented by the sum of its corner normals) can count them valid and well "
+            "shaped; elements smaller than the surface's radius of curvature there avoid them: "
+            f"elements {_id_list(_user_element_ids(data, core_across))}"
+            f"{_where(data, handle, new_nodes, core_across)}"
         )
     return OptimizeResult(
         mesh=new_mesh,

@@ -36,7 +36,8 @@ import numpy as np
 from SurfMesh.app import api, coloring, conversion, progress, shapes
 
 GROUP = "SurfMesh"
-STAT_KEYS = ("min", "max", "mean", "std", "tangled", "elements")
+STAT_KEYS = ("min", "max", "mean", "std", "tangled", "elements", "across")
+_COUNT_KEYS = ("tangled", "elements", "across")
 
 
 # ---- helpers ---------------------------------------------------------------------------------
@@ -76,8 +77,8 @@ def resolve_shape(obj, shape=None):
 
 
 def _stats_map(stats):
-    return {k: (str(int(stats[k])) if k in ("tangled", "elements") else repr(float(stats[k])))
-            for k in STAT_KEYS}
+    return {k: (str(int(stats[k])) if k in _COUNT_KEYS else repr(float(stats[k])))
+            for k in STAT_KEYS if k in stats}
 
 
 def stats_of(obj, before=False):
@@ -89,7 +90,8 @@ def stats_of(obj, before=False):
     m = getattr(obj, name)
     if not m:
         return None
-    return {k: (int(m[k]) if k in ("tangled", "elements") else float(m[k])) for k in STAT_KEYS}
+    # (documents saved before "across" was counted lack it)
+    return {k: (int(m[k]) if k in _COUNT_KEYS else float(m[k])) for k in STAT_KEYS if k in m}
 
 
 def store_report(obj, report, before=False):

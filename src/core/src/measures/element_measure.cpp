@@ -242,6 +242,11 @@ Vec3 elementReferenceNormal(const SurfaceMesh& mesh, std::size_t e) {
 
 Vec3 elementReferenceNormal(const SurfaceMesh& mesh, std::size_t e,
                             const std::vector<const Surface*>& surfaces) {
+  return elementReferenceNormal(mesh, e, surfaces, nullptr);
+}
+
+Vec3 elementReferenceNormal(const SurfaceMesh& mesh, std::size_t e,
+                            const std::vector<const Surface*>& surfaces, Vec3* cornerNormals) {
   const int f = mesh.elemFace[e];
   const int nc = cornerCount(mesh.elemType[e]);
   const Vec2* uv = mesh.elementUV(e);
@@ -254,6 +259,7 @@ Vec3 elementReferenceNormal(const SurfaceMesh& mesh, std::size_t e,
   bool anyCorner = false;
   for (int k = 0; k < nc; ++k) {
     const Vec3 nk = referenceNormal(uv[k]);
+    if (cornerNormals) cornerNormals[k] = nk;
     anyCorner = anyCorner || nk.squaredNorm() > 0.0;
     n += nk;
   }
@@ -266,6 +272,29 @@ Vec3 elementReferenceNormal(const SurfaceMesh& mesh, std::size_t e,
   }
   const double len = n.norm();
   return len > 0.0 ? Vec3(n / len) : Vec3::Zero();
+}
+
+bool standsAcross(ElementType type, const Vec3* x, const Vec3* cornerNormals) {
+  const int nc = cornerCount(type);
+  HighOrderJacobians ho;
+  if (type != ElementType::Tri3 && type != ElementType::Quad4) highOrderJacobians(type, x, -1, &ho);
+  bool along = false, against = false;
+  for (int k = 0; k < nc; ++k) {
+    const Vec3& n = cornerNormals[k];
+    if (!(n.squaredNorm() > 0.0)) continue;
+    Vec3 c;
+    if (type == ElementType::Tri3)
+      c = (x[1] - x[0]).cross(x[2] - x[0]);
+    else if (type == ElementType::Quad4)
+      c = (x[(k + 1) % 4] - x[k]).cross(x[(k + 3) % 4] - x[k]);
+    else
+      c = ho.atNode[k].col(0).cross(ho.atNode[k].col(1));
+    if (c.dot(n) > 0.0)
+      along = true;
+    else
+      against = true;
+  }
+  return along && against;
 }
 
 }  // namespace surfmesh

@@ -39,6 +39,7 @@ MeshQuality measureQuality(const SurfaceMesh& mesh, const PlanarMeasure& m) {
   r.distortion.resize(E);
   r.tangled.resize(E);
   r.minSigma.resize(E);
+  r.across.resize(E);
   // Elements [begin, end) with the surfaces `surfaces` (mesh.surfaces or a thread's clones).
   auto range = [&](std::size_t begin, std::size_t end,
                    const std::vector<const Surface*>& surfaces) {
@@ -48,10 +49,12 @@ MeshQuality measureQuality(const SurfaceMesh& mesh, const PlanarMeasure& m) {
       const std::int32_t* nd = mesh.elementNodes(e);
       x.resize(static_cast<std::size_t>(n));
       for (int k = 0; k < n; ++k) x[static_cast<std::size_t>(k)] = mesh.xyz[nd[k]];
-      const Vec3 normal = elementReferenceNormal(mesh, e, surfaces);
+      Vec3 corners[4];
+      const Vec3 normal = elementReferenceNormal(mesh, e, surfaces, corners);
       const ElementEval ev = elementDistortion(m, mesh.elemType[e], x.data(), normal, 0.0);
       const bool bad = ev.tangled || !std::isfinite(ev.eta) || !(ev.eta > 0.0);
       r.tangled[e] = bad ? 1 : 0;
+      r.across[e] = standsAcross(mesh.elemType[e], x.data(), corners) ? 1 : 0;
       r.distortion[e] = bad ? std::numeric_limits<double>::infinity() : ev.eta;
       r.quality[e] = bad ? 0.0 : std::min(1.0, 1.0 / ev.eta);
       r.minSigma[e] = ev.minSigma;
@@ -92,6 +95,7 @@ MeshQuality measureQuality(const SurfaceMesh& mesh, const PlanarMeasure& m) {
       if (err) std::rethrow_exception(err);
   }
   r.stats = computeStats(r.quality, r.tangled);
+  r.stats.across = static_cast<std::size_t>(std::count(r.across.begin(), r.across.end(), 1));
   return r;
 }
 

@@ -151,5 +151,20 @@ Vec3 elementReferenceNormal(const SurfaceMesh& mesh, std::size_t e);
 /// mesh.surfaces: per-thread clones (surfaces are not thread-safe).
 Vec3 elementReferenceNormal(const SurfaceMesh& mesh, std::size_t e,
                             const std::vector<const Surface*>& surfaces);
+/// The same, also writing the corner normals it sums (mesh.referenceNormal at each corner's
+/// (u,v), zero at poles) to cornerNormals[0 … cornerCount − 1].
+Vec3 elementReferenceNormal(const SurfaceMesh& mesh, std::size_t e,
+                            const std::vector<const Surface*>& surfaces, Vec3* cornerNormals);
+
+/// Whether an element with nodes x (Gmsh order) stands across its surface: its own plane — a
+/// linear triangle's plane, a quadrilateral's corner triangle, a high-order triangle's tangent
+/// plane at a corner node — is wound along the surface's normal cornerNormals[k] at some of its
+/// corners k and against it (c·n_k ≤ 0) at others (zero normals, at poles, are skipped). E.g. a
+/// triangle spanning more than half the way round a thin tube, whose plane cuts through the
+/// part: a mesh coarse against the surface's curvature, or folded across it. The measure
+/// orients an element by the sum of its corner normals and takes a linear one in its own plane
+/// (the paper's definition), so it calls such an element valid when the sum says so, and may
+/// find it well shaped. Gmsh's own meshes of CAD parts have some (at small fillets and holes).
+bool standsAcross(ElementType type, const Vec3* x, const Vec3* cornerNormals);
 
 }  // namespace surfmesh

@@ -17,6 +17,9 @@ struct QualityStats {
   double stddev = 0.0;  ///< population standard deviation
   std::size_t tangled = 0;
   std::size_t elements = 0;
+  /// Elements standing across their surface (standsAcross), tangled or not: a diagnostic next
+  /// to the paper's statistics, which it does not change. Filled by measureQuality.
+  std::size_t across = 0;
 };
 
 struct MeshQuality {
@@ -24,6 +27,8 @@ struct MeshQuality {
   std::vector<double> distortion;      ///< per element, η ∈ [1, ∞]
   std::vector<unsigned char> tangled;  ///< per element, 1 when tangled or degenerate
   std::vector<double> minSigma;        ///< per element, smallest scaled det S (≤ 0: tangled)
+  std::vector<unsigned char> across;   ///< per element, 1 when standing across its surface
+                                       ///< (standsAcross)
   QualityStats stats;
 };
 
