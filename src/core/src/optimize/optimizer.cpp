@@ -194,6 +194,7 @@ struct ElemOut {
   double eta0 = 1.0;  // η with δ = 0 (+∞ when tangled), filled when wantEta0
   double minSigma = 0.0;
   bool tangled = false;
+  bool held = false;  // σ from acrossArea (the triangle leans across its surface)
 };
 
 /// A node whose submesh holds an element with η above this tries fallback directions when its
@@ -209,6 +210,48 @@ constexpr std::size_t kMinParallelNodes = 128;
 
 const double kInvSqrt3 = 0.57735026918962576451;
 const double kDetWinv = 2.0 * kInvSqrt3;  // det W⁻¹ of the equilateral ideal triangle
+
+/// A linear triangle that was neither standing across its surface nor leaning far from it at
+/// the start of the run (see standsAcross) is kept from becoming so: its area ‖c‖ in σ
+/// (c = (x1 − x0) × (x2 − x0)) is replaced by
+///     a = min(‖c‖, kAcrossSlope · m) when m ≥ 0,   a = m when m < 0,
+/// with m the least c·n_k over its corners (n_k the unit corner normals, zero ones skipped):
+/// a = ‖c‖, the paper's σ, until its plane leans more than acos(1/kAcrossSlope) ≈ 84° from the
+/// surface's normal at a corner, and a ≤ 0 — tangled for the run — when it is wound against the
+/// normal at a corner. a is continuous in the node positions. The quality report keeps the
+/// paper's σ; elements the input has standing across keep it in the run too (Gmsh's meshes of
+/// CAD parts have some at small fillets and holes, which no node motion may right).
+constexpr double kAcrossSlope = 10.0;
+
+/// a of the comment above, for c, its norm cn and the corner normals n[0 … 2]. When a ≠ ‖c‖,
+/// *which is the corner of m and a = *slope · c·n[*which] (linear in each node); otherwise
+/// *which = −1.
+inline double acrossArea(const Vec3& c, double cn, const Vec3* n, int* which, double* slope) {
+  *which = -1;
+  *slope = 0.0;
+  // Every corner within acos(1/kAcrossSlope) (a zero normal gives 0: the loop below skips it).
+  if (kAcrossSlope * std::min({c.dot(n[0]), c.dot(n[1]), c.dot(n[2])}) >= cn) return cn;
+  int k = -1;
+  double m = 0.0;
+  for (int j = 0; j < 3; ++j) {
+    if (!(n[j].squaredNorm() > 0.0)) continue;
+    const double s = c.dot(n[j]);
+    if (k < 0 || s < m) {
+      m = s;
+      k = j;
+    }
+  }
+  if (k < 0) return cn;
+  const double f = m >= 0.0 ? kAcrossSlope : 1.0;
+  const double a = f * m;
+  if (!(a < cn)) return cn;
+  *which = k;
+  *slope = f;
+  return a;
+}
+
+/// faceCorners bit: the element is a linear triangle held from standing across (acrossArea).
+constexpr unsigned kAcrossGuard = 0x80u;
 
 /// Tangent basis of a Face node's (u,v) at its current position: derivatives are assembled
 /// directly in (u,v) (g_u = Jᵀ g, H_u = Jᵀ H J) instead of as 3×3 Hessians.
@@ -227,9 +270,10 @@ struct TriPieces {
 /// Linear triangle (x0 free, x1, x2 the next corners counter-clockwise), equilateral ideal:
 /// the closed form of jacobianDistortion for b = (−1, −1), W⁻¹ = [[1, −1/√3], [0, 2/√3]].
 /// With `pieces` non-null, fills what the gradient and Hessian with respect to x0 are made of.
+/// `corners`: the surface's unit normals at x0, x1, x2 (acrossArea), or null.
 inline ElemOut triangleCore(const PlanarMeasure& m, const Vec3& x0, const Vec3& x1, const Vec3& x2,
                             const Vec3& n, double delta, bool wantEta0, TriPieces* pieces,
-                            bool projected = false) {
+                            bool projected = false, const Vec3* corners = nullptr) {
   ElemOut r;
   const Vec3 J0 = x1 - x0, J1 = x2 - x0;
   const Vec3 K1 = (2.0 * J1 - J0) * kInvSqrt3;  // K = J W⁻¹ = [J0, K1]
@@ -248,9 +292,20 @@ inline ElemOut triangleCore(const PlanarMeasure& m, const Vec3& x0, const Vec3& 
     // σ of the triangle projected on the plane normal to n: continuous through a triangle
     // standing across the surface (where ±‖c‖ jumps), linear in x0.
     const Vec3 nu = n / nlen;
-    const double sigma = kDetWinv * orient / nlen;
+    double sigma = kDetWinv * orient / nlen;
+    // Leaning across the surface at a corner (acrossArea) takes the lower of the two.
+    int across = -1;
+    double acrossSlope = 0.0;
+    if (corners) {
+      const double a = kDetWinv * acrossArea(c, cn, corners, &across, &acrossSlope);
+      if (across >= 0 && a < sigma - 1e-9 * std::abs(sigma))  // not mere rounding
+        sigma = a;
+      else
+        across = -1;
+    }
     r.minSigma = 2.0 * sigma / F;
     r.tangled = !(sigma > 0.0);
+    r.held = across >= 0;
     const double sigmaStar = regularizedSigmaValue(sigma, delta);
     if (!pieces) {
       r.eta = m.invariantValue(F, sigma, sigmaStar);
@@ -265,16 +320,21 @@ inline ElemOut triangleCore(const PlanarMeasure& m, const Vec3& x0, const Vec3& 
     P.d = d;
     P.gF = -2.0 * (J0 + K1 * kInvSqrt3);
     P.w = x2 - x1;
-    P.mw = nu.cross(P.w);
+    P.mw = across >= 0 ? Vec3((acrossSlope * corners[across]).cross(P.w)) : Vec3(nu.cross(P.w));
     P.gs = kDetWinv * P.mw;
     P.pcoef = 0.0;
     return r;
   }
   const bool regular = cn > 1e-14 * F && orientationDefined(orient, cn * cn, n.squaredNorm());
   const double gamma = (regular && orient > 0.0) ? 1.0 : -1.0;
-  const double sigma = regular ? gamma * cn * kDetWinv : 0.0;
+  // A triangle leaning across its surface: σ from acrossArea (linear in x0).
+  int across = -1;
+  double acrossSlope = 0.0, area = cn;
+  if (corners && regular && gamma > 0.0) area = acrossArea(c, cn, corners, &across, &acrossSlope);
+  const double sigma = regular ? (across >= 0 ? area : gamma * cn) * kDetWinv : 0.0;
   r.minSigma = 2.0 * sigma / F;
   r.tangled = !(sigma > 0.0);
+  r.held = across >= 0;
   if (r.tangled && delta == 0.0) {
     r.eta = r.eta0 = kInf;
     return r;
@@ -297,10 +357,16 @@ inline ElemOut triangleCore(const PlanarMeasure& m, const Vec3& x0, const Vec3& 
     P.d = d;
     P.gF = -2.0 * (J0 + K1 * kInvSqrt3);
     P.w = x2 - x1;
-    const Vec3 nu = regular ? Vec3(gamma * c / cn) : n.normalized();
-    P.mw = nu.cross(P.w);
-    P.gs = kDetWinv * P.mw;
-    P.pcoef = regular ? d.hs * kDetWinv * gamma / cn : 0.0;
+    if (across >= 0) {  // σ = det W⁻¹ · slope · c·n_k: ∂σ/∂x0 = det W⁻¹ slope n_k × w
+      P.mw = (acrossSlope * corners[across]).cross(P.w);
+      P.gs = kDetWinv * P.mw;
+      P.pcoef = 0.0;
+    } else {
+      const Vec3 nu = regular ? Vec3(gamma * c / cn) : n.normalized();
+      P.mw = nu.cross(P.w);
+      P.gs = kDetWinv * P.mw;
+      P.pcoef = regular ? d.hs * kDetWinv * gamma / cn : 0.0;
+    }
   }
   return r;
 }
@@ -308,9 +374,11 @@ inline ElemOut triangleCore(const PlanarMeasure& m, const Vec3& x0, const Vec3& 
 /// triangleCore with the gradient and the 3×3 Hessian with respect to x0.
 inline ElemOut triangleKernel(const PlanarMeasure& m, const Vec3& x0, const Vec3& x1,
                               const Vec3& x2, const Vec3& n, double delta, bool wantEta0,
-                              Vec3* grad, Mat3* hess, bool projected = false) {
+                              Vec3* grad, Mat3* hess, bool projected = false,
+                              const Vec3* corners = nullptr) {
   TriPieces P;
-  const ElemOut r = triangleCore(m, x0, x1, x2, n, delta, wantEta0, grad ? &P : nullptr, projected);
+  const ElemOut r =
+      triangleCore(m, x0, x1, x2, n, delta, wantEta0, grad ? &P : nullptr, projected, corners);
   if (grad && std::isfinite(r.eta)) {
     const InvariantDerivs& d = P.d;
     *grad = d.hF * P.gF + d.hs * P.gs;
@@ -335,10 +403,10 @@ inline Vec3 sym2(double a, double b, double c, const Vec2& x, const Vec2& y) {
 /// assembled from projected vectors (2×2 arithmetic instead of 3×3).
 inline ElemOut triangleKernelUV(const PlanarMeasure& m, const Vec3& x0, const Vec3& x1,
                                 const Vec3& x2, const Vec3& n, double delta, bool wantEta0,
-                                const Tangent& T, Vec3* grad, Vec3* hessUV,
-                                bool projected = false) {
+                                const Tangent& T, Vec3* grad, Vec3* hessUV, bool projected = false,
+                                const Vec3* corners = nullptr) {
   TriPieces P;
-  const ElemOut r = triangleCore(m, x0, x1, x2, n, delta, wantEta0, &P, projected);
+  const ElemOut r = triangleCore(m, x0, x1, x2, n, delta, wantEta0, &P, projected, corners);
   if (std::isfinite(r.eta)) {
     const InvariantDerivs& d = P.d;
     *grad = d.hF * P.gF + d.hs * P.gs;
@@ -421,7 +489,12 @@ struct State {
   // corners), fixedNormal holding the corner normals of its Fixed and Edge corners.
   std::vector<Vec3> fixedNormal;
   std::vector<std::uint8_t> faceCorners;  // bit k: corner k of element e is a Face node
-  std::vector<double> elemSize;           // √(mean squared corner edge length), frozen per sweep
+  // The surface's normal at the corners of the linear triangles with a corner that is not a
+  // Face node (acrossArea): 3 per such triangle from cornerSlot[e] (−1: none), current for
+  // sliding nodes (commitEdgeMove); Face corners' entries are unused (nodeNormal holds them).
+  std::vector<std::int32_t> cornerSlot;
+  std::vector<Vec3> cornerN;
+  std::vector<double> elemSize;  // √(mean squared corner edge length), frozen per sweep
   // Size² that scales δ for element e: the input's corner scales averaged over the elements
   // around its corners, frozen for the whole run. Frozen, because a δ that followed the
   // element's own size would let a tangled element shrink to a point at no cost; averaged,
@@ -470,7 +543,7 @@ struct State {
   std::int32_t clock = 0;            // advanced once per color
   std::int32_t validFrom = 1;        // a node last visited before this clock is revisited
 
-  State(const SurfaceMesh& m, const PlanarMeasure& pm, const OptimizeOptions& o)
+  State(const SurfaceMesh& m, const PlanarMeasure& pm, const OptimizeOptions& o, bool holdAcross)
       : mesh(m), measure(pm), opt(o), inc(buildIncidence(m)), xyz(m.xyz), uv(m.uv), t(m.nodeT) {
     const std::size_t N = m.nodeCount(), E = m.elementCount();
     for (std::size_t e = 0; e < E; ++e)
@@ -490,15 +563,61 @@ struct State {
     }
     fixedNormal.assign(E, Vec3::Zero());
     faceCorners.assign(E, 0);
+    cornerSlot.assign(E, -1);
     for (std::size_t e = 0; e < E; ++e) {
       const int nc = cornerCount(m.elemType[e]);
       const std::int32_t* nd = m.elementNodes(e);
       for (int k = 0; k < nc; ++k) {
-        if (m.nodeKind[static_cast<std::size_t>(nd[k])] != NodeKind::Face)
-          fixedNormal[e] += m.referenceNormal(m.elemFace[e], m.elementUV(e)[k]);
-        else
+        if (m.nodeKind[static_cast<std::size_t>(nd[k])] != NodeKind::Face) {
+          const Vec3 nk = m.referenceNormal(m.elemFace[e], m.elementUV(e)[k]);
+          fixedNormal[e] += nk;
+          if (m.elemType[e] == ElementType::Tri3) {
+            if (cornerSlot[e] < 0) {
+              cornerSlot[e] = static_cast<std::int32_t>(cornerN.size());
+              cornerN.resize(cornerN.size() + 3, Vec3::Zero());
+            }
+            cornerN[static_cast<std::size_t>(cornerSlot[e] + k)] = nk;
+          }
+        } else {
           faceCorners[e] = static_cast<std::uint8_t>(faceCorners[e] | (1u << k));
+        }
       }
+    }
+    // Linear triangles not standing across their surface at the start are held so
+    // (kAcrossGuard, acrossArea).
+    for (std::size_t e = 0; holdAcross && e < E; ++e) {
+      if (m.elemType[e] != ElementType::Tri3) continue;
+      const std::int32_t* nd = m.elementNodes(e);
+      Vec3 corners[3], nsum = Vec3::Zero();
+      for (int k = 0; k < 3; ++k) {
+        corners[k] = cornerNormal(e, k);
+        nsum += corners[k];
+      }
+      const Vec3 c =
+          (xyz[static_cast<std::size_t>(nd[1])] - xyz[static_cast<std::size_t>(nd[0])])
+              .cross(xyz[static_cast<std::size_t>(nd[2])] - xyz[static_cast<std::size_t>(nd[0])]);
+      const double cn = c.norm();
+      bool along = false, against = false;
+      for (const Vec3& nk : corners)
+        if (nk.squaredNorm() > 0.0) (c.dot(nk) > 0.0 ? along : against) = true;
+      int which;
+      double slope;
+      // Valid, not standing across and not leaning; or tangled (wound against every corner)
+      // with a corner free on the face: untangling must not turn it over the top of the
+      // surface into standing across. Not held: a tangled one whose corners all lie on CAD
+      // edges, and any with a node sliding along a CAD edge — where the surface turns by more
+      // than a right angle between two edges (BRepMesh's coarse blade edges), standing across
+      // can be the only valid state there is, and sliding nodes reach it through their
+      // elements.
+      bool sliding = false;
+      for (int k = 0; k < 3; ++k)
+        sliding = sliding || m.nodeKind[static_cast<std::size_t>(nd[k])] == NodeKind::Edge;
+      const bool guard =
+          !sliding &&
+          (along ? !against && acrossArea(c, cn, corners, &which, &slope) == cn && which < 0
+                 : against && (faceCorners[e] & 0x7u) != 0);
+      if (cn > 0.0 && guard)
+        faceCorners[e] = static_cast<std::uint8_t>(faceCorners[e] | kAcrossGuard);
     }
     if (anyEdge) {
       edgeSlot.assign(N, -1);
@@ -586,15 +705,18 @@ struct State {
   /// Element e with node `local` at x (others at their positions) and reference normal n.
   /// `pre`: for a high-order triangle, highOrderRest(e, local) when the other nodes have not
   /// moved since (a line search), or null.
+  /// `corners`: a linear triangle's unit corner normals in the order (local, its next corner,
+  /// its previous corner), see acrossArea; ignored for other elements.
   ElemOut evalElement(std::size_t e, int local, const Vec3& x, const Vec3& n, double delta,
                       bool wantEta0, Vec3* grad, Mat3* hess,
-                      const HighOrderJacobians* pre = nullptr) const {
+                      const HighOrderJacobians* pre = nullptr,
+                      const Vec3* corners = nullptr) const {
     const std::int32_t* nd = mesh.elementNodes(e);
     if (mesh.elemType[e] == ElementType::Tri3) {
       const int k1 = local == 2 ? 0 : local + 1, k2 = local == 0 ? 2 : local - 1;
       return triangleKernel(measure, x, xyz[static_cast<std::size_t>(nd[k1])],
                             xyz[static_cast<std::size_t>(nd[k2])], n, delta, wantEta0, grad, hess,
-                            relaxTangled);
+                            relaxTangled, corners);
     }
     const Vec3 nu = n.normalized();
     double eta0 = kInf;  // η with δ = 0, from the same pass over the element
@@ -620,13 +742,14 @@ struct State {
   /// evalElement with the Hessian projected on the tangent basis T (as (h00, h01, h11)).
   ElemOut evalElementUV(std::size_t e, int local, const Vec3& x, const Vec3& n, double delta,
                         bool wantEta0, const Tangent& T, Vec3* grad, Vec3* hessUV,
-                        const HighOrderJacobians* pre = nullptr) const {
+                        const HighOrderJacobians* pre = nullptr,
+                        const Vec3* corners = nullptr) const {
     if (mesh.elemType[e] == ElementType::Tri3) {
       const std::int32_t* nd = mesh.elementNodes(e);
       const int k1 = local == 2 ? 0 : local + 1, k2 = local == 0 ? 2 : local - 1;
       return triangleKernelUV(measure, x, xyz[static_cast<std::size_t>(nd[k1])],
                               xyz[static_cast<std::size_t>(nd[k2])], n, delta, wantEta0, T, grad,
-                              hessUV, relaxTangled);
+                              hessUV, relaxTangled, corners);
     }
     Mat3 H;
     const ElemOut r = evalElement(e, local, x, n, delta, wantEta0, grad, &H, pre);
@@ -641,8 +764,23 @@ struct State {
   ElemOut evalWhole(std::size_t e, double delta) const {
     const Vec3 n = elementNormal(e, -1, Vec3::Zero(), Vec3::Zero());
     const std::int32_t* nd = mesh.elementNodes(e);
-    return evalElement(e, 0, xyz[static_cast<std::size_t>(nd[0])], n, delta, true, nullptr,
-                       nullptr);
+    Vec3 corners[3];
+    const bool tri = mesh.elemType[e] == ElementType::Tri3 && guarded(e);
+    if (tri)
+      for (int k = 0; k < 3; ++k) corners[k] = cornerNormal(e, k);
+    return evalElement(e, 0, xyz[static_cast<std::size_t>(nd[0])], n, delta, true, nullptr, nullptr,
+                       nullptr, tri ? corners : nullptr);
+  }
+
+  /// Whether element e is held from standing across its surface (acrossArea).
+  bool guarded(std::size_t e) const { return (faceCorners[e] & kAcrossGuard) != 0; }
+
+  /// The surface's unit normal at corner k of element e (zero at a pole): the node's own for a
+  /// Face node, else the one kept in cornerN.
+  const Vec3& cornerNormal(std::size_t e, int k) const {
+    if ((faceCorners[e] >> k) & 1u)
+      return nodeNormal[static_cast<std::size_t>(mesh.elementNodes(e)[k])];
+    return cornerN[static_cast<std::size_t>(cornerSlot[e] + k)];
   }
 };
 
@@ -667,6 +805,7 @@ struct alignas(64) Worker {
     keptSig.resize(s.maxDegree);
     normals.resize(s.maxDegree);
     baseNormal.resize(s.maxDegree);
+    otherNormals.resize(2 * s.maxDegree);
     if (!s.allTri3) highOrder.resize(s.maxDegree);
   }
   ThreadGeometry geo;
@@ -676,10 +815,13 @@ struct alignas(64) Worker {
   std::vector<double> keptEta0, keptSig;
   std::vector<Vec3> normals;     // trial's corner normals of a sliding node
   std::vector<Vec3> baseNormal;  // per incident element: its normal without the free corner
+  // Per incident linear triangle: the corner normals of its two other corners (acrossArea).
+  std::vector<Vec3> otherNormals;
   // Per incident high-order triangle: its Jacobians without the free node's term.
   std::vector<HighOrderJacobians> highOrder;
   double maxRelMove = 0.0;
   std::size_t updated = 0, moved = 0;
+  bool heldAcross = false;  // an evaluation of this worker held a triangle (acrossArea)
   char pad[64];
 };
 
@@ -1073,6 +1215,20 @@ class NodeUpdater {
         base[j] = corner ? s_.rawNormal(e, static_cast<std::int64_t>(i), Vec3::Zero(), old(j))
                          : s_.rawNormal(e, -1, Vec3::Zero(), Vec3::Zero());
       const Vec3 nref = s_.usableNormal(e, corner ? Vec3(base[j] + nfree(j)) : base[j]);
+      // A linear triangle's corner normals (acrossArea): the free node's, then its next and
+      // previous corners' (the same for every trial of this update).
+      const bool tri = s_.mesh.elemType[e] == ElementType::Tri3 && s_.guarded(e);
+      Vec3 corners[3];
+      if (tri) {
+        Vec3* other = w_.otherNormals.data() + 2 * j;
+        if (!cur) {
+          other[0] = s_.cornerNormal(e, local == 2 ? 0 : local + 1);
+          other[1] = s_.cornerNormal(e, local == 0 ? 2 : local - 1);
+        }
+        corners[0] = nfree(j);
+        corners[1] = other[0];
+        corners[2] = other[1];
+      }
       // A high-order triangle's Jacobians without the free node's term: the same for every
       // trial of this update too.
       HighOrderJacobians* pre = nullptr;
@@ -1084,14 +1240,15 @@ class NodeUpdater {
       Vec3 ge;
       Mat3 He;
       Vec3 heUV = Vec3::Zero();
-      const ElemOut ev =
-          HUV ? s_.evalElementUV(e, local, x, nref, delta, needEta0, *T, &ge, &heUV, pre)
-              : s_.evalElement(e, local, x, nref, delta, needEta0, g ? &ge : nullptr,
-                               H ? &He : nullptr, pre);
+      const ElemOut ev = HUV ? s_.evalElementUV(e, local, x, nref, delta, needEta0, *T, &ge, &heUV,
+                                                pre, tri ? corners : nullptr)
+                             : s_.evalElement(e, local, x, nref, delta, needEta0, g ? &ge : nullptr,
+                                              H ? &He : nullptr, pre, tri ? corners : nullptr);
       if (cur) {
         w_.eta0[j] = ev.eta0;
         w_.sig[j] = ev.minSigma;
       }
+      if (ev.held) w_.heldAcross = true;
       if (ev.tangled) {
         ++r.tangled;
         if (cur && r.tangled > cur->tangled && !s_.relaxTangled) return reject();
@@ -1465,9 +1622,12 @@ class NodeUpdater {
     for (std::int64_t p = s_.begin(i); p < s_.end(i); ++p) {
       const std::size_t j = static_cast<std::size_t>(p - s_.begin(i));
       const std::size_t e = static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
-      if (s_.inc.local[static_cast<std::size_t>(p)] < cornerCount(s_.mesh.elemType[e])) {
+      const int local = s_.inc.local[static_cast<std::size_t>(p)];
+      if (local < cornerCount(s_.mesh.elemType[e])) {
         s_.fixedNormal[e] += w_.normals[j] - slotN[j];
         slotN[j] = w_.normals[j];
+        if (s_.cornerSlot[e] >= 0)
+          s_.cornerN[static_cast<std::size_t>(s_.cornerSlot[e] + local)] = w_.normals[j];
       }
     }
     commitElements(i);
@@ -1784,8 +1944,8 @@ void reportTangled(const SurfaceMesh& mesh, const MeshQuality& q, OptimizeResult
 /// One run. `before`, when given, is the quality the caller already measured on this mesh
 /// (the sliding phase starts from the held phase's result): it is not measured again.
 OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
-                            const ProgressCallback& progress,
-                            const QualityStats* before = nullptr) {
+                            const ProgressCallback& progress, const QualityStats* before,
+                            bool holdAcross) {
   const auto t0 = std::chrono::steady_clock::now();
   if (opt.maxSweeps < 0) throw std::invalid_argument("maxSweeps must be >= 0");
   if (!(opt.relTol >= 0.0) || !(opt.moveTol >= 0.0))
@@ -1806,7 +1966,7 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
   OptimizeResult res;
   res.before = before ? *before : measureQuality(mesh, measure).stats;
 
-  auto state = std::make_unique<State>(mesh, measure, opt);
+  auto state = std::make_unique<State>(mesh, measure, opt, holdAcross);
   State& s = *state;
   const std::size_t E = mesh.elementCount();
   const auto colors = colorNodes(mesh, s.inc);
@@ -2168,6 +2328,7 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
   }
   res.movedNodes = moved;
   res.patchUntanglings = s.patchUntanglings;
+  for (const auto& w : workers) res.heldAcross = res.heldAcross || w->heldAcross;
   res.straightenedElements = s.straightened;
   std::vector<Vec3> xyz = std::move(s.xyz);
   std::vector<Vec2> uv = std::move(s.uv);
@@ -2193,13 +2354,67 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
   return res;
 }
 
+/// optimizeOnce holding linear triangles from standing across their surface (acrossArea). Where
+/// that leaves tangled elements a node may move, a second run without the hold starts from its
+/// result: untangling comes first (e.g. an element folded where the surface turns too fast to
+/// untangle it otherwise). A cancelled second run leaves the mesh as it was before the first.
+OptimizeResult optimizeHolding(SurfaceMesh& mesh, const OptimizeOptions& opt,
+                               const ProgressCallback& progress, const QualityStats* before) {
+  const std::vector<Vec3> xyz0 = mesh.xyz;
+  const std::vector<Vec2> uv0 = mesh.uv;
+  const std::vector<double> t0s = mesh.nodeT;
+  const std::vector<Vec2> corner0 = mesh.cornerUV;
+  int offset = 0;
+  ProgressCallback shifted;
+  if (progress)
+    shifted = [&](const OptimizeProgress& p) {
+      OptimizeProgress q = p;
+      q.sweep += offset;
+      q.maxSweeps += offset;
+      return progress(q);
+    };
+  OptimizeResult held = optimizeOnce(mesh, opt, shifted, before, true);
+  if (held.reason == StopReason::Cancelled || held.tangledMovable.empty() || !held.heldAcross)
+    return held;
+  offset = held.sweeps;
+  OptimizeResult res;
+  try {
+    res = optimizeOnce(mesh, opt, shifted, &held.after, false);
+  } catch (...) {
+    mesh.xyz = xyz0;
+    mesh.uv = uv0;
+    mesh.nodeT = t0s;
+    mesh.cornerUV = corner0;
+    throw;
+  }
+  if (res.reason == StopReason::Cancelled) {
+    mesh.xyz = xyz0;
+    mesh.uv = uv0;
+    mesh.nodeT = t0s;
+    mesh.cornerUV = corner0;
+    res.after = held.before;
+  }
+  res.before = held.before;
+  res.sweeps += held.sweeps;
+  res.patchUntanglings += held.patchUntanglings;
+  res.straightenedElements += held.straightenedElements;
+  res.heldAcross = true;
+  res.initialObjective = held.initialObjective;
+  if (res.reason == StopReason::NothingToDo) res.reason = held.reason;
+  res.movedNodes = 0;
+  for (std::size_t i = 0; i < mesh.nodeCount(); ++i)
+    if (mesh.xyz[i] != xyz0[i]) ++res.movedNodes;
+  res.seconds += held.seconds;
+  return res;
+}
+
 }  // namespace
 
 OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
                             const ProgressCallback& progress, const QualityStats* before) {
   const bool sliding =
       std::find(mesh.nodeKind.begin(), mesh.nodeKind.end(), NodeKind::Edge) != mesh.nodeKind.end();
-  if (!sliding || opt.maxSweeps == 0) return optimizeOnce(mesh, opt, progress, before);
+  if (!sliding || opt.maxSweeps == 0) return optimizeHolding(mesh, opt, progress, before);
   // Sliding edge nodes: first the run with them held (the fixed boundary), then the run that
   // lets them slide from there. The second run never increases the number of tangled elements
   // and (monotone) never lowers the minimum quality of a valid mesh, so sliding never ends
@@ -2229,7 +2444,7 @@ OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
   for (NodeKind& k : mesh.nodeKind)
     if (k == NodeKind::Edge) k = NodeKind::Fixed;
   try {
-    held = optimizeOnce(mesh, opt, phased, before);
+    held = optimizeHolding(mesh, opt, phased, before);
   } catch (...) {
     mesh.nodeKind = kinds;
     throw;
@@ -2239,7 +2454,7 @@ OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
   offset = held.sweeps;
   OptimizeResult res;
   try {
-    res = optimizeOnce(mesh, opt, phased, &held.after);
+    res = optimizeHolding(mesh, opt, phased, &held.after);
   } catch (...) {
     restoreInput();
     throw;
@@ -2252,6 +2467,7 @@ OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
   res.sweeps += held.sweeps;
   res.patchUntanglings += held.patchUntanglings;
   res.straightenedElements += held.straightenedElements;
+  res.heldAcross = res.heldAcross || held.heldAcross;
   res.initialObjective = held.initialObjective;
   if (res.reason == StopReason::NothingToDo) res.reason = held.reason;
   res.movedNodes = 0;

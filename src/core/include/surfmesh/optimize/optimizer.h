@@ -46,6 +46,17 @@
 // ε tried twice), the elements still tangled: their nodes are held from then on,
 // the rest of the mesh is smoothed with δ = 0, and they are reported in tangledMovable.
 //
+// Triangles standing across the surface (standsAcross): a linear triangle is measured in its
+// own plane, oriented by the sum of its corner normals, so one whose plane cuts through a thin
+// tube can be valid and well shaped. Every linear triangle that neither stands across its
+// surface nor leans more than about 84° from it at a corner at the start of the run (or is
+// tangled and wound against every corner, with a Face corner) and has no sliding node is held
+// from becoming so: its σ follows the surface's normal at its corners there and is ≤ 0 —
+// tangled for the run — when it is wound against one (see acrossArea in optimizer.cpp). The
+// quality report keeps the paper's σ. Where the held run leaves tangled elements a node may
+// move, and the hold acted (OptimizeResult::heldAcross), a second run without it follows from
+// its result: untangling comes first.
+//
 // Guarantees: the number of tangled elements of a node's submesh never increases (so the
 // mesh's never does); in monotone mode the minimum quality of a valid mesh never decreases
 // (see OptimizeOptions::monotone); Face nodes stay exactly at φ(u,v) inside the surface's
@@ -159,6 +170,11 @@ struct OptimizeResult {
   /// interpolation of its corners (straight sides in (u,v)), kept when fewer elements around
   /// them are tangled. Tried before the first sweep and between stalled sweeps.
   std::size_t straightenedElements = 0;
+  /// Whether the run held a linear triangle from standing across its surface: a node move
+  /// was weighed with the triangle leaning more than about 84° from the surface's normal at
+  /// a corner (see the optimizer's acrossArea). Where the held run leaves tangled elements a
+  /// node may move, a second run without the hold follows.
+  bool heldAcross = false;
   /// Elements tangled after the run that fold where no node that may move acts (none of
   /// their nodes may move, or see the held folds above): no node motion can repair them.
   std::vector<std::int32_t> tangledUnmovable;
