@@ -490,9 +490,10 @@ struct State {
   std::vector<Vec3> fixedNormal;
   std::vector<std::uint8_t> faceCorners;  // bit k: corner k of element e is a Face node
   // The surface's normal at the corners of the linear triangles with a corner that is not a
-  // Face node (acrossArea): 3 per such triangle from cornerSlot[e] (−1: none), current for
-  // sliding nodes (commitEdgeMove); Face corners' entries are unused (nodeNormal holds them).
-  std::vector<std::int32_t> cornerSlot;
+  // Face node (acrossArea): cornerElems lists those triangles in increasing order, cornerN
+  // holds 3 normals per entry, current for sliding nodes (commitEdgeMove); Face corners'
+  // entries are unused (nodeNormal holds them). No per-element array: most elements have none.
+  std::vector<std::int32_t> cornerElems;
   std::vector<Vec3> cornerN;
   std::vector<double> elemSize;  // √(mean squared corner edge length), frozen per sweep
   // Size² that scales δ for element e: the input's corner scales averaged over the elements
@@ -563,7 +564,6 @@ struct State {
     }
     fixedNormal.assign(E, Vec3::Zero());
     faceCorners.assign(E, 0);
-    cornerSlot.assign(E, -1);
     for (std::size_t e = 0; e < E; ++e) {
       const int nc = cornerCount(m.elemType[e]);
       const std::int32_t* nd = m.elementNodes(e);
@@ -572,11 +572,11 @@ struct State {
           const Vec3 nk = m.referenceNormal(m.elemFace[e], m.elementUV(e)[k]);
           fixedNormal[e] += nk;
           if (m.elemType[e] == ElementType::Tri3) {
-            if (cornerSlot[e] < 0) {
-              cornerSlot[e] = static_cast<std::int32_t>(cornerN.size());
+            if (cornerElems.empty() || cornerElems.back() != static_cast<std::int32_t>(e)) {
+              cornerElems.push_back(static_cast<std::int32_t>(e));
               cornerN.resize(cornerN.size() + 3, Vec3::Zero());
             }
-            cornerN[static_cast<std::size_t>(cornerSlot[e] + k)] = nk;
+            cornerN[cornerN.size() - 3 + static_cast<std::size_t>(k)] = nk;
           }
         } else {
           faceCorners[e] = static_cast<std::uint8_t>(faceCorners[e] | (1u << k));
@@ -780,7 +780,15 @@ struct State {
   const Vec3& cornerNormal(std::size_t e, int k) const {
     if ((faceCorners[e] >> k) & 1u)
       return nodeNormal[static_cast<std::size_t>(mesh.elementNodes(e)[k])];
-    return cornerN[static_cast<std::size_t>(cornerSlot[e] + k)];
+    return cornerN[static_cast<std::size_t>(cornerSlot(e) + k)];
+  }
+
+  /// First index in cornerN of element e's corner normals (−1: e is not in cornerElems).
+  std::int64_t cornerSlot(std::size_t e) const {
+    const auto it =
+        std::lower_bound(cornerElems.begin(), cornerElems.end(), static_cast<std::int32_t>(e));
+    if (it == cornerElems.end() || *it != static_cast<std::int32_t>(e)) return -1;
+    return 3 * static_cast<std::int64_t>(it - cornerElems.begin());
   }
 };
 
@@ -1626,8 +1634,8 @@ class NodeUpdater {
       if (local < cornerCount(s_.mesh.elemType[e])) {
         s_.fixedNormal[e] += w_.normals[j] - slotN[j];
         slotN[j] = w_.normals[j];
-        if (s_.cornerSlot[e] >= 0)
-          s_.cornerN[static_cast<std::size_t>(s_.cornerSlot[e] + local)] = w_.normals[j];
+        const std::int64_t slot = s_.cornerSlot(e);
+        if (slot >= 0) s_.cornerN[static_cast<std::size_t>(slot + local)] = w_.normals[j];
       }
     }
     commitElements(i);
@@ -1941,11 +1949,29 @@ void reportTangled(const SurfaceMesh& mesh, const MeshQuality& q, OptimizeResult
                             ids(res->tangledMovable) + ")");
 }
 
+/// A mesh's node positions and parameters (see optimizeOnce's `previous`).
+struct MeshPositions {
+  std::vector<Vec3> xyz;
+  std::vector<Vec2> uv;
+  std::vector<double> nodeT;
+  std::vector<Vec2> cornerUV;
+  bool empty() const { return xyz.empty(); }
+  void restore(SurfaceMesh& mesh) {
+    mesh.xyz = std::move(xyz);
+    mesh.uv = std::move(uv);
+    if (!mesh.nodeT.empty()) mesh.nodeT = std::move(nodeT);
+    mesh.cornerUV = std::move(cornerUV);
+  }
+};
+
 /// One run. `before`, when given, is the quality the caller already measured on this mesh
 /// (the sliding phase starts from the held phase's result): it is not measured again.
+/// `holdAcross`: hold linear triangles from standing across their surface (acrossArea).
+/// `previous`, when given, receives the positions the mesh had before a completed run (the
+/// arrays the run replaced: no copy).
 OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
                             const ProgressCallback& progress, const QualityStats* before,
-                            bool holdAcross) {
+                            bool holdAcross, MeshPositions* previous = nullptr) {
   const auto t0 = std::chrono::steady_clock::now();
   if (opt.maxSweeps < 0) throw std::invalid_argument("maxSweeps must be >= 0");
   if (!(opt.relTol >= 0.0) || !(opt.moveTol >= 0.0))
@@ -2350,6 +2376,12 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
     exchange();  // back to the input
     throw;
   }
+  if (previous) {
+    previous->xyz = std::move(xyz);
+    previous->uv = std::move(uv);
+    if (!mesh.nodeT.empty()) previous->nodeT = std::move(t);
+    previous->cornerUV = std::move(cornerUV);
+  }
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return res;
 }
@@ -2360,10 +2392,7 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
 /// untangle it otherwise). A cancelled second run leaves the mesh as it was before the first.
 OptimizeResult optimizeHolding(SurfaceMesh& mesh, const OptimizeOptions& opt,
                                const ProgressCallback& progress, const QualityStats* before) {
-  const std::vector<Vec3> xyz0 = mesh.xyz;
-  const std::vector<Vec2> uv0 = mesh.uv;
-  const std::vector<double> t0s = mesh.nodeT;
-  const std::vector<Vec2> corner0 = mesh.cornerUV;
+  MeshPositions input;  // kept (no copy: the arrays the first run replaced) for a second run
   int offset = 0;
   ProgressCallback shifted;
   if (progress)
@@ -2373,7 +2402,7 @@ OptimizeResult optimizeHolding(SurfaceMesh& mesh, const OptimizeOptions& opt,
       q.maxSweeps += offset;
       return progress(q);
     };
-  OptimizeResult held = optimizeOnce(mesh, opt, shifted, before, true);
+  OptimizeResult held = optimizeOnce(mesh, opt, shifted, before, true, &input);
   if (held.reason == StopReason::Cancelled || held.tangledMovable.empty() || !held.heldAcross)
     return held;
   offset = held.sweeps;
@@ -2381,17 +2410,11 @@ OptimizeResult optimizeHolding(SurfaceMesh& mesh, const OptimizeOptions& opt,
   try {
     res = optimizeOnce(mesh, opt, shifted, &held.after, false);
   } catch (...) {
-    mesh.xyz = xyz0;
-    mesh.uv = uv0;
-    mesh.nodeT = t0s;
-    mesh.cornerUV = corner0;
+    if (!input.empty()) input.restore(mesh);
     throw;
   }
   if (res.reason == StopReason::Cancelled) {
-    mesh.xyz = xyz0;
-    mesh.uv = uv0;
-    mesh.nodeT = t0s;
-    mesh.cornerUV = corner0;
+    if (!input.empty()) input.restore(mesh);
     res.after = held.before;
   }
   res.before = held.before;
@@ -2402,8 +2425,8 @@ OptimizeResult optimizeHolding(SurfaceMesh& mesh, const OptimizeOptions& opt,
   res.initialObjective = held.initialObjective;
   if (res.reason == StopReason::NothingToDo) res.reason = held.reason;
   res.movedNodes = 0;
-  for (std::size_t i = 0; i < mesh.nodeCount(); ++i)
-    if (mesh.xyz[i] != xyz0[i]) ++res.movedNodes;
+  for (std::size_t i = 0; !input.empty() && i < mesh.nodeCount(); ++i)
+    if (mesh.xyz[i] != input.xyz[i]) ++res.movedNodes;
   res.seconds += held.seconds;
   return res;
 }
