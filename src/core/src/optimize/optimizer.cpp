@@ -2386,6 +2386,36 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
   return res;
 }
 
+/// A run that continues the completed run `first` on the same mesh: `run` (whose sweeps the
+/// progress callback numbers after first's). An exception or a cancellation puts `input` (the
+/// positions before `first`) back; the result covers both runs, its seconds those of `run`.
+template <class Run>
+OptimizeResult continueRun(SurfaceMesh& mesh, const OptimizeResult& first, MeshPositions& input,
+                           Run run) {
+  OptimizeResult res;
+  try {
+    res = run();
+  } catch (...) {
+    if (!input.empty()) input.restore(mesh);
+    throw;
+  }
+  if (res.reason == StopReason::Cancelled) {
+    if (!input.empty()) input.restore(mesh);
+    res.after = first.before;
+  }
+  res.before = first.before;
+  res.sweeps += first.sweeps;
+  res.patchUntanglings += first.patchUntanglings;
+  res.straightenedElements += first.straightenedElements;
+  res.heldAcross = res.heldAcross || first.heldAcross;
+  res.initialObjective = first.initialObjective;
+  if (res.reason == StopReason::NothingToDo) res.reason = first.reason;
+  res.movedNodes = 0;
+  for (std::size_t i = 0; !input.empty() && i < mesh.nodeCount(); ++i)
+    if (mesh.xyz[i] != input.xyz[i]) ++res.movedNodes;
+  return res;
+}
+
 /// optimizeOnce holding linear triangles from standing across their surface (acrossArea). Where
 /// that leaves tangled elements a node may move, a second run without the hold starts from its
 /// result: untangling comes first (e.g. an element folded where the surface turns too fast to
@@ -2406,27 +2436,8 @@ OptimizeResult optimizeHolding(SurfaceMesh& mesh, const OptimizeOptions& opt,
   if (held.reason == StopReason::Cancelled || held.tangledMovable.empty() || !held.heldAcross)
     return held;
   offset = held.sweeps;
-  OptimizeResult res;
-  try {
-    res = optimizeOnce(mesh, opt, shifted, &held.after, false);
-  } catch (...) {
-    if (!input.empty()) input.restore(mesh);
-    throw;
-  }
-  if (res.reason == StopReason::Cancelled) {
-    if (!input.empty()) input.restore(mesh);
-    res.after = held.before;
-  }
-  res.before = held.before;
-  res.sweeps += held.sweeps;
-  res.patchUntanglings += held.patchUntanglings;
-  res.straightenedElements += held.straightenedElements;
-  res.heldAcross = true;
-  res.initialObjective = held.initialObjective;
-  if (res.reason == StopReason::NothingToDo) res.reason = held.reason;
-  res.movedNodes = 0;
-  for (std::size_t i = 0; !input.empty() && i < mesh.nodeCount(); ++i)
-    if (mesh.xyz[i] != input.xyz[i]) ++res.movedNodes;
+  OptimizeResult res = continueRun(
+      mesh, held, input, [&] { return optimizeOnce(mesh, opt, shifted, &held.after, false); });
   res.seconds += held.seconds;
   return res;
 }
@@ -2444,16 +2455,7 @@ OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
   // worse than the fixed boundary would in those two respects.
   const auto t0 = std::chrono::steady_clock::now();
   const std::vector<NodeKind> kinds = mesh.nodeKind;
-  const std::vector<Vec3> xyz0 = mesh.xyz;
-  const std::vector<Vec2> uv0 = mesh.uv;
-  const std::vector<double> t0s = mesh.nodeT;
-  const std::vector<Vec2> corner0 = mesh.cornerUV;
-  auto restoreInput = [&]() {
-    mesh.xyz = xyz0;
-    mesh.uv = uv0;
-    mesh.nodeT = t0s;
-    mesh.cornerUV = corner0;
-  };
+  MeshPositions input{mesh.xyz, mesh.uv, mesh.nodeT, mesh.cornerUV};
   int offset = 0;
   ProgressCallback phased;
   if (progress)
@@ -2475,27 +2477,8 @@ OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
   mesh.nodeKind = kinds;
   if (held.reason == StopReason::Cancelled) return held;  // the mesh was never touched
   offset = held.sweeps;
-  OptimizeResult res;
-  try {
-    res = optimizeHolding(mesh, opt, phased, &held.after);
-  } catch (...) {
-    restoreInput();
-    throw;
-  }
-  if (res.reason == StopReason::Cancelled) {
-    restoreInput();
-    res.after = held.before;
-  }
-  res.before = held.before;
-  res.sweeps += held.sweeps;
-  res.patchUntanglings += held.patchUntanglings;
-  res.straightenedElements += held.straightenedElements;
-  res.heldAcross = res.heldAcross || held.heldAcross;
-  res.initialObjective = held.initialObjective;
-  if (res.reason == StopReason::NothingToDo) res.reason = held.reason;
-  res.movedNodes = 0;
-  for (std::size_t i = 0; i < mesh.nodeCount(); ++i)
-    if (mesh.xyz[i] != xyz0[i]) ++res.movedNodes;
+  OptimizeResult res = continueRun(mesh, held, input,
+                                   [&] { return optimizeHolding(mesh, opt, phased, &held.after); });
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return res;
 }
