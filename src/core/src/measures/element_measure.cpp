@@ -1,5 +1,7 @@
 #include "surfmesh/measures/element_measure.h"
 
+#include "surfmesh/measures/lagrange_triangle.h"
+
 #include <cmath>
 #include <limits>
 
@@ -276,19 +278,30 @@ Vec3 elementReferenceNormal(const SurfaceMesh& mesh, std::size_t e,
 
 bool standsAcross(ElementType type, const Vec3* x, const Vec3* cornerNormals) {
   const int nc = cornerCount(type);
-  HighOrderJacobians ho;
-  if (type != ElementType::Tri3 && type != ElementType::Quad4) highOrderJacobians(type, x, -1, &ho);
+  // A high-order triangle's tangent plane at a corner: its Jacobian there (the corners alone,
+  // not every node and quadrature point as highOrderJacobians).
+  const HighOrderTriangleRule* rule = type != ElementType::Tri3 && type != ElementType::Quad4
+                                          ? &highOrderTriangleRule(elementOrder(type))
+                                          : nullptr;
   bool along = false, against = false;
   for (int k = 0; k < nc; ++k) {
     const Vec3& n = cornerNormals[k];
     if (!(n.squaredNorm() > 0.0)) continue;
     Vec3 c;
-    if (type == ElementType::Tri3)
+    if (type == ElementType::Tri3) {
       c = (x[1] - x[0]).cross(x[2] - x[0]);
-    else if (type == ElementType::Quad4)
+    } else if (type == ElementType::Quad4) {
       c = (x[(k + 1) % 4] - x[k]).cross(x[(k + 3) % 4] - x[k]);
-    else
-      c = ho.atNode[k].col(0).cross(ho.atNode[k].col(1));
+    } else {
+      const Eigen::Vector2d* g =
+          rule->gradAtNode.data() + static_cast<std::size_t>(k) * rule->nodes;
+      Vec3 dxi = Vec3::Zero(), deta = Vec3::Zero();
+      for (int i = 0; i < rule->nodes; ++i) {
+        dxi += g[i].x() * x[i];
+        deta += g[i].y() * x[i];
+      }
+      c = dxi.cross(deta);
+    }
     if (c.dot(n) > 0.0)
       along = true;
     else
