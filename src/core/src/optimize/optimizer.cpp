@@ -190,8 +190,11 @@ struct NodeD2 {
 /// One element's distortion with the free node at local index `local`, evaluated at δ and
 /// (when asked) at δ = 0 for the quality.
 struct ElemOut {
-  double eta = 1.0;   // η with the sweep's δ (+∞ when δ = 0 and tangled)
-  double eta0 = 1.0;  // η with δ = 0 (+∞ when tangled), filled when wantEta0
+  double eta = 1.0;  // η with the sweep's δ (+∞ when δ = 0 and tangled)
+  // η with δ = 0 (+∞ when tangled), filled when wantEta0. A triangle tangled only by the
+  // across hold (held, wound along the surface by the paper's σ) gets the paper's η: the
+  // progress reports count it as the quality report will.
+  double eta0 = 1.0;
   double minSigma = 0.0;
   bool tangled = false;
   bool held = false;  // σ from acrossArea (the triangle leans across its surface)
@@ -288,6 +291,12 @@ inline ElemOut triangleCore(const PlanarMeasure& m, const Vec3& x0, const Vec3& 
   }
   const double orient = c.dot(n);
   const double nlen = n.norm();
+  // η at δ = 0 of a tangled triangle (see ElemOut::eta0): the paper's, when only the hold
+  // made it tangled.
+  auto tangledEta0 = [&]() {
+    const double s0 = kDetWinv * cn;
+    return (r.held && orient > 0.0 && s0 > 0.0) ? m.invariantValue(F, s0, s0) : kInf;
+  };
   if (projected && nlen > 0.0) {
     // σ of the triangle projected on the plane normal to n: continuous through a triangle
     // standing across the surface (where ±‖c‖ jumps), linear in x0.
@@ -310,12 +319,12 @@ inline ElemOut triangleCore(const PlanarMeasure& m, const Vec3& x0, const Vec3& 
     if (!pieces) {
       r.eta = m.invariantValue(F, sigma, sigmaStar);
       if (r.tangled && delta == 0.0) r.eta = kInf;
-      r.eta0 = r.tangled ? kInf : m.invariantValue(F, sigma, sigma);
+      r.eta0 = r.tangled ? tangledEta0() : m.invariantValue(F, sigma, sigma);
       return r;
     }
     const InvariantDerivs d = m.invariants(F, sigma, regularizedSigma(sigma, delta));
     r.eta = d.h;
-    r.eta0 = r.tangled ? kInf : m.invariants(F, sigma, regularizedSigma(sigma, 0.0)).h;
+    r.eta0 = r.tangled ? tangledEta0() : m.invariants(F, sigma, regularizedSigma(sigma, 0.0)).h;
     TriPieces& P = *pieces;
     P.d = d;
     P.gF = -2.0 * (J0 + K1 * kInvSqrt3);
@@ -336,20 +345,21 @@ inline ElemOut triangleCore(const PlanarMeasure& m, const Vec3& x0, const Vec3& 
   r.tangled = !(sigma > 0.0);
   r.held = across >= 0;
   if (r.tangled && delta == 0.0) {
-    r.eta = r.eta0 = kInf;
+    r.eta = kInf;
+    r.eta0 = wantEta0 ? tangledEta0() : kInf;
     return r;
   }
   if (!pieces) {  // a value: line-search trials, whole-mesh sums
     r.eta = m.invariantValue(F, sigma, regularizedSigmaValue(sigma, delta));
     if (wantEta0)
-      r.eta0 = delta == 0.0 ? r.eta : r.tangled ? kInf : m.invariantValue(F, sigma, sigma);
+      r.eta0 = delta == 0.0 ? r.eta : r.tangled ? tangledEta0() : m.invariantValue(F, sigma, sigma);
     return r;
   }
   const InvariantDerivs d = m.invariants(F, sigma, regularizedSigma(sigma, delta));
   r.eta = d.h;
   if (wantEta0)
     r.eta0 = delta == 0.0 ? d.h
-             : r.tangled  ? kInf
+             : r.tangled  ? tangledEta0()
                           : m.invariants(F, sigma, regularizedSigma(sigma, 0.0)).h;
   {
     // β = W⁻ᵀ b = (−1, −1/√3); ∂F/∂x0 = 2 K β; w = x2 − x1; ∂σ/∂x0 = det W⁻¹ ν × w.
@@ -1813,6 +1823,10 @@ struct GlobalEval {
   double heldMinSigma = kInf;
   double minQuality = 1.0;
   double minValidMovable = 1.0;  // lowest quality of the valid elements with a movable node
+  // The progress reports' view, the quality report's: the triangles tangled only by the across
+  // hold (counted in tangled or frozenTangled) are valid there, with the paper's quality.
+  std::size_t leaning = 0;
+  double reportMinQuality = 1.0;
 };
 
 /// Whether element e (nodes at `xyz`, reference normal n) folds where no node that may move
@@ -2059,6 +2073,12 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
     for (std::size_t e = 0; e < E; ++e) {
       const double et = s.eta0[e];
       const bool tangled = cachedTangled(e);
+      if (tangled && std::isfinite(et)) {  // tangled by the hold only (ElemOut::eta0)
+        ++g.leaning;
+        g.reportMinQuality = std::min(g.reportMinQuality, 1.0 / et);
+      } else {
+        g.reportMinQuality = std::min(g.reportMinQuality, tangled ? 0.0 : 1.0 / et);
+      }
       if (frozen[e] && tangled) {
         ++g.frozenTangled;
         if (held[e]) g.heldMinSigma = std::min(g.heldMinSigma, s.minSigma[e]);
@@ -2239,23 +2259,6 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
     }
     res.sweeps = sweep;
     g = s.deltaHat > 0.0 ? fullEval(s.deltaHat) : cachedEval();
-    const double fEnd = s.deltaHat > 0.0 ? g.objective : g.objective0;
-    res.finalObjective = fEnd;
-    if (progress) {
-      OptimizeProgress pr;
-      pr.sweep = sweep;
-      pr.maxSweeps = opt.maxSweeps;
-      pr.objective = fEnd;
-      pr.tangled = g.tangled + g.frozenTangled;
-      pr.minQuality = g.frozenTangled > 0 ? 0.0 : g.minQuality;
-      pr.delta = s.deltaHat;
-      if (!progress(pr)) {
-        res.reason = StopReason::Cancelled;
-        res.after = res.before;
-        res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        return res;  // the mesh was never touched
-      }
-    }
     // Sweeps in a row that left more tangled elements than the best so far.
     stuckSweeps = (g.tangled > 0 && g.tangled >= bestTangled) ? stuckSweeps + 1 : 0;
     if (stuckSweeps > 0) {
@@ -2263,6 +2266,25 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
       std::size_t gained = s.allTri3 ? 0 : up.straightenHighOrder(noEscape, true);
       gained += up.escapeTangledElements(noEscape, stuckSweeps >= 3, sweep, epsilonLevel);
       if (gained > 0) g = fullEval(s.deltaHat);  // stuck elements untangled by joint moves
+    }
+    // The report comes after the escapes: it describes the mesh as the sweep leaves it (the
+    // mesh a run stopped here returns).
+    const double fEnd = s.deltaHat > 0.0 ? g.objective : g.objective0;
+    res.finalObjective = fEnd;
+    if (progress) {
+      OptimizeProgress pr;
+      pr.sweep = sweep;
+      pr.maxSweeps = opt.maxSweeps;
+      pr.objective = fEnd;
+      pr.tangled = g.tangled + g.frozenTangled - g.leaning;
+      pr.minQuality = g.reportMinQuality;
+      pr.delta = s.deltaHat;
+      if (!progress(pr)) {
+        res.reason = StopReason::Cancelled;
+        res.after = res.before;
+        res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        return res;  // the mesh was never touched
+      }
     }
     if (g.tangled < fewestTangled) {
       fewestTangled = g.tangled;

@@ -138,7 +138,9 @@ struct OptimizeOptions {
 enum class StopReason { Converged, MaxSweeps, Cancelled, NothingToDo };
 const char* stopReasonName(StopReason r);
 
-/// Reported after every sweep; return false from the callback to cancel the run.
+/// Reported after every sweep (and the escapes that follow it), of the mesh as the sweep leaves
+/// it, counted as the quality report counts (a triangle only the across hold counts as tangled
+/// in the run is valid here); return false from the callback to cancel the run.
 struct OptimizeProgress {
   int sweep = 0;
   int maxSweeps = 0;
