@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <stdexcept>
 
 using namespace surfmesh;
 using namespace surfmesh::testmesh;
@@ -228,7 +229,8 @@ TEST(Optimizer, UntanglingAThinTubeStandsNoElementAcrossIt) {
 // leaves it: a run stopped after any sweep returns a mesh whose quality report says the same.
 // Checked on the thin tube, whose runs take the escapes between sweeps (before, the report came
 // ahead of them: seeds 1, 2, 3, 7, 9, 10 stopped after 3 to 9 sweeps reported 1–5 tangled
-// elements the returned mesh did not have) and hand over to a second run without the hold.
+// elements the returned mesh did not have) and hand over to a second run without the hold,
+// which, cancelled or failing, restores the input.
 TEST(Optimizer, TheLastProgressReportDescribesTheMeshTheRunReturns) {
   const double r = 2.0, h = 40.0;
   const CylinderSurface tube(r, 0, h);
@@ -254,7 +256,32 @@ TEST(Optimizer, TheLastProgressReportDescribesTheMeshTheRunReturns) {
       EXPECT_EQ(last.tangled, q.stats.tangled) << "seed " << seed << ", " << k << " sweeps";
       EXPECT_NEAR(last.minQuality, q.stats.min, 1e-9) << "seed " << seed << ", " << k << " sweeps";
       if (q.stats.tangled > 0) ++stoppedTangled;
-      if (calls > k) ++secondRuns;
+      if (calls > k) {
+        // The held run stopped with tangled elements and a run without the hold followed:
+        // cancelling that one, or an error in it, gives the input back untouched.
+        ++secondRuns;
+        for (int mode = 0; mode < 2; ++mode) {
+          Case again = makeCase(tube, g, 120, 1.0, seed);
+          const SurfaceMesh input = again.mesh;
+          int n = 0;
+          auto cb = [&](const OptimizeProgress&) {
+            if (++n <= k) return true;
+            if (mode == 1) throw std::runtime_error("stop");
+            return false;
+          };
+          if (mode == 0) {
+            const OptimizeResult rc = optimizeMesh(again.mesh, opt, cb);
+            EXPECT_EQ(rc.reason, StopReason::Cancelled) << "seed " << seed;
+            EXPECT_EQ(rc.after.tangled, rc.before.tangled) << "seed " << seed;
+          } else {
+            EXPECT_THROW(optimizeMesh(again.mesh, opt, cb), std::runtime_error);
+          }
+          EXPECT_EQ(n, k + 1) << "seed " << seed;
+          EXPECT_EQ(again.mesh.xyz, input.xyz) << "seed " << seed << " mode " << mode;
+          EXPECT_EQ(again.mesh.uv, input.uv) << "seed " << seed << " mode " << mode;
+          EXPECT_EQ(again.mesh.cornerUV, input.cornerUV) << "seed " << seed << " mode " << mode;
+        }
+      }
       if (res.reason != StopReason::MaxSweeps) break;
     }
   }
