@@ -284,6 +284,16 @@ TEST(SurfaceMeasure, ElementsStandingAcrossTheSurfaceAreCounted) {
   // it and the others along theirs.
   const Vec3 upDown[4] = {Vec3::UnitZ(), Vec3::UnitZ(), -Vec3::UnitZ(), Vec3::UnitZ()};
   EXPECT_TRUE(standsAcross(ElementType::Quad4, q, upDown));
+  // Which ways: along only, against only (the flipped square), both, neither.
+  const Vec3 down[4] = {-Vec3::UnitZ(), -Vec3::UnitZ(), -Vec3::UnitZ(), -Vec3::UnitZ()};
+  const CornerSides s1 = cornerSides(ElementType::Quad4, q, up),
+                    s2 = cornerSides(ElementType::Quad4, q, down),
+                    s3 = cornerSides(ElementType::Tri3, x, nk),
+                    s4 = cornerSides(ElementType::Tri3, x, none);
+  EXPECT_TRUE(s1.along && !s1.against);
+  EXPECT_TRUE(!s2.along && s2.against);
+  EXPECT_TRUE(s3.along && s3.against);
+  EXPECT_TRUE(!s4.along && !s4.against);
 }
 
 TEST(SurfaceMeasure, RestrictedDerivativesOnTorusMatchFiniteDifferences) {

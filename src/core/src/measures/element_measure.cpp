@@ -276,14 +276,14 @@ Vec3 elementReferenceNormal(const SurfaceMesh& mesh, std::size_t e,
   return len > 0.0 ? Vec3(n / len) : Vec3::Zero();
 }
 
-bool standsAcross(ElementType type, const Vec3* x, const Vec3* cornerNormals) {
+CornerSides cornerSides(ElementType type, const Vec3* x, const Vec3* cornerNormals) {
   const int nc = cornerCount(type);
   // A high-order triangle's tangent plane at a corner: its Jacobian there (the corners alone,
   // not every node and quadrature point as highOrderJacobians).
   const HighOrderTriangleRule* rule = type != ElementType::Tri3 && type != ElementType::Quad4
                                           ? &highOrderTriangleRule(elementOrder(type))
                                           : nullptr;
-  bool along = false, against = false;
+  CornerSides r;
   for (int k = 0; k < nc; ++k) {
     const Vec3& n = cornerNormals[k];
     if (!(n.squaredNorm() > 0.0)) continue;
@@ -303,11 +303,16 @@ bool standsAcross(ElementType type, const Vec3* x, const Vec3* cornerNormals) {
       c = dxi.cross(deta);
     }
     if (c.dot(n) > 0.0)
-      along = true;
+      r.along = true;
     else
-      against = true;
+      r.against = true;
   }
-  return along && against;
+  return r;
+}
+
+bool standsAcross(ElementType type, const Vec3* x, const Vec3* cornerNormals) {
+  const CornerSides s = cornerSides(type, x, cornerNormals);
+  return s.along && s.against;
 }
 
 }  // namespace surfmesh

@@ -598,18 +598,14 @@ struct State {
     for (std::size_t e = 0; holdAcross && e < E; ++e) {
       if (m.elemType[e] != ElementType::Tri3) continue;
       const std::int32_t* nd = m.elementNodes(e);
-      Vec3 corners[3], nsum = Vec3::Zero();
-      for (int k = 0; k < 3; ++k) {
-        corners[k] = cornerNormal(e, k);
-        nsum += corners[k];
-      }
-      const Vec3 c =
-          (xyz[static_cast<std::size_t>(nd[1])] - xyz[static_cast<std::size_t>(nd[0])])
-              .cross(xyz[static_cast<std::size_t>(nd[2])] - xyz[static_cast<std::size_t>(nd[0])]);
+      Vec3 corners[3];
+      for (int k = 0; k < 3; ++k) corners[k] = cornerNormal(e, k);
+      const Vec3 x[3] = {xyz[static_cast<std::size_t>(nd[0])], xyz[static_cast<std::size_t>(nd[1])],
+                         xyz[static_cast<std::size_t>(nd[2])]};
+      const Vec3 c = (x[1] - x[0]).cross(x[2] - x[0]);
       const double cn = c.norm();
-      bool along = false, against = false;
-      for (const Vec3& nk : corners)
-        if (nk.squaredNorm() > 0.0) (c.dot(nk) > 0.0 ? along : against) = true;
+      const CornerSides sides = cornerSides(ElementType::Tri3, x, corners);
+      const bool along = sides.along, against = sides.against;
       int which;
       double slope;
       // Valid, not standing across and not leaning; or tangled (wound against every corner)

@@ -167,4 +167,13 @@ Vec3 elementReferenceNormal(const SurfaceMesh& mesh, std::size_t e,
 /// find it well shaped. Gmsh's own meshes of CAD parts have some (at small fillets and holes).
 bool standsAcross(ElementType type, const Vec3* x, const Vec3* cornerNormals);
 
+/// Which ways the element's plane (as in standsAcross) is wound against the surface's normal
+/// at its corners: along it (c·n_k > 0) at some corner, against it (c·n_k ≤ 0) at some corner.
+/// Neither when every corner normal is zero. standsAcross is along && against.
+struct CornerSides {
+  bool along = false;
+  bool against = false;
+};
+CornerSides cornerSides(ElementType type, const Vec3* x, const Vec3* cornerNormals);
+
 }  // namespace surfmesh
