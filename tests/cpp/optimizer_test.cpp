@@ -168,6 +168,17 @@ TEST(Optimizer, CylinderWithBoundaryCirclesUntangles) {
   }
 }
 
+const double kTubeRadius = 2.0, kTubeLength = 40.0;
+
+/// A thin tube's structured grid (a cylinder of radius kTubeRadius and length kTubeLength in
+/// (u,v)): eight cells around, rows of about equilateral triangles along it.
+GridMesh thinTubeGrid() {
+  const int around = 8;
+  const double arc = 2 * kPi * kTubeRadius / around;
+  const int rows = static_cast<int>(std::lround(kTubeLength / (0.866 * arc)));
+  return periodicGridMesh(around, rows, 0, 2 * kPi, 0, kTubeLength, false);
+}
+
 // A thin tube, eight elements around its circumference, its nodes moved up to a whole cell.
 // The paper's measure takes a triangle in its own plane and orients it by the sum of its corner
 // normals: untangling can turn a folded triangle over the top of the tube, and smoothing can
@@ -177,12 +188,8 @@ TEST(Optimizer, CylinderWithBoundaryCirclesUntangles) {
 // every corner by hand — the cylinder's outward normal there is the radial direction — and
 // against the quality report's count.
 TEST(Optimizer, UntanglingAThinTubeStandsNoElementAcrossIt) {
-  const double r = 2.0, h = 40.0;
-  const CylinderSurface tube(r, 0, h);
-  const int around = 8;
-  const double arc = 2 * kPi * r / around;
-  const int rows = static_cast<int>(std::lround(h / (0.866 * arc)));
-  const GridMesh g = periodicGridMesh(around, rows, 0, 2 * kPi, 0, h, false);
+  const CylinderSurface tube(kTubeRadius, 0, kTubeLength);
+  const GridMesh g = thinTubeGrid();
   auto acrossByHand = [](const SurfaceMesh& m) {
     std::vector<unsigned char> out(m.elementCount(), 0);
     for (std::size_t e = 0; e < m.elementCount(); ++e) {
@@ -232,12 +239,8 @@ TEST(Optimizer, UntanglingAThinTubeStandsNoElementAcrossIt) {
 // elements the returned mesh did not have) and hand over to a second run without the hold,
 // which, cancelled or failing, restores the input.
 TEST(Optimizer, TheLastProgressReportDescribesTheMeshTheRunReturns) {
-  const double r = 2.0, h = 40.0;
-  const CylinderSurface tube(r, 0, h);
-  const int around = 8;
-  const double arc = 2 * kPi * r / around;
-  const int rows = static_cast<int>(std::lround(h / (0.866 * arc)));
-  const GridMesh g = periodicGridMesh(around, rows, 0, 2 * kPi, 0, h, false);
+  const CylinderSurface tube(kTubeRadius, 0, kTubeLength);
+  const GridMesh g = thinTubeGrid();
   int stoppedTangled = 0, secondRuns = 0;
   for (unsigned seed = 1; seed <= 10; ++seed) {
     for (int k = 1; k <= 10; ++k) {
