@@ -50,6 +50,7 @@ py::dict reportDict(const BridgeReport& r) {
   d["flipped_faces"] = r.flippedFaces;
   d["face_elements"] = r.faceElements;
   d["miswound_elements"] = toArray(r.miswoundElements);
+  d["placed_nodes"] = toArray(r.placedNodes);
   d["tolerance"] = r.tolerance;
   d["max_distance"] = r.maxDistance;
   d["worst_node"] = r.worstNode;

@@ -6,6 +6,7 @@ Independent references: a straight-sided tria6 (a planar face: Gmsh puts the mid
 the midpoints) has exactly the planar shape quality of its corner triangle, 4√3·A/Σl²; nodes
 of the optimized meshes are checked on the torus with its closed-form distance."""
 
+import dataclasses
 import json
 import os
 import shutil
@@ -183,3 +184,133 @@ class HighOrderGmshFiles(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+class GmshSideNodesOffTheirFace(unittest.TestCase):
+    """Gmsh curves a second-order element by putting each side node on the face's surface at the
+    midpoint of its ends in (u, v), which can fall outside the trimmed face: by the sagitta of a
+    concave boundary (the crank arm at diagonal / 17 has side nodes farther than the tolerance
+    from the whole shape, which SurfMesh used to refuse), or onto a neighbouring face of the
+    same surface (the OCC housing: a side node on the shape, but on no face of its element's
+    other nodes, whose element SurfMesh used to find on no single face). They are now
+    taken at their nearest point on their element's face; the corners are held to the
+    tolerance as before. References: FreeCAD's own distances to the shape and to the faces."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.dir = os.path.join(T.output_dir(), "high_order_side_nodes")
+        shutil.rmtree(cls.dir, ignore_errors=True)
+        os.makedirs(cls.dir)
+        cls.cases = {}
+
+    def gmsh_order2(self, name):
+        """(shape, diagonal, MeshData, path) of Gmsh's order-2 mesh of part `name` at diag / 17."""
+        import Part
+
+        from SurfMesh.app import fileio
+
+        if name in self.cases:
+            return self.cases[name]
+        path = T.find_part(name)
+        if path is None:
+            self.skipTest(f"{name} not found")
+        shape = Part.read(path)
+        diag = shape.BoundBox.DiagonalLength
+        gmsh = fileio._gmsh()
+        gmsh.clear()
+        gmsh.model.occ.importShapes(path)
+        gmsh.model.occ.synchronize()
+        gmsh.option.setNumber("Mesh.MeshSizeMax", diag / 17)
+        gmsh.model.mesh.generate(2)
+        gmsh.option.setNumber("Mesh.HighOrderOptimize", 0)
+        gmsh.model.mesh.setOrder(2)
+        gmsh.option.setNumber("Mesh.SaveAll", 0)
+        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+        msh = os.path.join(self.dir, os.path.splitext(name)[0] + "_o2.msh")
+        gmsh.write(msh)
+        gmsh.clear()
+        data = fileio.read_mesh(msh).data
+        self.assertTrue(np.all(data.types == conversion.ELEMENT_TYPES["tri6"]))
+        self.cases[name] = (shape, diag, data, msh)
+        return self.cases[name]
+
+    def check_placed(self, name):
+        """Runs optimize; checks the placed side nodes against FreeCAD's distances. Returns
+        (result, side nodes off the shape, side nodes on it but off their element's face)."""
+        shape, diag, data, msh = self.gmsh_order2(name)
+        conn = data.conn.reshape(-1, 6)
+        tol = 1e-3 * diag
+        res = SurfMesh.optimize(data, shape, boundary="fixed")
+        placed = np.asarray(res.bridge["placed_nodes"], dtype=np.int64)
+        self.assertGreater(len(placed), 0)
+        self.assertFalse(np.isin(placed, conn[:, :3]).any(), "only side nodes are placed")
+        self.assertTrue(any("high-order node(s)" in w for w in res.bridge["warnings"]))
+        # Each placed node lies farther than the tolerance from its element's face (FreeCAD's
+        # distance from where Gmsh put it), and within that element's longest side.
+        faces = np.asarray(res.before.element_faces)
+        off_shape = off_face = 0
+        for n in placed:
+            e = int(np.nonzero((conn == n).any(axis=1))[0][0])
+            x = data.nodes[conn[e]]
+            longest = max(np.linalg.norm(x[k] - x[(k + 1) % 3]) for k in range(3))
+            face = shape.Faces[int(faces[e])]
+            d_face = T.distance_to_shape(face, [data.nodes[n]])[0]
+            self.assertGreater(d_face, tol, f"node {n}")
+            self.assertLessEqual(d_face, longest, f"node {n}")
+            if T.distance_to_shape(shape, [data.nodes[n]])[0] > tol:
+                off_shape += 1
+            else:
+                off_face += 1
+        # Where the run ends they lie on their face, like every node the run moved.
+        moved = np.nonzero(np.any(res.nodes != data.nodes, axis=1))[0]
+        self.assertTrue(set(placed.tolist()) <= set(moved.tolist()))
+        for n in placed[:: max(1, len(placed) // 40)]:
+            e = int(np.nonzero((conn == n).any(axis=1))[0][0])
+            face = shape.Faces[int(faces[e])]
+            self.assertLess(T.distance_to_shape(face, [res.nodes[n]])[0], 1e-9 * diag)
+        self.assertLess(T.distance_to_shape(shape, res.nodes[moved]).max(), 1e-9 * diag)
+        # The input arrays are not changed.
+        self.assertEqual(fileio_nodes(msh).tolist(), data.nodes.tolist())
+        print(f"\n{name} order 2: {len(placed)} side nodes placed ({off_shape} off the shape, "
+              f"{off_face} on another face); tangled {res.before.stats['tangled']} -> "
+              f"{res.after.stats['tangled']}, min q {res.after.stats['min']:.3f}")
+        return res, off_shape, off_face
+
+    def test_side_nodes_off_the_shape_go_onto_their_face(self):
+        res, off_shape, _ = self.check_placed("occt_crankarm.brep")
+        self.assertGreater(off_shape, 0)
+        self.assertGreater(res.before.stats["tangled"], 0)
+        self.assertEqual(res.after.stats["tangled"], 0)
+
+    def test_side_nodes_on_a_neighbouring_face_go_onto_their_elements_face(self):
+        res, _, off_face = self.check_placed("occt_housing_bottom.brep")
+        self.assertGreater(off_face, 0)
+        self.assertLess(res.after.stats["tangled"], res.before.stats["tangled"])
+
+    def test_a_side_node_farther_than_its_element_is_refused(self):
+        shape, diag, data, msh = self.gmsh_order2("occt_crankarm.brep")
+        conn = data.conn.reshape(-1, 6)
+        e = 0
+        corners = data.nodes[conn[e, :3]]
+        longest = max(np.linalg.norm(corners[k] - corners[(k + 1) % 3]) for k in range(3))
+        moved = data.nodes.copy()
+        n = int(conn[e, 3])
+        # Two sides away across the element's plane, on the side where FreeCAD finds the shape
+        # farther: more than a side from every face.
+        nrm = np.cross(corners[1] - corners[0], corners[2] - corners[0])
+        nrm /= np.linalg.norm(nrm)
+        cands = [data.nodes[n] + s * 2.0 * longest * nrm for s in (1.0, -1.0)]
+        dist = T.distance_to_shape(shape, cands)
+        moved[n] = cands[int(np.argmax(dist))]
+        self.assertGreater(dist.max(), longest)
+        bad = dataclasses.replace(data, nodes=moved)
+        with self.assertRaises(ValueError) as cm:
+            SurfMesh.measure(bad, shape)
+        self.assertIn("farther than the tolerance", str(cm.exception))
+        self.assertIn(f"node {int(data.node_ids[n])}", str(cm.exception))
+
+
+def fileio_nodes(path):
+    from SurfMesh.app import fileio
+
+    return fileio.read_mesh(path).data.nodes

@@ -817,6 +817,18 @@ ElementEdges elementEdges(ElementType t) {
 
 void fail(const std::string& msg) { throw std::invalid_argument("CadMesh: " + msg); }
 
+/// A high-order element's side and interior nodes (those that are no element's corner) may lie
+/// up to this fraction of the element's longest corner-to-corner side off its face, beyond the
+/// tolerance. A mesher that curves an element puts a side node on the face's surface at the
+/// midpoint of its ends in (u,v) (Gmsh), which can fall outside the face's trimmed domain:
+/// by the sagitta of the face's boundary over the side where that boundary is concave, or
+/// onto a neighbouring face of the same surface (Gmsh's order-2 meshes of seven of the twelve
+/// CAD parts at diagonal / 17 have such nodes, up to 0.49 × the side off their element's
+/// face). Such a node is taken at its nearest point on the element's face; the corners of
+/// every element must still lie within the tolerance (a mesh of another shape, or placed
+/// elsewhere, is refused as before).
+constexpr double kHighOrderReach = 1.0;
+
 /// A corner edge used by exactly two elements: whether they run along it in opposite
 /// directions (wound alike) or in the same one (wound oppositely).
 struct EdgePair {
@@ -1022,9 +1034,11 @@ struct NodeSearch {
   std::vector<std::int32_t> forcedId;
   std::vector<double> forcedT;
   std::vector<unsigned char> hintRejected;
+  // per node: the reach of a high-order node (see kHighOrderReach; filled only when kept)
+  std::vector<double> reach;
 
-  bool matches(const MeshInput& in, double t, bool th) const {
-    return t == tol && th == toleranceHints && in.nodes.size() == nodes.size() &&
+  bool matches(const MeshInput& in, double t, bool th, const std::vector<double>& r) const {
+    return t == tol && th == toleranceHints && r == reach && in.nodes.size() == nodes.size() &&
            std::equal(
                nodes.begin(), nodes.end(), in.nodes.begin(),
                [](const Vec3& a, const Vec3& b) { return (a.array() == b.array()).all(); }) &&
@@ -1169,6 +1183,31 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   }
   ProjectorPool projectors(threads, S, faceBoxes, edgeBoxes, faceSlack);
 
+  // Reach of each high-order node that is no element's corner (kHighOrderReach), 0 otherwise.
+  std::vector<double> reach(N, 0.0);
+  {
+    std::vector<unsigned char> corner(N, 0);
+    for (std::size_t e = 0; e < E; ++e) {
+      const std::int32_t* nd = input.conn.data() + offsets[e];
+      const int nn = static_cast<int>(offsets[e + 1] - offsets[e]);
+      const int nc = elementEdges(input.types[e]).corners;
+      double side = 0.0;
+      for (int k = 0; k < nc; ++k)
+        side = std::max(side, (input.nodes[static_cast<std::size_t>(nd[k])] -
+                               input.nodes[static_cast<std::size_t>(nd[(k + 1) % nc])])
+                                  .norm());
+      for (int k = 0; k < nn; ++k) {
+        const std::size_t n = static_cast<std::size_t>(nd[k]);
+        if (k < nc)
+          corner[n] = 1;
+        else
+          reach[n] = std::max(reach[n], kHighOrderReach * side);
+      }
+    }
+    for (std::size_t n = 0; n < N; ++n)
+      if (corner[n] || !(reach[n] > tol)) reach[n] = 0.0;
+  }
+
   // ---- fail fast on a mesh of another shape ---------------------------------------------------
   {
     Box mb = {kInf, kInf, kInf, -kInf, -kInf, -kInf};
@@ -1242,7 +1281,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   const bool anyHints = givenHints || options.toleranceHints;
   std::shared_ptr<const NodeSearch> search;
   if (sameNodes && sameNodes->nodeSearch_ &&
-      sameNodes->nodeSearch_->matches(input, tol, options.toleranceHints)) {
+      sameNodes->nodeSearch_->matches(input, tol, options.toleranceHints, reach)) {
     search = sameNodes->nodeSearch_;
   } else {
     auto fresh = std::make_shared<NodeSearch>();
@@ -1282,6 +1321,24 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
       edgeGrid = std::make_unique<BoxGrid>(std::move(eb));
     }
     const double close = 1e-6 * diag;  // a node this near an entity lies on it
+    // The faces within `bound` of p, kept as close as the nearest one up to the tolerance of
+    // their boundary near the node (a node near a tangent edge, or on a thin wall, is within
+    // `tol` of the neighbouring face too, but not on it).
+    auto facesWithin = [&](Projector& pr, const Vec3& p, double bound, std::vector<FaceHit>* out) {
+      auto& h = *out;
+      const double base = 1e-6 * diag;
+      pr.facesNear(p, bound, &h, base);
+      double dmin = kInf;
+      for (const FaceHit& x : h) dmin = std::min(dmin, x.dist);
+      h.erase(std::remove_if(h.begin(), h.end(),
+                             [&](const FaceHit& x) {
+                               if (x.dist <= dmin + base) return false;
+                               if (x.dist > dmin + faceSlack[static_cast<std::size_t>(x.face)])
+                                 return true;
+                               return x.dist > dmin + pr.boundarySlack(x.face, p, base);
+                             }),
+              h.end());
+    };
     parallelFor(N, projectors, [&](std::size_t n, Projector& pr) {
       const Vec3& p = input.nodes[n];
       auto& h = hits[n];
@@ -1337,21 +1394,17 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
         forced[n] = Forced::None;
         h.clear();
       }
-      const double base = 1e-6 * diag;
-      pr.facesNear(p, tol, &h, base);
-      // Keep the faces as close as the nearest one up to the tolerance of their boundary near
-      // the node (a node near a tangent edge, or on a thin wall, is within `tol` of the
-      // neighbouring face too, but not on it).
-      double dmin = kInf;
-      for (const FaceHit& x : h) dmin = std::min(dmin, x.dist);
-      h.erase(std::remove_if(h.begin(), h.end(),
-                             [&](const FaceHit& x) {
-                               if (x.dist <= dmin + base) return false;
-                               if (x.dist > dmin + faceSlack[static_cast<std::size_t>(x.face)])
-                                 return true;
-                               return x.dist > dmin + pr.boundarySlack(x.face, p, base);
-                             }),
-              h.end());
+      facesWithin(pr, p, tol, &h);
+    });
+    // High-order nodes beyond the tolerance: every face within their reach (kHighOrderReach),
+    // not only the nearest (off its trimmed domain, a node may be nearer to another face than
+    // to its element's).
+    std::vector<std::size_t> far;
+    for (std::size_t n = 0; n < N; ++n)
+      if (hits[n].empty() && reach[n] > 0.0) far.push_back(n);
+    parallelFor(far.size(), projectors, [&](std::size_t k, Projector& pr) {
+      const std::size_t n = far[k];
+      pr.facesNear(input.nodes[n], reach[n], &hits[n], 1e-6 * diag);
     });
     if (options.keepNodeSearch) {
       fresh->nodes = input.nodes;
@@ -1360,6 +1413,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
       fresh->hintVertex = input.hintVertex;
       fresh->tol = tol;
       fresh->toleranceHints = options.toleranceHints;
+      fresh->reach = reach;
     }
     search = std::move(fresh);
   }
@@ -1446,6 +1500,8 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
       // large as the elements, the mesher's nodes may sit off both faces, some nearer to
       // one, some to the other. The element goes on the face of its nodes' candidates
       // farthest from none of them by more than the tolerance (nearest in its worst node).
+      // A high-order side or interior node may be as far as its reach (kHighOrderReach):
+      // outside its face's trimmed domain, it may be nearer to another face.
       tmp.clear();
       for (int k = 0; k < nn; ++k) {
         const auto& f = nodeFaces[static_cast<std::size_t>(nd[k])];
@@ -1454,17 +1510,25 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
       std::sort(tmp.begin(), tmp.end());
       tmp.erase(std::unique(tmp.begin(), tmp.end()), tmp.end());
       double bestWorst = kInf;
+      bool bestWithinTol = false;
       for (int f : tmp) {
         double worst = 0.0;
-        for (int k = 0; k < nn && worst <= tol; ++k)
-          worst = std::max(
-              worst, pr.faceDistance(f, input.nodes[static_cast<std::size_t>(nd[k])], tol).dist);
-        if (worst <= tol && worst < bestWorst) {
+        bool ok = true, withinTol = true;
+        for (int k = 0; k < nn && ok; ++k) {
+          const std::size_t n = static_cast<std::size_t>(nd[k]);
+          const double bound = std::max(tol, reach[n]);
+          const double d = pr.faceDistance(f, input.nodes[n], bound).dist;
+          ok = d <= bound;
+          withinTol = withinTol && d <= tol;
+          worst = std::max(worst, d);
+        }
+        if (ok && worst < bestWorst) {
           bestWorst = worst;
+          bestWithinTol = withinTol;
           elemFace[e] = f;
         }
       }
-      offFace[e] = elemFace[e] >= 0;
+      offFace[e] = elemFace[e] >= 0 && bestWithinTol;
       return;
     }
     if (common.size() == 1) {
@@ -1802,6 +1866,44 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   if (report_.unusedNodes)
     report_.warnings.push_back(std::to_string(report_.unusedNodes) +
                                " nodes belong to no element; they are kept fixed");
+  // High-order nodes beyond the tolerance (kHighOrderReach) go to their nearest point on their
+  // face, edge or vertex: the run must start, and end, with every node on the shape.
+  {
+    std::size_t worst = 0;
+    double worstD = -1.0;
+    for (std::size_t n = 0; n < N; ++n) {
+      if (!(reach[n] > 0.0)) continue;
+      const NodeClass c = report_.nodeClass[n];
+      Vec3 x;
+      if (c == NodeClass::Face)
+        x = surfaces_[static_cast<std::size_t>(M.nodeFace[n])]->value(M.uv[n].x(), M.uv[n].y());
+      else if (c == NodeClass::Edge)
+        x = curves_[static_cast<std::size_t>(M.nodeEdge[n])]->value(M.nodeT[n]);
+      else if (c == NodeClass::Vertex)
+        x = S.vertexPoint(report_.nodeEntity[n]);
+      else
+        continue;
+      const double d = (x - input.nodes[n]).norm();
+      if (!(d > tol)) continue;
+      M.xyz[n] = x;
+      report_.placedNodes.push_back(static_cast<std::int32_t>(n));
+      if (d > worstD) {
+        worstD = d;
+        worst = n;
+      }
+    }
+    if (!report_.placedNodes.empty()) {
+      std::ostringstream os;
+      os << report_.placedNodes.size() << " high-order node(s) lie farther than the tolerance "
+         << tol << " from their face, within their element's longest side (worst: node " << worst
+         << " at " << worstD << ", " << worstD / diag
+         << " x diagonal); they are taken at their nearest point on their "
+         << nodeClassName(report_.nodeClass[worst])
+         << " (a mesher that curves elements places a side node at the midpoint of its ends "
+            "in (u,v), outside the face where its boundary is concave)";
+      report_.warnings.push_back(os.str());
+    }
+  }
 
   // Corner (u,v) of every element node on the element's face, in parallel over the elements
   // (each thread with its own copies of the surfaces and curves). The orientation votes

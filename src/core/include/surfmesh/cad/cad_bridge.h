@@ -52,13 +52,17 @@
 // corners; a corner on a pole takes the mean free coordinate of the element's other corners.
 //
 // Node positions are kept as given (SurfaceMesh::xyz); only the optimizer moves them, and then
-// exactly onto φ(u,v) / C(t).
+// exactly onto φ(u,v) / C(t). Except: a high-order element's side or interior node farther than
+// the tolerance from its element's face but within the element's longest side (a mesher's
+// curved element whose side node, at the midpoint of its ends in (u,v), fell outside the trimmed
+// face) is taken at its nearest point on that face (BridgeReport::placedNodes, with a warning).
 //
 // Errors (std::invalid_argument with a message saying what and where): empty mesh,
 // non-finite coordinates, index out of range, bad element sizes/offsets, bad hints, negative
 // tolerance, unknown boundary mode, a mesh that does not lie on the shape (fails after a
 // sample of nodes), nodes farther than the tolerance (how many, the worst distance and that
-// node's id), elements whose nodes share no face.
+// node's id; for high-order side and interior nodes, farther than their element's longest
+// side), elements whose nodes share no face.
 #pragma once
 
 #include "surfmesh/cad/cad_shape.h"
@@ -144,6 +148,11 @@ struct BridgeReport {
   /// node positions; moving nodes can only fold the mesh over it (its connectivity must be
   /// reversed: an STL with flipped facets, a hand-edited mesh).
   std::vector<std::int32_t> miswoundElements;
+  /// High-order nodes (no element's corner) farther than the tolerance from their face but
+  /// within their element's longest side (a curved element's side node that a mesher placed
+  /// on the face's surface outside its trimmed domain), sorted: the SurfaceMesh has them at
+  /// their nearest point on their face, edge or vertex (every other node keeps its position).
+  std::vector<std::int32_t> placedNodes;
   // ---- totals -----------------------------------------------------------------------------
   double tolerance = 0.0;    ///< the tolerance used
   double maxDistance = 0.0;  ///< largest node distance to the shape
