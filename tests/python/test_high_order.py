@@ -281,6 +281,13 @@ class GmshSideNodesOffTheirFace(unittest.TestCase):
         self.assertGreater(off_shape, 0)
         self.assertGreater(res.before.stats["tangled"], 0)
         self.assertEqual(res.after.stats["tangled"], 0)
+        # The command line's report names the same nodes, by the file's node ids.
+        _, _, data, msh = self.gmsh_order2("occt_crankarm.brep")
+        rep = os.path.join(self.dir, "crankarm_measure.json")
+        code, _, err = run_cli("measure", T.find_part("occt_crankarm.brep"), msh, "--report", rep)
+        self.assertEqual(code, 0, err)
+        placed = sorted(int(data.node_ids[n]) for n in res.bridge["placed_nodes"])
+        self.assertEqual(sorted(json.load(open(rep))["bridge"]["placed_nodes"]), placed)
 
     def test_side_nodes_on_a_neighbouring_face_go_onto_their_elements_face(self):
         res, _, off_face = self.check_placed("occt_housing_bottom.brep")

@@ -88,11 +88,14 @@ def _mesh_summary(mf):
             "elements": d.element_count, "types": d.type_names()}
 
 
-def _bridge_summary(bridge):
+def _bridge_summary(bridge, data):
     keys = ("tolerance", "max_distance", "vertex_nodes", "edge_nodes", "face_nodes",
             "unused_nodes", "pole_nodes", "fixed_nodes", "sliding_nodes", "faces_used",
             "hints_rejected", "flipped_faces", "glued_nodes", "warnings", "summary")
-    return {k: bridge[k] for k in keys if k in bridge}
+    out = {k: bridge[k] for k in keys if k in bridge}
+    # high-order side nodes put on their element's face, by the file's node ids
+    out["placed_nodes"] = [int(data.node_ids[n]) for n in bridge.get("placed_nodes", [])]
+    return out
 
 
 def run(argv):
@@ -124,7 +127,7 @@ def run(argv):
                          hints=hints, duplicates=args.duplicates)
         print(reports.format_table([(args.measure, os.path.basename(args.mesh), rep.stats)]))
         out["stats"] = rep.stats
-        out["bridge"] = _bridge_summary(rep.bridge)
+        out["bridge"] = _bridge_summary(rep.bridge, mf.data)
         for w in rep.bridge.get("warnings", []):
             print(f"warning: {w}", file=sys.stderr)
     else:
@@ -153,7 +156,7 @@ def run(argv):
             print(f"warning: {w}", file=sys.stderr)
         out.update(res.to_dict())
         out["output"] = os.path.abspath(args.output)
-        out["bridge"] = _bridge_summary(res.bridge)
+        out["bridge"] = _bridge_summary(res.bridge, mf.data)
     if args.report:
         reports.write_json(args.report, out)
     return 0
