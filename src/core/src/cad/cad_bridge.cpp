@@ -822,7 +822,7 @@ void fail(const std::string& msg) { throw std::invalid_argument("CadMesh: " + ms
 /// tolerance. A mesher that curves an element puts a side node on the face's surface at the
 /// midpoint of its ends in (u,v) (Gmsh), which can fall outside the face's trimmed domain:
 /// by the sagitta of the face's boundary over the side where that boundary is concave, or
-/// onto a neighbouring face of the same surface (Gmsh's order-2 meshes of seven of the twelve
+/// onto a neighbouring face of the same surface (Gmsh's order-2 meshes of eight of the twelve
 /// CAD parts at diagonal / 17 have such nodes, up to 0.49 × the side off their element's
 /// face). Such a node is taken at its nearest point on the element's face; the corners of
 /// every element must still lie within the tolerance (a mesh of another shape, or placed
