@@ -1034,11 +1034,9 @@ struct NodeSearch {
   std::vector<std::int32_t> forcedId;
   std::vector<double> forcedT;
   std::vector<unsigned char> hintRejected;
-  // per node: the reach of a high-order node (see kHighOrderReach; filled only when kept)
-  std::vector<double> reach;
 
-  bool matches(const MeshInput& in, double t, bool th, const std::vector<double>& r) const {
-    return t == tol && th == toleranceHints && r == reach && in.nodes.size() == nodes.size() &&
+  bool matches(const MeshInput& in, double t, bool th) const {
+    return t == tol && th == toleranceHints && in.nodes.size() == nodes.size() &&
            std::equal(
                nodes.begin(), nodes.end(), in.nodes.begin(),
                [](const Vec3& a, const Vec3& b) { return (a.array() == b.array()).all(); }) &&
@@ -1281,7 +1279,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   const bool anyHints = givenHints || options.toleranceHints;
   std::shared_ptr<const NodeSearch> search;
   if (sameNodes && sameNodes->nodeSearch_ &&
-      sameNodes->nodeSearch_->matches(input, tol, options.toleranceHints, reach)) {
+      sameNodes->nodeSearch_->matches(input, tol, options.toleranceHints)) {
     search = sameNodes->nodeSearch_;
   } else {
     auto fresh = std::make_shared<NodeSearch>();
@@ -1321,24 +1319,6 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
       edgeGrid = std::make_unique<BoxGrid>(std::move(eb));
     }
     const double close = 1e-6 * diag;  // a node this near an entity lies on it
-    // The faces within `bound` of p, kept as close as the nearest one up to the tolerance of
-    // their boundary near the node (a node near a tangent edge, or on a thin wall, is within
-    // `tol` of the neighbouring face too, but not on it).
-    auto facesWithin = [&](Projector& pr, const Vec3& p, double bound, std::vector<FaceHit>* out) {
-      auto& h = *out;
-      const double base = 1e-6 * diag;
-      pr.facesNear(p, bound, &h, base);
-      double dmin = kInf;
-      for (const FaceHit& x : h) dmin = std::min(dmin, x.dist);
-      h.erase(std::remove_if(h.begin(), h.end(),
-                             [&](const FaceHit& x) {
-                               if (x.dist <= dmin + base) return false;
-                               if (x.dist > dmin + faceSlack[static_cast<std::size_t>(x.face)])
-                                 return true;
-                               return x.dist > dmin + pr.boundarySlack(x.face, p, base);
-                             }),
-              h.end());
-    };
     parallelFor(N, projectors, [&](std::size_t n, Projector& pr) {
       const Vec3& p = input.nodes[n];
       auto& h = hits[n];
@@ -1394,17 +1374,21 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
         forced[n] = Forced::None;
         h.clear();
       }
-      facesWithin(pr, p, tol, &h);
-    });
-    // High-order nodes beyond the tolerance: every face within their reach (kHighOrderReach),
-    // not only the nearest (off its trimmed domain, a node may be nearer to another face than
-    // to its element's).
-    std::vector<std::size_t> far;
-    for (std::size_t n = 0; n < N; ++n)
-      if (hits[n].empty() && reach[n] > 0.0) far.push_back(n);
-    parallelFor(far.size(), projectors, [&](std::size_t k, Projector& pr) {
-      const std::size_t n = far[k];
-      pr.facesNear(input.nodes[n], reach[n], &hits[n], 1e-6 * diag);
+      const double base = 1e-6 * diag;
+      pr.facesNear(p, tol, &h, base);
+      // Keep the faces as close as the nearest one up to the tolerance of their boundary near
+      // the node (a node near a tangent edge, or on a thin wall, is within `tol` of the
+      // neighbouring face too, but not on it).
+      double dmin = kInf;
+      for (const FaceHit& x : h) dmin = std::min(dmin, x.dist);
+      h.erase(std::remove_if(h.begin(), h.end(),
+                             [&](const FaceHit& x) {
+                               if (x.dist <= dmin + base) return false;
+                               if (x.dist > dmin + faceSlack[static_cast<std::size_t>(x.face)])
+                                 return true;
+                               return x.dist > dmin + pr.boundarySlack(x.face, p, base);
+                             }),
+              h.end());
     });
     if (options.keepNodeSearch) {
       fresh->nodes = input.nodes;
@@ -1413,12 +1397,28 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
       fresh->hintVertex = input.hintVertex;
       fresh->tol = tol;
       fresh->toleranceHints = options.toleranceHints;
-      fresh->reach = reach;
     }
     search = std::move(fresh);
   }
   if (options.keepNodeSearch) nodeSearch_ = search;
-  const auto& hits = search->hits;
+  // High-order nodes beyond the tolerance: every face within their reach (kHighOrderReach),
+  // not only the nearest (off its trimmed domain, a node may be nearer to another face than to
+  // its element's). Searched on a copy of the hits, so that a kept node search (which depends
+  // on the nodes alone, not on the elements that set the reach) stays as it was.
+  std::vector<std::vector<FaceHit>> withFar;
+  {
+    std::vector<std::size_t> far;
+    for (std::size_t n = 0; n < N; ++n)
+      if (search->hits[n].empty() && reach[n] > 0.0) far.push_back(n);
+    if (!far.empty()) {
+      withFar = search->hits;
+      parallelFor(far.size(), projectors, [&](std::size_t k, Projector& pr) {
+        const std::size_t n = far[k];
+        pr.facesNear(input.nodes[n], reach[n], &withFar[n], 1e-6 * diag);
+      });
+    }
+  }
+  const auto& hits = withFar.empty() ? search->hits : withFar;
   const auto& forced = search->forced;
   const auto& forcedId = search->forcedId;
   const auto& forcedT = search->forcedT;
