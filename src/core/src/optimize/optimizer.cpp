@@ -1817,12 +1817,11 @@ struct GlobalEval {
   double minSigma = kInf;
   // Smallest det S of the held elements (folded where no movable node acts, see foldHeld).
   double heldMinSigma = kInf;
-  double minQuality = 1.0;
   double minValidMovable = 1.0;  // lowest quality of the valid elements with a movable node
   // The progress reports' view, the quality report's: the triangles tangled only by the across
   // hold (counted in tangled or frozenTangled) are valid there, with the paper's quality.
   std::size_t leaning = 0;
-  double reportMinQuality = 1.0;
+  double minQuality = 1.0;  // over every element, 0 when one is tangled (but leaning)
 };
 
 /// Whether element e (nodes at `xyz`, reference normal n) folds where no node that may move
@@ -2069,12 +2068,10 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
     for (std::size_t e = 0; e < E; ++e) {
       const double et = s.eta0[e];
       const bool tangled = cachedTangled(e);
-      if (tangled && std::isfinite(et)) {  // tangled by the hold only (ElemOut::eta0)
-        ++g.leaning;
-        g.reportMinQuality = std::min(g.reportMinQuality, 1.0 / et);
-      } else {
-        g.reportMinQuality = std::min(g.reportMinQuality, tangled ? 0.0 : 1.0 / et);
-      }
+      // η at δ = 0 is finite for a valid element and for one tangled by the hold only (see
+      // ElemOut::eta0), +∞ for the others.
+      if (tangled && std::isfinite(et)) ++g.leaning;
+      g.minQuality = std::min(g.minQuality, std::isfinite(et) ? 1.0 / et : 0.0);
       if (frozen[e] && tangled) {
         ++g.frozenTangled;
         if (held[e]) g.heldMinSigma = std::min(g.heldMinSigma, s.minSigma[e]);
@@ -2082,10 +2079,8 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
       }
       if (tangled) {
         ++g.tangled;
-        g.minQuality = 0.0;
         g.objective0 = g.movable0 = kInf;
       } else {
-        g.minQuality = std::min(g.minQuality, 1.0 / et);
         if (!frozen[e]) g.minValidMovable = std::min(g.minValidMovable, 1.0 / et);
         g.objective0 += 0.5 * (et - 1.0) * (et - 1.0);
         if (!frozen[e]) {
@@ -2273,7 +2268,7 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
       pr.maxSweeps = opt.maxSweeps;
       pr.objective = fEnd;
       pr.tangled = g.tangled + g.frozenTangled - g.leaning;
-      pr.minQuality = g.reportMinQuality;
+      pr.minQuality = g.minQuality;
       pr.delta = s.deltaHat;
       if (!progress(pr)) {
         res.reason = StopReason::Cancelled;
