@@ -81,6 +81,12 @@ const HighOrderTriangleRule& ruleOf(ElementType type) {
 }
 }  // namespace
 
+Jacobian32 highOrderJacobianAtNode(ElementType type, const Vec3* x, int k) {
+  const HighOrderTriangleRule& rule = ruleOf(type);
+  const int nn = rule.nodes;
+  return jacobianAt<0>(x, rule.gradAtNode.data() + static_cast<std::size_t>(k) * nn, nn);
+}
+
 void highOrderJacobians(ElementType type, const Vec3* x, int freeLocal, HighOrderJacobians* out) {
   const HighOrderTriangleRule& rule = ruleOf(type);
   const int nn = rule.nodes;

@@ -1,7 +1,5 @@
 #include "surfmesh/measures/element_measure.h"
 
-#include "surfmesh/measures/lagrange_triangle.h"
-
 #include <cmath>
 #include <limits>
 
@@ -278,11 +276,6 @@ Vec3 elementReferenceNormal(const SurfaceMesh& mesh, std::size_t e,
 
 CornerSides cornerSides(ElementType type, const Vec3* x, const Vec3* cornerNormals) {
   const int nc = cornerCount(type);
-  // A high-order triangle's tangent plane at a corner: its Jacobian there (the corners alone,
-  // not every node and quadrature point as highOrderJacobians).
-  const HighOrderTriangleRule* rule = type != ElementType::Tri3 && type != ElementType::Quad4
-                                          ? &highOrderTriangleRule(elementOrder(type))
-                                          : nullptr;
   CornerSides r;
   for (int k = 0; k < nc; ++k) {
     const Vec3& n = cornerNormals[k];
@@ -293,14 +286,10 @@ CornerSides cornerSides(ElementType type, const Vec3* x, const Vec3* cornerNorma
     } else if (type == ElementType::Quad4) {
       c = (x[(k + 1) % 4] - x[k]).cross(x[(k + 3) % 4] - x[k]);
     } else {
-      const Eigen::Vector2d* g =
-          rule->gradAtNode.data() + static_cast<std::size_t>(k) * rule->nodes;
-      Vec3 dxi = Vec3::Zero(), deta = Vec3::Zero();
-      for (int i = 0; i < rule->nodes; ++i) {
-        dxi += g[i].x() * x[i];
-        deta += g[i].y() * x[i];
-      }
-      c = dxi.cross(deta);
+      // A high-order triangle's tangent plane at a corner: its Jacobian there (the corners
+      // alone, not every node and quadrature point as highOrderJacobians).
+      const Jacobian32 J = highOrderJacobianAtNode(type, x, k);
+      c = J.col(0).cross(J.col(1));
     }
     if (c.dot(n) > 0.0)
       r.along = true;

@@ -129,6 +129,10 @@ struct HighOrderJacobians {
 /// `freeLocal` (< 0: none). Throws std::invalid_argument for a quadrilateral.
 void highOrderJacobians(ElementType type, const Vec3* x, int freeLocal, HighOrderJacobians* out);
 
+/// The Jacobian J(ξ_k) = Σ_i x_i ∇N_i(ξ_k)ᵀ of the high-order triangle with nodes x (Gmsh order)
+/// at its own node k alone. Throws std::invalid_argument for a quadrilateral.
+Jacobian32 highOrderJacobianAtNode(ElementType type, const Vec3* x, int k);
+
 /// highOrderTriangleDistortion with the free node (pre.freeLocal) at xFree and the other nodes
 /// as in `pre`; derivatives with respect to the free node (none when pre.freeLocal < 0).
 ElementEval highOrderTriangleDistortion(const PlanarMeasure& m, const HighOrderJacobians& pre,
