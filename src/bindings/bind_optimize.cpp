@@ -4,6 +4,7 @@
 #include "surfmesh/optimize/optimizer.h"
 
 #include <pybind11/functional.h>
+#include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
@@ -21,7 +22,7 @@ void bind_optimize(MeshClass& cls) {
       [](MeshHandle& h, const std::string& measure, int max_sweeps, double rel_tol, double move_tol,
          int inner_iterations, int max_line_search, double over_relaxation,
          const std::string& delta_policy, double delta_epsilon, double delta, bool monotone,
-         int threads, py::object progress, py::object before) {
+         int threads, py::object progress, py::object before, py::object fixed) {
         OptimizeOptions o;
         o.measure = measure;
         o.maxSweeps = max_sweeps;
@@ -35,6 +36,15 @@ void bind_optimize(MeshClass& cls) {
         o.delta = delta;
         o.monotone = monotone;
         o.threads = threads;
+        if (!fixed.is_none()) {
+          const auto mask =
+              py::cast<py::array_t<bool, py::array::c_style | py::array::forcecast>>(fixed);
+          const SurfaceMesh& m = h.get();
+          if (mask.ndim() != 1 || static_cast<std::size_t>(mask.shape(0)) != m.nodeCount())
+            throw std::invalid_argument("fixed must be a bool array of shape (" +
+                                        std::to_string(m.nodeCount()) + ",)");
+          o.fixedNodes.assign(mask.data(), mask.data() + mask.shape(0));
+        }
         if (!progress.is_none() && !PyCallable_Check(progress.ptr()))
           throw std::invalid_argument("progress must be callable or None");
         // The callback runs on the calling thread after each sweep (GIL released around the
@@ -112,6 +122,7 @@ void bind_optimize(MeshClass& cls) {
       py::arg("delta_epsilon") = kDefaults.deltaEpsilon, py::arg("delta") = kDefaults.delta,
       py::arg("monotone") = kDefaults.monotone, py::arg("threads") = kDefaults.threads,
       py::arg("progress") = py::none(), py::arg("before") = py::none(),
+      py::arg("fixed") = py::none(),
       "Optimizes the mesh in place (nodes stay on their surfaces); the options' defaults are "
       "the core's. progress(dict) is called "
       "after every sweep; returning False cancels (reason 'cancelled', mesh unchanged). "
@@ -121,7 +132,8 @@ void bind_optimize(MeshClass& cls) {
       "(u,v)), "
       "tangled_unmovable / tangled_movable (ids of the elements left tangled without / with a "
       "movable node) and warnings (a line for each non-empty list). before: the stats dict of "
-      "measure(measure) on the mesh as it is, when the caller has it (not measured again).");
+      "measure(measure) on the mesh as it is, when the caller has it (not measured again). "
+      "fixed: None or a bool per node, True for the nodes the run leaves where they are.");
 }
 
 }  // namespace surfmesh::bindings

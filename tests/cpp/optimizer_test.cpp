@@ -351,6 +351,69 @@ TEST(Optimizer, ResultDoesNotDependOnTheThreadCount) {
   EXPECT_EQ(r1.after.tangled, r2.after.tangled);
 }
 
+TEST(Optimizer, NodesTheCallerFixesStayWhereTheyAre) {
+  // The torus of Table 2 with its nodes at u < π held by the caller (a region left alone):
+  // those nodes keep their positions and parameters bit for bit, the elements among them keep
+  // their quality (tangled ones stay tangled), every other element is untangled, and the
+  // nodes' kinds are the mesh's own again after the run.
+  const TorusSurface torus(10, 4);
+  Case c = makeCase(torus, periodicGridMesh(50, 32, 0, 2 * kPi, 0, 2 * kPi, true), 73, 1.2, 5);
+  const SurfaceMesh input = c.mesh;
+  const MeshQuality q0 = measureQuality(input, measureByName("shape"));
+  OptimizeOptions opt;
+  opt.fixedNodes.assign(input.nodeCount(), 0);
+  std::size_t held = 0;
+  for (std::size_t i = 0; i < input.nodeCount(); ++i)
+    if (input.uv[i].x() < kPi) opt.fixedNodes[i] = 1, ++held;
+  ASSERT_GT(held, 500u);
+  ASSERT_LT(held, input.nodeCount() - 500u);
+  // Elements all of whose nodes are held, and how many of them the input has tangled.
+  std::vector<unsigned char> inside(input.elementCount(), 1);
+  std::size_t tangledInside = 0, tangledOutside = 0;
+  for (std::size_t e = 0; e < input.elementCount(); ++e) {
+    for (int k = 0; k < 3; ++k)
+      if (!opt.fixedNodes[static_cast<std::size_t>(input.elementNodes(e)[k])]) inside[e] = 0;
+    (inside[e] ? tangledInside : tangledOutside) += q0.tangled[e];
+  }
+  ASSERT_GT(tangledInside, 5u);
+  ASSERT_GT(tangledOutside, 5u);
+
+  const OptimizeResult r = optimizeMesh(c.mesh, opt);
+  const MeshQuality q1 = measureQuality(c.mesh, measureByName("shape"));
+  EXPECT_EQ(c.mesh.nodeKind, input.nodeKind);
+  std::size_t moved = 0;
+  for (std::size_t i = 0; i < input.nodeCount(); ++i) {
+    if (opt.fixedNodes[i]) {
+      ASSERT_EQ(c.mesh.xyz[i], input.xyz[i]) << "node " << i;
+      ASSERT_EQ(c.mesh.uv[i], input.uv[i]) << "node " << i;
+    } else if (c.mesh.xyz[i] != input.xyz[i]) {
+      ++moved;
+    }
+  }
+  EXPECT_GT(moved, (input.nodeCount() - held) / 2);
+  std::size_t tangledAfter = 0;
+  for (std::size_t e = 0; e < input.elementCount(); ++e) {
+    if (inside[e]) {
+      EXPECT_EQ(q1.tangled[e], q0.tangled[e]) << "element " << e;
+      if (!q0.tangled[e]) EXPECT_DOUBLE_EQ(q1.quality[e], q0.quality[e]) << "element " << e;
+    } else {
+      EXPECT_EQ(q1.tangled[e], 0) << "element " << e;
+    }
+    tangledAfter += q1.tangled[e];
+  }
+  EXPECT_EQ(tangledAfter, tangledInside);
+  EXPECT_EQ(r.after.tangled, tangledInside);
+  EXPECT_EQ(r.tangledUnmovable.size(), tangledInside);  // reported as no node may move there
+  expectOnSurfaceAndInDomain(c.mesh);
+
+  // A mask of the wrong length is refused, and the mesh is left as it was.
+  SurfaceMesh other = input;
+  opt.fixedNodes.pop_back();
+  EXPECT_THROW(optimizeMesh(other, opt), std::invalid_argument);
+  EXPECT_EQ(other.xyz, input.xyz);
+  EXPECT_EQ(other.nodeKind, input.nodeKind);
+}
+
 TEST(Optimizer, NodesCrossThePeriodicSeamAndStayWrapped) {
   // A cylinder strip whose nodes straddle u = 0: shift every free node's u by half a cell
   // towards the seam; the optimizer moves them back across it.

@@ -160,6 +160,68 @@ try:
     check(frac_tangled2 < 0.1 * frac_tangled, f"no tangled color left ({frac_tangled2:.5f})")
     check(new.ViewObject.BackfaceCulling is True, "untangled mesh keeps the view's culling")
 
+    # ---- optimize only the faces selected with the mesh ------------------------------------
+    # A cylinder's Gmsh mesh with nodes of its side (Face1) moved on the surface: the mesh and
+    # Face1 selected, the command's panel lists Face1 and passes it on; the disks' nodes
+    # (z = 0 and z = height, FreeCAD's own coordinates) stay, the side is smoothed.
+    import types
+
+    from SurfMesh.app import api, conversion
+    from SurfMesh.gui import selection
+    from SurfMesh.gui.commands import optimize as optimize_command
+
+    cyl = doc.addObject("Part::Cylinder", "Cyl")
+    cyl.Radius, cyl.Height = 5.0, 12.0
+    doc.recompute()
+    cmesh = examples.make_gmsh_mesh(doc, cyl, 1.5, name="CylMesh")
+    cdata, chandle = api.prepare(cmesh, cyl)
+    side = ((np.asarray(chandle.node_kinds()) == 1) & (np.asarray(chandle.node_faces()) == 0)
+            & (cdata.nodes[:, 2] > 2.0) & (cdata.nodes[:, 2] < 10.0))
+    moved_in = examples.perturb_on_surface(cdata, cyl.Shape.Faces[0], 0.6, seed=3,
+                                           movable=side)
+    cmesh.FemMesh = conversion.rebuild(cdata, moved_in)
+    doc.recompute()
+    q_in = SurfMesh.measure(cmesh, cyl).stats
+    FreeCADGui.Selection.clearSelection()
+    FreeCADGui.Selection.addSelection(cmesh)
+    FreeCADGui.Selection.addSelection(cyl, "Face1")
+    check(selection.selected_mesh_and_shape() == (cmesh, cyl)
+          and selection.selected_faces(cyl) == ["Face1"], "mesh and a face of its shape selected")
+    shown = []
+    real_gui = optimize_command.FreeCADGui
+    optimize_command.FreeCADGui = types.SimpleNamespace(
+        Control=types.SimpleNamespace(showDialog=shown.append))
+    try:
+        optimize_command.OptimizeCommand().Activated()
+    finally:
+        optimize_command.FreeCADGui = real_gui
+    check(len(shown) == 1 and shown[0].faces.text() == "Face1",
+          "the panel lists the selected face")
+    fpanel = shown[0]
+    check("faces=['Face1']" in fpanel.command(), f"the run is limited to it ({fpanel.command()})")
+    FreeCADGui.Control.showDialog(fpanel)
+    check(fpanel.accept() is True, "the run on Face1 applies")
+    FreeCADGui.updateGui()
+    cnew = doc.getObject("CylMesh_optimized")
+    check(cnew is not None, "CylMesh_optimized created")
+    ids = sorted(cnew.FemMesh.Nodes)
+    after = np.array([tuple(cnew.FemMesh.Nodes[i]) for i in ids])
+    before = np.array([tuple(cmesh.FemMesh.Nodes[i]) for i in ids])
+    disks = (np.abs(before[:, 2]) < 1e-9) | (np.abs(before[:, 2] - 12.0) < 1e-9)
+    moved = np.linalg.norm(after - before, axis=1) > 0
+    check(disks.sum() > 50 and not moved[disks].any(),
+          f"the disks' {int(disks.sum())} nodes stay ({int(moved[disks].sum())} moved)")
+    check(moved[~disks].sum() > 0.5 * side.sum(),
+          f"the side's nodes move ({int(moved[~disks].sum())} of {int((~disks).sum())})")
+    q_out = SurfMesh.stats_of(cnew)
+    check(q_out["tangled"] == 0 and q_out["mean"] > q_in["mean"],
+          f"the side is smoothed (mean {q_in['mean']:.3f} -> {q_out['mean']:.3f}, tangled "
+          f"{q_in['tangled']} -> {q_out['tangled']})")
+    r_side = np.hypot(after[~disks, 0], after[~disks, 1])
+    check(np.abs(r_side - 5.0).max() < 1e-9, "the side's nodes stay on the cylinder")
+    for o in (cnew, cmesh, cyl):
+        o.ViewObject.Visibility = False
+
     # ---- report ---------------------------------------------------------------------------
     FreeCADGui.Selection.clearSelection()
     FreeCADGui.Selection.addSelection(new)

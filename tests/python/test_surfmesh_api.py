@@ -432,6 +432,122 @@ class TestOptimize(ApiCase):
         self.assertEqual(T.fem_snapshot(mesh.FemMesh), before)
 
 
+class TestOnlySomeFaces(ApiCase):
+    """optimize(faces=…, fixed_nodes=…): a region of the mesh optimized, the rest left as it is.
+    References: FreeCAD's distances to the chosen faces and the input's own positions."""
+
+    @classmethod
+    def setUpClass(cls):
+        import MeshPart
+        import Part
+
+        path = T.find_part("occt_housing_bottom.brep")
+        cls.shape = Part.read(path)
+        cls.diag = cls.shape.BoundBox.DiagonalLength
+        # FreeCAD's standard mesher: poor elements to improve, and cracks along CAD edges
+        # (coincident nodes, glued) to keep closed.
+        cls.mesh = MeshPart.meshFromShape(Shape=cls.shape, LinearDeflection=cls.diag / 500,
+                                          AngularDeflection=0.35, Relative=False)
+        cls.x0 = np.array([(p.x, p.y, p.z) for p in cls.mesh.Points])
+        cls.tris = np.array([f.PointIndices for f in cls.mesh.Facets])
+        rep = SurfMesh.measure(cls.mesh, cls.shape)
+        cls.before = rep
+        counts = np.bincount(rep.element_faces[rep.element_faces >= 0])
+        cls.chosen = [int(f) for f in np.argsort(counts)[::-1][:3]]  # 0-based, most elements
+        cls.names = [f"Face{f + 1}" for f in cls.chosen]
+
+    def test_nodes_off_the_chosen_faces_stay(self):
+        import Part
+
+        res = SurfMesh.optimize(self.mesh, self.shape, faces=self.names)
+        moved = np.nonzero(np.linalg.norm(res.nodes - self.x0, axis=1) > 0)[0]
+        self.assertGreater(len(moved), 300)
+        self.assertGreater(res.held_nodes, 1000)
+        self.assertEqual(res.options["faces"], self.names)
+        # FreeCAD: every node that moved lies on one of the chosen faces (before and after).
+        region = Part.makeCompound([self.shape.Faces[f] for f in self.chosen])
+        self.assertLess(T.distance_to_shape(region, self.x0[moved]).max(), 1e-6 * self.diag)
+        self.assertLess(T.distance_to_shape(region, res.nodes[moved]).max(), 1e-5 * self.diag)
+        # Elements on other faces keep their quality exactly; those on the chosen faces gain.
+        on = np.isin(self.before.element_faces, self.chosen)
+        np.testing.assert_array_equal(res.after.quality[~on], self.before.quality[~on])
+        self.assertGreater(res.after.quality[on].mean(), self.before.quality[on].mean())
+        self.assertGreater(res.after.quality[on].min(), self.before.quality[on].min())
+
+        def objective(rep):
+            return np.sum((rep.distortion[on] - 1.0) ** 2)
+
+        self.assertLess(objective(res.after), 0.9 * objective(self.before))
+        self.assertEqual(res.after.stats["tangled"], 0)
+        # Cracks stay closed: coincident input nodes are still coincident.
+        for g in T.coincident_groups(self.x0):
+            self.assertEqual(np.ptp(res.nodes[g], axis=0).max(), 0.0)
+        # The same faces by number and as Part.Face objects; without faces= the run moves
+        # nodes off them (the test above can fail).
+        by_number = SurfMesh.optimize(self.mesh, self.shape, faces=[f + 1 for f in self.chosen])
+        np.testing.assert_array_equal(by_number.nodes, res.nodes)
+        by_face = SurfMesh.optimize(self.mesh, self.shape,
+                                    faces=[self.shape.Faces[f] for f in self.chosen])
+        np.testing.assert_array_equal(by_face.nodes, res.nodes)
+        whole = SurfMesh.optimize(self.mesh, self.shape)
+        self.assertEqual(whole.held_nodes, 0)
+        self.assertGreater(
+            int(np.count_nonzero(np.linalg.norm(whole.nodes - self.x0, axis=1) > 0)),
+            len(moved) + 1000)
+
+    def test_fixed_nodes_stay(self):
+        fixed = list(range(0, len(self.x0), 3))
+        res = SurfMesh.optimize(self.mesh, self.shape, fixed_nodes=fixed)
+        delta = np.linalg.norm(res.nodes - self.x0, axis=1)
+        self.assertEqual(delta[fixed].max(), 0.0)
+        self.assertGreater(np.count_nonzero(delta > 0), 500)
+        self.assertEqual(res.options["fixed_nodes"], len(fixed))
+        # a node glued to a fixed one (the two sides of a crack) stays with it
+        for g in T.coincident_groups(self.x0):
+            self.assertEqual(np.ptp(res.nodes[g], axis=0).max(), 0.0)
+            if any(int(i) % 3 == 0 for i in g):
+                self.assertEqual(delta[g].max(), 0.0)
+
+    def test_bad_faces_and_node_ids(self):
+        import Part
+
+        n = len(self.shape.Faces)
+        cases = [
+            (["Face0"], f"Face0 is not a face of the shape, which has {n} face"),
+            ([n + 1], f"Face{n + 1} is not a face of the shape"),
+            (["Top"], "'Top' is not a face name"),
+            ([], "faces is empty"),
+            ([Part.makeBox(1, 1, 1).Faces[0]], "not a face of the shape"),
+        ]
+        for faces, text in cases:
+            with self.assertRaises(ValueError) as cm:
+                SurfMesh.optimize(self.mesh, self.shape, faces=faces)
+            self.assertIn(text, str(cm.exception))
+        # a face the mesh does not cover: a face of the shape with no element on it
+        bare = [f for f in range(n) if f not in set(self.before.element_faces.tolist())]
+        if bare:
+            with self.assertRaises(ValueError) as cm:
+                SurfMesh.optimize(self.mesh, self.shape, faces=[bare[0] + 1])
+            self.assertIn(f"no element of the mesh lies on Face{bare[0] + 1}", str(cm.exception))
+        with self.assertRaises(ValueError) as cm:
+            SurfMesh.optimize(self.mesh, self.shape, fixed_nodes=[0, len(self.x0) + 7])
+        self.assertIn(f"no node with id {len(self.x0) + 7}", str(cm.exception))
+        with self.assertRaises(ValueError):
+            SurfMesh.optimize(self.mesh, self.shape, fixed_nodes=[1.5])
+        # In the document: an error leaves it unchanged.
+        obj = self.doc.addObject("Mesh::Feature", "Housing")
+        obj.Mesh = self.mesh
+        part = self.doc.addObject("Part::Feature", "Part")
+        part.Shape = self.shape
+        self.doc.recompute()
+        names = [o.Name for o in self.doc.Objects]
+        with self.assertRaises(ValueError):
+            SurfMesh.optimize_object(obj, part, faces=["Face0"])
+        self.assertEqual([o.Name for o in self.doc.Objects], names)
+        new = SurfMesh.optimize_object(obj, part, faces=self.names[:1])
+        self.assertIn(f"faces={self.names[:1]!r}", new.SurfMeshRun["options"])
+
+
 class TestErrors(ApiCase):
     def assertValueError(self, fn, *words):
         with self.assertRaises(ValueError) as cm:

@@ -159,6 +159,41 @@ class TestCli(unittest.TestCase):
         pts = np.array([(p.x, p.y, p.z) for p in f1.Nodes.values()])
         self.assertLess(T.torus_distance(pts, R, r).max(), 1e-6)
 
+    def test_fixed_nodes_and_faces(self):
+        src = os.path.join(self.dir, "torus4.msh")
+        t0, x0, _, _ = read_msh(src)
+        # The nodes with x > 0 held, by the file's node tags (ranges and single ids).
+        held = t0[x0[:, 0] > 0]
+        self.assertGreater(len(held), 100)
+        runs, start = [], int(held[0])
+        for a, b in zip(held[:-1], held[1:]):
+            if b != a + 1:
+                runs.append(f"{start}-{int(a)}" if int(a) > start else str(start))
+                start = int(b)
+        runs.append(f"{start}-{int(held[-1])}" if int(held[-1]) > start else str(start))
+        out = os.path.join(self.dir, "out_fixed.msh")
+        rep = os.path.join(self.dir, "fixed.json")
+        code, so, se = run_cli("optimize", self.brep, src, "-o", out, "--report", rep,
+                               "--fixed-nodes", ",".join(runs), "--faces", "Face1")
+        self.assertEqual(code, 0, se)
+        t1, x1, _, _ = read_msh(out)
+        np.testing.assert_array_equal(t1, t0)
+        keep = np.isin(t0, held)
+        np.testing.assert_array_equal(x1[keep], x0[keep])
+        self.assertGreater(np.count_nonzero(np.abs(x1[~keep] - x0[~keep]).max(axis=1) > 0),
+                           0.5 * np.count_nonzero(~keep))
+        data = json.load(open(rep))
+        self.assertEqual(data["options"]["fixed_nodes"], len(held))
+        self.assertEqual(data["options"]["faces"], ["Face1"])
+        self.assertGreater(data["held_nodes"], 100)
+        # the torus has one face; a list that is not one of ids
+        code, _, se = run_cli("optimize", self.brep, src, "-o", out, "--faces", "2")
+        self.assertEqual(code, 2)
+        self.assertIn("Face2 is not a face of the shape, which has 1 face", se)
+        code, _, se = run_cli("optimize", self.brep, src, "-o", out, "--fixed-nodes", "9-3")
+        self.assertEqual(code, 2)
+        self.assertIn("'9-3' is neither a node id nor a range", se)
+
     def test_errors(self):
         src = os.path.join(self.dir, "torus4.msh")
         code, _, se = run_cli("measure", self.brep, os.path.join(self.dir, "missing.msh"))

@@ -125,6 +125,8 @@ class OptimizeResult:
     # Tangled second- and higher-order triangles untangled by straight sides in (u,v): a
     # mesher's edge nodes folded across an element whose corners are fine.
     straightened_elements: int = 0
+    # Nodes that would have moved but were held by ``faces=`` or ``fixed_nodes=``.
+    held_nodes: int = 0
     options: dict = dataclasses.field(default_factory=dict)
     bridge: dict = dataclasses.field(default_factory=dict)
     # Elements still tangled after the run, by their ids (FEM element ids; 0-based indices of
@@ -158,6 +160,7 @@ class OptimizeResult:
             "moved_nodes": self.moved_nodes,
             "threads": self.threads,
             "straightened_elements": self.straightened_elements,
+            "held_nodes": self.held_nodes,
             "tangled_unmovable": list(self.tangled_unmovable),
             "tangled_movable": list(self.tangled_movable),
             "warnings": list(self.warnings),
@@ -567,6 +570,8 @@ def optimize(
     collapsed="skip",
     duplicates="glue",
     progress: Optional[Callable[[dict], Optional[bool]]] = None,
+    faces=None,
+    fixed_nodes=None,
     **options,
 ) -> OptimizeResult:
     """Smooths and untangles ``mesh`` on ``shape``; the input is not modified.
@@ -577,6 +582,12 @@ def optimize(
             slide along their edge; vertices stay).
         progress: called after every sweep with a dict (sweep, max_sweeps, objective, tangled,
             min_quality, delta); return False to cancel (then :class:`Cancelled` is raised).
+        faces: optimize only the elements on these faces of the shape, by FreeCAD's names
+            ("Face3") or numbers (3 for Face3), or as Part.Face objects of the shape: every
+            node of an element on another face stays where it is (so does a node on a CAD edge
+            between a chosen and another face). The whole mesh is measured.
+        fixed_nodes: ids of nodes to leave where they are (FEM node ids; 0-based point indices
+            of a Mesh.Mesh or of arrays).
         **options: the core's optimizer options, see :data:`OPTIMIZE_DEFAULTS`.
 
     Returns:
@@ -612,6 +623,9 @@ def optimize(
             "node order first (FreeCAD: Mesh > Analyze > Evaluate and repair > Orientation, or "
             "Mesh.harmonizeNormals())"
         )
+    held = _held_nodes(data, handle, shape, faces, fixed_nodes)
+    kinds = np.asarray(handle.node_kinds())
+    held_nodes = 0 if held is None else int(np.count_nonzero(held & (kinds != 0)))
     t0 = time.perf_counter()
     before = _report(data, handle, measure, bridge,
                      measured=measured if measure == "shape" else None)
@@ -625,7 +639,7 @@ def optimize(
             fewest.update(tangled=p["tangled"], sweep=p["sweep"])
         return None if progress is None else progress(p)
 
-    r = handle.optimize(measure=measure, progress=track, before=stats, **opts)
+    r = handle.optimize(measure=measure, progress=track, before=stats, fixed=held, **opts)
     if r["reason"] == "cancelled":
         raise Cancelled(f"optimization cancelled after {r['sweeps']} sweep(s); nothing changed")
     t2 = time.perf_counter()
@@ -646,10 +660,11 @@ def optimize(
     warnings = []
     if unmovable:
         hint = "try boundary='slide', or change" if boundary == "fixed" else "change"
+        kept = ", held by faces= or fixed_nodes=" if held is not None else ""
         warnings.append(
             f"{len(unmovable)} element(s) stay tangled with no node that may move where they "
-            f"fold (their nodes there are all on CAD vertices, fixed CAD edges or poles; {hint} "
-            f"the mesh there): elements "
+            f"fold (their nodes there are all on CAD vertices, fixed CAD edges or poles{kept}; "
+            f"{hint} the mesh there): elements "
             f"{_id_list(unmovable)}{_where(data, handle, new_nodes, core_unmovable)}"
         )
     if movable:
@@ -698,13 +713,107 @@ def optimize(
         moved_nodes=int(r.get("moved_nodes", 0)),
         threads=int(r.get("threads", 1)),
         straightened_elements=int(r.get("straightened_elements", 0)),
-        options=dict(opts, measure=measure, boundary=boundary),
+        held_nodes=held_nodes,
+        options=dict(opts, measure=measure, boundary=boundary,
+                     **({} if faces is None else {"faces": _face_names(faces)}),
+                     **({} if fixed_nodes is None else {"fixed_nodes": len(fixed_nodes)})),
         bridge=bridge,
         tangled_unmovable=unmovable,
         tangled_movable=movable,
         warnings=warnings,
         timings=timings,
     )
+
+
+def _face_numbers(faces, shape, count):
+    """FreeCAD face numbers (1 for Face1) of ``faces`` (names, numbers or Part.Face objects of
+    ``shape``), checked against the shape's ``count`` faces."""
+    if isinstance(faces, (str, int, np.integer)) or hasattr(faces, "ShapeType"):
+        faces = [faces]
+    try:
+        items = list(faces)
+    except TypeError:
+        raise ValueError(f"faces must be a list of face names, numbers or faces, got {faces!r}") \
+            from None
+    if not items:
+        raise ValueError("faces is empty: give the faces whose elements to optimize")
+    part = None
+    if not _is_core_shape(shape):
+        part = shapes.shape_of(shape)
+    numbers = []
+    for f in items:
+        if hasattr(f, "ShapeType"):
+            if f.ShapeType != "Face" or part is None:
+                raise ValueError(f"faces: {f!r} is not a face of the shape")
+            match = [k + 1 for k, g in enumerate(part.Faces) if g.isSame(f)]
+            if not match:
+                raise ValueError("faces: a Part.Face given is not a face of the shape")
+            numbers.append(match[0])
+            continue
+        if isinstance(f, str):
+            m = re.fullmatch(r"\s*Face(\d+)\s*", f)
+            if not m:
+                raise ValueError(f"faces: {f!r} is not a face name (Face1, Face2, …)")
+            n = int(m.group(1))
+        elif isinstance(f, (int, np.integer)) and not isinstance(f, bool):
+            n = int(f)
+        else:
+            raise ValueError(f"faces: {f!r} is neither a face name, a number nor a face")
+        if not 1 <= n <= count:
+            raise ValueError(f"faces: Face{n} is not a face of the shape, which has {count} "
+                             f"face(s), Face1 to Face{count}")
+        numbers.append(n)
+    return sorted(set(numbers))
+
+
+def _face_names(faces):
+    """The faces= option as the result's options record it (names when given as such)."""
+    if isinstance(faces, (str, int, np.integer)) or hasattr(faces, "ShapeType"):
+        faces = [faces]
+    return [f if isinstance(f, str) else (int(f) if isinstance(f, (int, np.integer))
+                                          else "Part.Face") for f in faces]
+
+
+def _held_nodes(data, handle, shape, faces, fixed_nodes):
+    """The core's bool mask of the nodes ``faces=`` and ``fixed_nodes=`` hold (see
+    :func:`optimize`), or None when neither is given."""
+    if faces is None and fixed_nodes is None:
+        return None
+    held = np.zeros(data.node_count, dtype=bool)
+    glued = data.glued if data.glued is not None else np.arange(data.node_count)
+    if faces is not None:
+        count = (shape.face_count if _is_core_shape(shape)
+                 else len(shapes.shape_of(shape).Faces))
+        chosen = np.asarray(_face_numbers(faces, shape, count), dtype=np.int64) - 1
+        elem_faces = np.asarray(handle.element_faces(), dtype=np.int64)
+        carried = np.isin(chosen, elem_faces)
+        if not carried.all():
+            bare = ", ".join(f"Face{int(f) + 1}" for f in chosen[~carried])
+            raise ValueError(f"faces: no element of the mesh lies on {bare}")
+        core = _input_element_indices(data, range(elem_faces.size))
+        other = core[~np.isin(elem_faces, chosen)]
+        if other.size:
+            held[data.nodes_of(np.isin(np.arange(data.element_count), other))] = True
+    if fixed_nodes is not None:
+        if isinstance(fixed_nodes, (int, np.integer)):
+            fixed_nodes = [fixed_nodes]
+        try:
+            ids = np.asarray(list(fixed_nodes))
+        except TypeError:
+            raise ValueError(f"fixed_nodes must be a list of node ids, got {fixed_nodes!r}") \
+                from None
+        if ids.size and (ids.dtype.kind not in "iu"):
+            raise ValueError(f"fixed_nodes must be integer node ids, got {fixed_nodes!r}")
+        ids = ids.astype(np.int64)
+        order = np.argsort(data.node_ids, kind="stable")
+        pos = np.clip(np.searchsorted(data.node_ids, ids, sorter=order), 0, data.node_count - 1)
+        idx = order[pos]
+        unknown = ids[data.node_ids[idx] != ids]
+        if unknown.size:
+            raise ValueError(f"fixed_nodes: the mesh has no node with id "
+                             f"{_id_list([int(i) for i in unknown], 10)}")
+        held[glued[idx]] = True
+    return held
 
 
 def _input_element_indices(data, core_indices):

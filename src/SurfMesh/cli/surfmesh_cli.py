@@ -78,6 +78,13 @@ def build_parser():
     o.add_argument("--no-monotone", action="store_true",
                    help="accept moves that lower a valid mesh's minimum quality")
     o.add_argument("--msh-version", type=float, choices=[2, 2.2, 4, 4.1], default=None)
+    o.add_argument("--faces", metavar="LIST", default=None,
+                   help="optimize only the elements on these faces of the shape, e.g. "
+                   "'Face3,Face7' or '3,7' (FreeCAD's numbering); the nodes of the other "
+                   "elements stay")
+    o.add_argument("--fixed-nodes", metavar="LIST", default=None,
+                   help="ids of nodes to leave where they are (the file's node ids), e.g. "
+                   "'12,57,103' or a range '100-200'")
     sub.add_parser("measures", help="list the quality measures")
     return p
 
@@ -96,6 +103,34 @@ def _bridge_summary(bridge, data):
     # high-order side nodes put on their element's face, by the file's node ids
     out["placed_nodes"] = [int(data.node_ids[n]) for n in bridge.get("placed_nodes", [])]
     return out
+
+
+def _face_list(text):
+    """--faces: "Face3,Face7" or "3,7" → ["Face3", "Face7"] (checked by optimize)."""
+    items = [t.strip() for t in text.split(",") if t.strip()]
+    return [f"Face{t}" if t.isdigit() else t for t in items]
+
+
+def _id_list(text, option):
+    """"12,57,100-200" → [12, 57, 100, …, 200]."""
+    ids = []
+    for t in (t.strip() for t in text.split(",")):
+        if not t:
+            continue
+        a, sep, b = t.partition("-")
+        try:
+            if sep:
+                lo, hi = int(a), int(b)
+                if hi < lo:
+                    raise ValueError
+                ids.extend(range(lo, hi + 1))
+            else:
+                ids.append(int(t))
+        except ValueError:
+            raise ValueError(f"{option}: {t!r} is neither a node id nor a range a-b") from None
+    if not ids:
+        raise ValueError(f"{option}: no node ids given")
+    return ids
 
 
 def run(argv):
@@ -142,6 +177,10 @@ def run(argv):
             options["threads"] = args.threads
         if args.no_monotone:
             options["monotone"] = False
+        if args.faces is not None:
+            options["faces"] = _face_list(args.faces)
+        if args.fixed_nodes is not None:
+            options["fixed_nodes"] = _id_list(args.fixed_nodes, "--fixed-nodes")
         res = sm.optimize(mf.data, shape, measure=args.measure, boundary=args.boundary,
                           tolerance=args.tolerance, hints=hints, duplicates=args.duplicates,
                           **options)
@@ -150,7 +189,8 @@ def run(argv):
                                     (args.measure, "Optimized", res.after.stats)]))
         phases = (" (fixed boundary, then sliding: up to twice --max-sweeps)"
                   if args.boundary == "slide" else "")
-        print(f"{res.sweeps} sweeps{phases}, {res.seconds:.3g} s ({res.reason}); "
+        held = f"; {res.held_nodes} node(s) held by --faces/--fixed-nodes" if res.held_nodes else ""
+        print(f"{res.sweeps} sweeps{phases}, {res.seconds:.3g} s ({res.reason}){held}; "
               f"wrote {args.output}")
         for w in list(res.bridge.get("warnings", [])) + list(res.warnings):
             print(f"warning: {w}", file=sys.stderr)

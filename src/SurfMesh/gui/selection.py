@@ -37,6 +37,18 @@ def selected_mesh_and_shape():
     return mesh, shape
 
 
+def selected_faces(shape_obj):
+    """FreeCAD names ("Face3") of the faces of ``shape_obj`` picked in the selection, in the
+    order of their numbers; empty when none is (the whole mesh is then optimized)."""
+    if shape_obj is None:
+        return []
+    names = set()
+    for sel in FreeCADGui.Selection.getSelectionEx():
+        if sel.Object is shape_obj:
+            names.update(n for n in sel.SubElementNames if n.startswith("Face"))
+    return sorted(names, key=lambda n: int(n[4:]) if n[4:].isdigit() else 0)
+
+
 def selected_meshes():
     return [o for o in FreeCADGui.Selection.getSelection() if is_mesh_object(o)]
 

@@ -16,7 +16,8 @@ class OptimizeCommand:
             "ToolTip": "Smooths and untangles the selected mesh on its CAD shape; nodes move "
             "in the surfaces' parameters and never leave the CAD geometry.\nCreates "
             "<name>_optimized (the original is kept). Select one mesh object, and its shape "
-            "unless the mesh was made from it.",
+            "unless the mesh was made from it; select faces of the shape to optimize only the "
+            "elements on them.",
         }
 
     def IsActive(self):
@@ -28,4 +29,4 @@ class OptimizeCommand:
             return
         from SurfMesh.gui.taskpanels.optimize_panel import OptimizePanel
 
-        FreeCADGui.Control.showDialog(OptimizePanel(mesh, shape))
+        FreeCADGui.Control.showDialog(OptimizePanel(mesh, shape, selection.selected_faces(shape)))

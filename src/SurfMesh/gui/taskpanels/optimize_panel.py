@@ -1,5 +1,6 @@
 """Task panel of SurfMesh_Optimize: measure, boundary mode, tolerances, sweeps, monotone mode,
-over-relaxation, threads (the panel opens with the settings of the last run applied).
+over-relaxation, threads (the panel opens with the settings of the last run applied), and the
+faces whose elements to optimize (those selected with the mesh; empty: the whole mesh).
 
 OK (Apply) runs SurfMesh.optimize_object through FreeCADGui.doCommand with a progress hook
 that drives the panel's progress bar; Cancel (or Stop) during a run stops it and leaves the
@@ -17,9 +18,10 @@ from SurfMesh.gui import preferences, runner, selection
 
 
 class OptimizePanel:
-    def __init__(self, mesh, shape):
+    def __init__(self, mesh, shape, faces=None):
         self.mesh = mesh
         self.shape = shape
+        self.initial_faces = list(faces or [])
         self.running = False
         self.stop_requested = False
         self.result = None
@@ -51,6 +53,15 @@ class OptimizePanel:
         self.boundary.setCurrentIndex(list(api.BOUNDARY_MODES).index(last["boundary"]))
         self.boundary.setToolTip("fixed: nodes on CAD edges stay; slide: they slide along edges")
         lay.addRow("Boundary", self.boundary)
+        self.faces = QtGui.QLineEdit(", ".join(self.initial_faces))
+        self.faces.setObjectName("faces")
+        self.faces.setPlaceholderText("all")
+        self.faces.setToolTip(
+            "Optimize only the elements on these faces of the shape (e.g. Face3, Face7; the "
+            "faces selected with the mesh): the nodes of the other elements stay. Empty: the "
+            "whole mesh"
+        )
+        lay.addRow("Only faces", self.faces)
         self.tolerance = QtGui.QDoubleSpinBox()
         self.tolerance.setObjectName("tolerance")
         self.tolerance.setDecimals(6)
@@ -111,6 +122,12 @@ class OptimizePanel:
         lay.addRow(self.stop)
         return w
 
+    def face_names(self):
+        """The faces of the "Only faces" field ("Face3, 7" → ["Face3", "Face7"]); empty: all."""
+        items = [t for t in self.faces.text().replace(";", ",").replace(" ", ",").split(",")
+                 if t]
+        return [f"Face{t}" if t.isdigit() else t for t in items]
+
     def options(self):
         return {
             "measure": self.measure.currentText(),
@@ -135,6 +152,9 @@ class OptimizePanel:
         for k in ("rel_tol", "max_sweeps", "monotone", "over_relaxation", "threads"):
             if o[k] != api.OPTIMIZE_DEFAULTS[k]:
                 args.append(f"{k}={o[k]!r}")
+        faces = self.face_names()
+        if faces:
+            args.append(f"faces={faces!r}")
         return "SurfMesh.optimize_object(" + ", ".join(args) + ")"
 
     # ---- running ---------------------------------------------------------------------------

@@ -2455,10 +2455,40 @@ OptimizeResult optimizeHolding(SurfaceMesh& mesh, const OptimizeOptions& opt,
   return res;
 }
 
+/// `run()` with the nodes i where fixed(i) holds made Fixed; the mesh's own node kinds are
+/// back afterwards, also when it throws.
+template <class Pred, class Run>
+OptimizeResult withNodesFixed(SurfaceMesh& mesh, Pred fixed, Run run) {
+  const std::vector<NodeKind> kinds = mesh.nodeKind;
+  for (std::size_t i = 0; i < kinds.size(); ++i)
+    if (fixed(i)) mesh.nodeKind[i] = NodeKind::Fixed;
+  OptimizeResult res;
+  try {
+    res = run();
+  } catch (...) {
+    mesh.nodeKind = kinds;
+    throw;
+  }
+  mesh.nodeKind = kinds;
+  return res;
+}
+
 }  // namespace
 
 OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
                             const ProgressCallback& progress, const QualityStats* before) {
+  if (!opt.fixedNodes.empty()) {
+    // Nodes the caller holds: Fixed for the run (their elements' normals and measures are
+    // those of any fixed node), their own kinds back afterwards, whatever happens.
+    if (opt.fixedNodes.size() != mesh.nodeCount())
+      throw std::invalid_argument("fixedNodes has " + std::to_string(opt.fixedNodes.size()) +
+                                  " entries for " + std::to_string(mesh.nodeCount()) + " nodes");
+    OptimizeOptions rest = opt;
+    rest.fixedNodes.clear();
+    return withNodesFixed(
+        mesh, [&](std::size_t i) { return opt.fixedNodes[i] != 0; },
+        [&] { return optimizeMesh(mesh, rest, progress, before); });
+  }
   const bool sliding =
       std::find(mesh.nodeKind.begin(), mesh.nodeKind.end(), NodeKind::Edge) != mesh.nodeKind.end();
   if (!sliding || opt.maxSweeps == 0) return optimizeHolding(mesh, opt, progress, before);
@@ -2467,7 +2497,6 @@ OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
   // and (monotone) never lowers the minimum quality of a valid mesh, so sliding never ends
   // worse than the fixed boundary would in those two respects.
   const auto t0 = std::chrono::steady_clock::now();
-  const std::vector<NodeKind> kinds = mesh.nodeKind;
   MeshPositions input{mesh.xyz, mesh.uv, mesh.nodeT, mesh.cornerUV};
   int offset = 0;
   ProgressCallback phased;
@@ -2478,16 +2507,9 @@ OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
       q.maxSweeps = 2 * opt.maxSweeps;
       return progress(q);
     };
-  OptimizeResult held;
-  for (NodeKind& k : mesh.nodeKind)
-    if (k == NodeKind::Edge) k = NodeKind::Fixed;
-  try {
-    held = optimizeHolding(mesh, opt, phased, before);
-  } catch (...) {
-    mesh.nodeKind = kinds;
-    throw;
-  }
-  mesh.nodeKind = kinds;
+  const OptimizeResult held = withNodesFixed(
+      mesh, [&](std::size_t i) { return mesh.nodeKind[i] == NodeKind::Edge; },
+      [&] { return optimizeHolding(mesh, opt, phased, before); });
   if (held.reason == StopReason::Cancelled) return held;  // the mesh was never touched
   offset = held.sweeps;
   OptimizeResult res = continueRun(mesh, held, input,

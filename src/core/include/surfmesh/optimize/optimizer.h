@@ -133,6 +133,9 @@ struct OptimizeOptions {
   bool monotone = true;
   /// Worker threads for the sweeps; 0 = all hardware threads.
   int threads = 0;
+  /// Empty, or one entry per node: nonzero for the nodes the run must leave where they are
+  /// (held like CAD vertices; e.g. the nodes of the elements outside a region to optimize).
+  std::vector<unsigned char> fixedNodes;
 };
 
 enum class StopReason { Converged, MaxSweeps, Cancelled, NothingToDo };
