@@ -15,7 +15,9 @@
 # 6. (not in quick) FreeCAD's MeshPart meshes (standard and Mefisto) of every CAD part, as
 #    they come, fixed and sliding boundary (bench/python/meshpart_parts.py, freecadcmd);
 # 7. (not in quick) Gmsh's own high-order meshes (orders 2-5) of two parts through the
-#    installed workbench's command line (bench/high_order_parts.py).
+#    installed workbench's command line (bench/high_order_parts.py);
+# 8. (not in quick) shapes built with FreeCAD (bench/python/built_shapes.py): the Gmsh
+#    comparison of 3. and Gmsh's order-2 and order-3 meshes of them.
 set -e
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
 BUILD=${BUILD:-$ROOT/build-bench}
@@ -71,4 +73,16 @@ if [ "$1" != "quick" ]; then
   echo
   echo "## Gmsh's high-order meshes, orders 2-5 (installed workbench's command line)"
   /usr/bin/python3 "$ROOT/bench/high_order_parts.py" 2>&1 | grep -E '^\||rror' || true
+fi
+if [ "$1" != "quick" ]; then
+  echo
+  echo "## Shapes built with FreeCAD: SurfMesh vs Gmsh, and Gmsh's order-2 and order-3 meshes"
+  BUILT=$(mktemp -d)
+  SURFMESH_BUILT_DIR="$BUILT" freecadcmd "$ROOT/bench/python/write_built_shapes.py" >/dev/null 2>&1
+  PARTS=$(ls "$BUILT"/*.brep | paste -sd, -)
+  /usr/bin/python3 "$ROOT/bench/parts_compare.py" --bench-dir "$B" --parts "$PARTS" 2>&1 \
+    | grep -v '^Info'
+  /usr/bin/python3 "$ROOT/bench/high_order_parts.py" --parts "$PARTS" --orders 2,3 --div 17 \
+    2>&1 | grep -E '^\||rror' || true
+  rm -rf "$BUILT"
 fi

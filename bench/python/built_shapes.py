@@ -1,8 +1,11 @@
 """Shapes built with FreeCAD's Part module, for meshpart_parts.py (SURFMESH_MP_CAD_DIR=built):
 surfaces the parts of ../shared/data/cad do not have — a sphere and a cone with their poles, a
 scaled (B-spline) sphere, a loft through three B-spline sections, a revolved B-spline profile,
-a circle swept along a five-turn helix, a filleted block with a hole and a fusion of a
-cylinder, a sphere and a torus.
+a circle swept along a five-turn helix, a filleted block with a hole, a fusion of a
+cylinder, a sphere and a torus, a box with all edges rounded and its offset, a spherical
+cavity, a plate with chamfered holes, an extruded B-spline and half a torus.
+
+    freecadcmd bench/python/write_built_shapes.py   # writes them as BREP files
 """
 
 import math
@@ -46,6 +49,27 @@ def shapes():
         3, [e for e in block.Edges if abs(e.Length - 40) < 1e-6 or abs(e.Length - 30) < 1e-6][:6])
     out["fused"] = Part.makeCylinder(5, 20).fuse(Part.makeSphere(7, V(0, 0, 20))).fuse(
         Part.makeTorus(9, 2, V(0, 0, 8)))
+    # A box with every edge rounded, and its offset (offset surfaces of the planes, cylinders
+    # and spheres).
+    box = Part.makeBox(10, 6, 4)
+    rounded = box.makeFillet(1.2, box.Edges)
+    out["rounded_box"] = rounded
+    out["offset"] = rounded.makeOffsetShape(0.7, 1e-6)
+    # A spherical cavity cut into a box's top; a plate with three chamfered holes (cones).
+    out["cavity"] = Part.makeBox(10, 10, 10).cut(Part.makeSphere(4, V(5, 5, 10)))
+    plate = Part.makeBox(20, 12, 2)
+    for x, y in ((4, 4), (10, 6), (16, 8)):
+        plate = plate.cut(Part.makeCylinder(1.5, 2, V(x, y, 0)))
+    out["chamfered_plate"] = plate.makeChamfer(
+        0.4, [e for e in plate.Edges if isinstance(e.Curve, Part.Circle)])
+    # A B-spline edge extruded (a surface of extrusion) and half a torus.
+    wave = Part.BSplineCurve()
+    wave.interpolate([V(0, 0, 0), V(3, 2, 0), V(6, -1, 0), V(9, 1, 0)])
+    outline = Part.Wire([wave.toShape(), Part.LineSegment(V(9, 1, 0), V(9, 6, 0)).toShape(),
+                         Part.LineSegment(V(9, 6, 0), V(0, 6, 0)).toShape(),
+                         Part.LineSegment(V(0, 6, 0), V(0, 0, 0)).toShape()])
+    out["extrusion"] = Part.Face(outline).extrude(V(0, 0, 4))
+    out["half_torus"] = Part.makeTorus(6, 2).cut(Part.makeBox(20, 20, 20, V(0, 0, -10)))
     return out
 
 
@@ -55,3 +79,4 @@ def write(directory):
     for name, s in shapes().items():
         s.exportBrep(os.path.join(directory, name + ".brep"))
     return directory
+
