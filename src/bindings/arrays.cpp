@@ -35,6 +35,15 @@ void checkShape1D(const ArrayI& a, const char* what, py::ssize_t n) {
   }
 }
 
+std::vector<unsigned char> toMask(const py::object& o, py::ssize_t n, const char* what) {
+  if (o.is_none()) return {};
+  const auto mask = py::cast<py::array_t<bool, py::array::c_style | py::array::forcecast>>(o);
+  if (mask.ndim() != 1 || mask.shape(0) != n)
+    throw std::invalid_argument(std::string(what) + " must be a bool array of shape (" +
+                                std::to_string(n) + ",)");
+  return std::vector<unsigned char>(mask.data(), mask.data() + n);
+}
+
 void checkFinite(const ArrayD& a, const char* what) {
   const double* p = a.data();
   const py::ssize_t n = a.size();

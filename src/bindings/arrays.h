@@ -35,6 +35,10 @@ void checkFinite(const ArrayD& a, const char* what);
 /// Checks lo ≤ a[i] < hi for every entry (ids / indices); reports the first offending entry.
 void checkRange(const ArrayI& a, std::int64_t lo, std::int64_t hi, const char* what);
 
+/// None → empty; else a 1-D bool array (anything numpy converts) of `n` entries → 0/1 per
+/// entry. `what` names the argument.
+std::vector<unsigned char> toMask(const py::object& o, py::ssize_t n, const char* what);
+
 /// (N, 3) positions → std::vector<Vec3>, (N, 2) → std::vector<Vec2> (after checkShape2D).
 std::vector<Vec3> toVec3(const ArrayD& a);
 std::vector<Vec2> toVec2(const ArrayD& a);

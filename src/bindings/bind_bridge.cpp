@@ -130,14 +130,7 @@ void bind_bridge(py::module_& m) {
         in.hintFace = hintVector(hint_face, n, shape->faceCount(), "hint_face");
         in.hintEdge = hintVector(hint_edge, n, shape->edgeCount(), "hint_edge");
         in.hintVertex = hintVector(hint_vertex, n, shape->vertexCount(), "hint_vertex");
-        if (!left_out_nodes.is_none()) {
-          const auto mask = py::cast<py::array_t<bool, py::array::c_style | py::array::forcecast>>(
-              left_out_nodes);
-          if (mask.ndim() != 1 || mask.shape(0) != n)
-            throw std::invalid_argument("left_out_nodes must have shape (" + std::to_string(n) +
-                                        ",)");
-          in.leftOutNeighbour.assign(mask.data(), mask.data() + n);
-        }
+        in.leftOutNeighbour = toMask(left_out_nodes, n, "left_out_nodes");
         BridgeOptions opt;
         opt.tolerance = tolerance;
         opt.boundary = boundary;

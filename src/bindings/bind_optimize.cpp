@@ -1,10 +1,10 @@
 // SurfMesh bindings — SurfaceMesh.optimize(): smoothing and untangling with a cancellable
 // Python progress callback.
+#include "arrays.h"
 #include "handle.h"
 #include "surfmesh/optimize/optimizer.h"
 
 #include <pybind11/functional.h>
-#include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
@@ -36,15 +36,7 @@ void bind_optimize(MeshClass& cls) {
         o.delta = delta;
         o.monotone = monotone;
         o.threads = threads;
-        if (!fixed.is_none()) {
-          const auto mask =
-              py::cast<py::array_t<bool, py::array::c_style | py::array::forcecast>>(fixed);
-          const SurfaceMesh& m = h.get();
-          if (mask.ndim() != 1 || static_cast<std::size_t>(mask.shape(0)) != m.nodeCount())
-            throw std::invalid_argument("fixed must be a bool array of shape (" +
-                                        std::to_string(m.nodeCount()) + ",)");
-          o.fixedNodes.assign(mask.data(), mask.data() + mask.shape(0));
-        }
+        o.fixedNodes = toMask(fixed, static_cast<py::ssize_t>(h.get().nodeCount()), "fixed");
         if (!progress.is_none() && !PyCallable_Check(progress.ptr()))
           throw std::invalid_argument("progress must be callable or None");
         // The callback runs on the calling thread after each sweep (GIL released around the

@@ -624,8 +624,9 @@ def optimize(
             "Mesh.harmonizeNormals())"
         )
     held = _held_nodes(data, handle, shape, faces, fixed_nodes)
-    kinds = np.asarray(handle.node_kinds())
-    held_nodes = 0 if held is None else int(np.count_nonzero(held & (kinds != 0)))
+    # the held nodes that would have moved (kind 0: fixed anyway)
+    held_nodes = (0 if held is None
+                  else int(np.count_nonzero(held & (np.asarray(handle.node_kinds()) != 0))))
     t0 = time.perf_counter()
     before = _report(data, handle, measure, bridge,
                      measured=measured if measure == "shape" else None)
@@ -725,21 +726,30 @@ def optimize(
     )
 
 
-def _face_numbers(faces, shape, count):
-    """FreeCAD face numbers (1 for Face1) of ``faces`` (names, numbers or Part.Face objects of
-    ``shape``), checked against the shape's ``count`` faces."""
+def face_list(text):
+    """The faces of a typed list ("Face3, Face7", "3;7", "Face3 7") as :func:`optimize`
+    takes them: names stay, numbers become names (["Face3", "Face7"])."""
+    items = [t for t in text.replace(";", ",").replace(" ", ",").split(",") if t]
+    return [f"Face{t}" if t.isdigit() else t for t in items]
+
+
+def _face_items(faces):
+    """``faces=`` as a list (one name, number or face given alone is a list of one)."""
     if isinstance(faces, (str, int, np.integer)) or hasattr(faces, "ShapeType"):
-        faces = [faces]
+        return [faces]
     try:
-        items = list(faces)
+        return list(faces)
     except TypeError:
         raise ValueError(f"faces must be a list of face names, numbers or faces, got {faces!r}") \
             from None
+
+
+def _face_numbers(faces, part, count):
+    """FreeCAD face numbers (1 for Face1) of ``faces`` (names, numbers or Part.Face objects of
+    the Part.Shape ``part``, None for a core shape), checked against its ``count`` faces."""
+    items = _face_items(faces)
     if not items:
         raise ValueError("faces is empty: give the faces whose elements to optimize")
-    part = None
-    if not _is_core_shape(shape):
-        part = shapes.shape_of(shape)
     numbers = []
     for f in items:
         if hasattr(f, "ShapeType"):
@@ -768,10 +778,8 @@ def _face_numbers(faces, shape, count):
 
 def _face_names(faces):
     """The faces= option as the result's options record it (names when given as such)."""
-    if isinstance(faces, (str, int, np.integer)) or hasattr(faces, "ShapeType"):
-        faces = [faces]
     return [f if isinstance(f, str) else (int(f) if isinstance(f, (int, np.integer))
-                                          else "Part.Face") for f in faces]
+                                          else "Part.Face") for f in _face_items(faces)]
 
 
 def _held_nodes(data, handle, shape, faces, fixed_nodes):
@@ -780,20 +788,19 @@ def _held_nodes(data, handle, shape, faces, fixed_nodes):
     if faces is None and fixed_nodes is None:
         return None
     held = np.zeros(data.node_count, dtype=bool)
-    glued = data.glued if data.glued is not None else np.arange(data.node_count)
     if faces is not None:
-        count = (shape.face_count if _is_core_shape(shape)
-                 else len(shapes.shape_of(shape).Faces))
-        chosen = np.asarray(_face_numbers(faces, shape, count), dtype=np.int64) - 1
+        part = None if _is_core_shape(shape) else shapes.shape_of(shape)
+        count = shape.face_count if part is None else len(part.Faces)
+        chosen = np.asarray(_face_numbers(faces, part, count), dtype=np.int64) - 1
         elem_faces = np.asarray(handle.element_faces(), dtype=np.int64)
         carried = np.isin(chosen, elem_faces)
         if not carried.all():
             bare = ", ".join(f"Face{int(f) + 1}" for f in chosen[~carried])
             raise ValueError(f"faces: no element of the mesh lies on {bare}")
-        core = _input_element_indices(data, range(elem_faces.size))
-        other = core[~np.isin(elem_faces, chosen)]
-        if other.size:
-            held[data.nodes_of(np.isin(np.arange(data.element_count), other))] = True
+        # every node of an element (of the input's) on another face
+        elsewhere = np.zeros(data.element_count, dtype=bool)
+        elsewhere[_input_element_indices(data, np.nonzero(~np.isin(elem_faces, chosen))[0])] = True
+        held |= data.nodes_of(elsewhere)
     if fixed_nodes is not None:
         if isinstance(fixed_nodes, (int, np.integer)):
             fixed_nodes = [fixed_nodes]
@@ -804,15 +811,12 @@ def _held_nodes(data, handle, shape, faces, fixed_nodes):
                 from None
         if ids.size and (ids.dtype.kind not in "iu"):
             raise ValueError(f"fixed_nodes must be integer node ids, got {fixed_nodes!r}")
-        ids = ids.astype(np.int64)
-        order = np.argsort(data.node_ids, kind="stable")
-        pos = np.clip(np.searchsorted(data.node_ids, ids, sorter=order), 0, data.node_count - 1)
-        idx = order[pos]
-        unknown = ids[data.node_ids[idx] != ids]
-        if unknown.size:
+        idx, missing = conversion.positions_of(data.node_ids, ids.astype(np.int64))
+        if missing.any():
             raise ValueError(f"fixed_nodes: the mesh has no node with id "
-                             f"{_id_list([int(i) for i in unknown], 10)}")
-        held[glued[idx]] = True
+                             f"{_id_list([int(i) for i in ids[missing]], 10)}")
+        # a glued node moves with the one it is glued to: that one is held
+        held[idx if data.glued is None else data.glued[idx]] = True
     return held
 
 

@@ -200,6 +200,17 @@ class MeshData:
         )
 
 
+def positions_of(table, ids):
+    """(positions, missing): for each of ``ids``, its position in the id array ``table``
+    (unique ids, any order), and a bool mask of the ids ``table`` does not hold (their
+    positions are meaningless)."""
+    table = np.asarray(table)
+    ids = np.asarray(ids)
+    order = np.argsort(table, kind="stable")
+    pos = order[np.clip(np.searchsorted(table, ids, sorter=order), 0, max(len(table) - 1, 0))]
+    return pos, table[pos] != ids
+
+
 def from_arrays(nodes, elements, element_type="tri3", node_ids=None, element_ids=None):
     """MeshData from plain arrays: ``elements`` is (E, k) with 0-based node indices."""
     nodes = np.ascontiguousarray(nodes, dtype=np.float64)
@@ -336,11 +347,7 @@ def _read_fem_mesh(fem) -> MeshData:
     flat_ids = np.fromiter(
         (n for nodes_of in element_nodes for n in nodes_of), dtype=np.int64, count=int(offsets[-1])
     )
-    order = np.argsort(node_ids, kind="stable")
-    pos = np.searchsorted(node_ids, flat_ids, sorter=order)
-    pos = np.clip(pos, 0, len(node_ids) - 1)
-    conn = order[pos]
-    missing = node_ids[conn] != flat_ids
+    conn, missing = positions_of(node_ids, flat_ids)
     if np.any(missing):
         raise ValueError(f"FEM mesh elements reference unknown node id {int(flat_ids[missing][0])}")
     return MeshData(

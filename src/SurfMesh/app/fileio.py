@@ -291,9 +291,8 @@ def _read_gmsh(path) -> MeshFile:
     conn_list = [flat[starts[e] : starts[e + 1]] for e in eorder]
     el_types, el_ids, sizes = el_types[eorder], el_ids[eorder], sizes[eorder]
     flat = np.concatenate(conn_list) if conn_list else flat
-    pos = np.searchsorted(node_tags, flat)
-    pos = np.clip(pos, 0, len(node_tags) - 1)
-    if np.any(node_tags[pos] != flat):
+    pos, missing = conversion.positions_of(node_tags, flat)
+    if np.any(missing):
         raise ValueError(f"{path}: an element references an unknown node")
     offsets = np.zeros(len(el_types) + 1, dtype=np.int64)
     np.cumsum(sizes, out=offsets[1:])

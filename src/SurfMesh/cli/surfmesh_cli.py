@@ -105,13 +105,7 @@ def _bridge_summary(bridge, data):
     return out
 
 
-def _face_list(text):
-    """--faces: "Face3,Face7" or "3,7" → ["Face3", "Face7"] (checked by optimize)."""
-    items = [t.strip() for t in text.split(",") if t.strip()]
-    return [f"Face{t}" if t.isdigit() else t for t in items]
-
-
-def _id_list(text, option):
+def _node_ids(text, option):
     """"12,57,100-200" → [12, 57, 100, …, 200]."""
     ids = []
     for t in (t.strip() for t in text.split(",")):
@@ -178,9 +172,9 @@ def run(argv):
         if args.no_monotone:
             options["monotone"] = False
         if args.faces is not None:
-            options["faces"] = _face_list(args.faces)
+            options["faces"] = api.face_list(args.faces)
         if args.fixed_nodes is not None:
-            options["fixed_nodes"] = _id_list(args.fixed_nodes, "--fixed-nodes")
+            options["fixed_nodes"] = _node_ids(args.fixed_nodes, "--fixed-nodes")
         res = sm.optimize(mf.data, shape, measure=args.measure, boundary=args.boundary,
                           tolerance=args.tolerance, hints=hints, duplicates=args.duplicates,
                           **options)

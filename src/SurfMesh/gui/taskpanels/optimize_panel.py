@@ -124,9 +124,7 @@ class OptimizePanel:
 
     def face_names(self):
         """The faces of the "Only faces" field ("Face3, 7" → ["Face3", "Face7"]); empty: all."""
-        items = [t for t in self.faces.text().replace(";", ",").replace(" ", ",").split(",")
-                 if t]
-        return [f"Face{t}" if t.isdigit() else t for t in items]
+        return api.face_list(self.faces.text())
 
     def options(self):
         return {
