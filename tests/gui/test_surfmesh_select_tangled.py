@@ -316,6 +316,16 @@ try:
           f"mesh without shape: the clear message ({boxes.texts})")
     check([s.ObjectName for s in FreeCADGui.Selection.getSelectionEx()] == ["TorusTri"]
           and selected_subs(tri) == [], "error: the selection is left as it was")
+    # Optimize on it: the same message before any panel opens (OK could only fail there).
+    from SurfMesh.gui.commands.optimize import OptimizeCommand
+
+    boxes = MessageBoxCloser()
+    OptimizeCommand().Activated()
+    boxes.stop()
+    FreeCADGui.updateGui()
+    check(any("no shape known for mesh 'TorusTri'" in t for t in boxes.texts)
+          and FreeCADGui.Control.activeDialog() is False,
+          f"Optimize on a mesh without shape: the message, no panel ({boxes.texts})")
     check(snapshot() == before, "bad input: document unchanged")
 
     FreeCAD.closeDocument(doc.Name)

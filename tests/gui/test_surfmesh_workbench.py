@@ -135,6 +135,20 @@ try:
     new = doc.getObject("TorusMesh_optimized")
     check(new is not None, "TorusMesh_optimized created")
     check(doc.UndoCount == undo0 + 1, "one undo transaction")
+    # The result takes the original's place: the original hidden, the result selected; undo
+    # shows the original again, redo hides it again.
+    check(mesh.ViewObject.Visibility is False and new.ViewObject.Visibility is True,
+          "the original is hidden, the result shown")
+    check(FreeCADGui.Selection.getSelection() == [new], "the result is selected")
+    doc.undo()
+    FreeCADGui.updateGui()
+    check(doc.getObject("TorusMesh_optimized") is None and mesh.ViewObject.Visibility is True,
+          "undo removes the result and shows the original")
+    doc.redo()
+    FreeCADGui.updateGui()
+    new = doc.getObject("TorusMesh_optimized")
+    check(new is not None and mesh.ViewObject.Visibility is False,
+          "redo brings the result back and hides the original")
     check(SurfMesh.stats_of(new)["tangled"] == 0, "optimized mesh untangled")
     check("over_relaxation=1.5" in new.SurfMeshRun.get("options", "")
           and "max_sweeps=200" in new.SurfMeshRun.get("options", ""),
@@ -300,6 +314,43 @@ try:
     g5, y5, _ = shares(pixels(shot5))
     check(g5 + y5 > 0.5, f"tria6 screenshot shows quality colors ({g5:.3f}, {y5:.3f})")
 
+    FreeCAD.closeDocument(doc.Name)
+
+    # ---- colors of a FEM mesh after the document is saved and opened again ----------------
+    # FreeCAD saves no FEM view colors: the workbench shows the stored ones again on opening.
+    doc = FreeCAD.newDocument("SurfMeshReopen")
+    tor = examples.make_torus(doc)
+    fem = examples.make_gmsh_mesh(doc, tor, 2.0, name="TorusMesh")
+    examples.tangle_to(fem, tor.Shape, target=25, seed=1)
+    tor.ViewObject.Visibility = False
+    SurfMesh.measure_object(fem)
+    doc.recompute()
+    view = FreeCADGui.ActiveDocument.ActiveView
+    view.viewIsometric()
+    view.fitAll()
+    FreeCADGui.Selection.clearSelection()
+    FreeCADGui.updateGui()
+    shot6 = os.path.join(out, "gui_before_save.png")
+    view.saveImage(shot6, 800, 600, "White")
+    g6, y6, p6 = shares(pixels(shot6))
+    path = os.path.join(out, "surfmesh_reopen.FCStd")
+    doc.saveAs(path)
+    FreeCAD.closeDocument(doc.Name)
+    doc = FreeCAD.openDocument(path)
+    for _ in range(5):
+        FreeCADGui.updateGui()
+    view = FreeCADGui.ActiveDocument.ActiveView
+    view.viewIsometric()
+    view.fitAll()
+    FreeCADGui.updateGui()
+    shot7 = os.path.join(out, "gui_after_reopen.png")
+    view.saveImage(shot7, 800, 600, "White")
+    g7, y7, p7 = shares(pixels(shot7))
+    check(g6 > 0.3 and p6 > 0.0, f"colored before saving ({g6:.3f} green, {p6:.5f} tangled)")
+    check(abs(g7 - g6) < 0.05 and abs(y7 - y6) < 0.05 and p7 > 0.5 * p6,
+          f"the same colors after opening it again ({g7:.3f} green, {y7:.3f} poor, "
+          f"{p7:.5f} tangled)")
+    check(not FreeCADGui.getDocument(doc.Name).Modified, "showing them changes nothing")
     FreeCAD.closeDocument(doc.Name)
     code = 0
 except BaseException:

@@ -214,6 +214,40 @@ class TestDocument(DocumentCase):
             self.assertEqual(fh.read(8), b"\x89PNG\r\n\x1a\n")
 
 
+    def test_left_out_elements_are_not_counted_as_poor_or_tangled(self):
+        # A collapsed element (a repeated node, as Gmsh leaves where it merged nodes) is left
+        # out of the measure: stored as -1, not 0 (tangled), drawn grey, not in the histogram.
+        from SurfMesh.app import document, reports
+
+        tor, mesh = T.torus_fem(self.doc, tangled=False)
+        fem = mesh.FemMesh.copy()
+        eid = max(fem.Faces) + 1
+        a, b, _ = fem.getElementNodes(min(fem.Faces))
+        fem.addFace([a, b, a], eid)
+        mesh.FemMesh = fem
+        rep = SurfMesh.measure_object(mesh, shape=tor)
+        k = list(rep.element_ids).index(eid)
+        self.assertTrue(rep.skipped[k])
+        self.assertEqual(int(rep.skipped.sum()), 1)
+        stored = np.asarray(mesh.SurfMeshQuality)
+        self.assertEqual(stored[k], -1.0)
+        self.assertTrue(np.all(stored[np.arange(len(stored)) != k] > 0.0))
+        colors = np.array([c[:3] for c in mesh.SurfMeshColors])
+        np.testing.assert_allclose(colors[k], coloring.SKIPPED_RGB, atol=1e-6)
+        self.assertFalse(np.allclose(colors[np.arange(len(colors)) != k], coloring.SKIPPED_RGB,
+                                     atol=1e-3))
+        # the colors rebuilt from the stored quality (apply_colors without a report) agree
+        rgb = SurfMesh.apply_colors(mesh)
+        np.testing.assert_allclose(rgb, colors, atol=1e-6)
+        # the histogram's data: the measured elements only (their mean is the stats' mean)
+        rows, series = document.report_rows(mesh, measures=["shape"], shape=tor)
+        q = np.asarray(series[0][1])
+        self.assertEqual(len(q), len(stored) - 1)
+        self.assertAlmostEqual(float(q.mean()), rep.stats["mean"], places=9)
+        fig = reports.histogram_figure([("stored", mesh.SurfMeshQuality, 0)])
+        counts = sum(p.get_height() for p in fig.axes[0].patches)
+        self.assertEqual(counts, len(stored) - 1)
+
 class TestImports(unittest.TestCase):
     def test_headless_layer_never_imports_gui(self):
         # FEM's import test idea: the headless modules import with the GUI down, and their

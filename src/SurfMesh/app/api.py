@@ -30,7 +30,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from SurfMesh.app import conversion, shapes
+from SurfMesh.app import conversion, progress as _progress, shapes
 from SurfMesh.app.native import core
 
 BOUNDARY_MODES = ("fixed", "slide")
@@ -272,6 +272,7 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, duplicates="glu
         raise ValueError(f"collapsed must be 'skip' or 'error', got {collapsed!r}")
     if duplicates not in ("glue", "error"):
         raise ValueError(f"duplicates must be 'glue' or 'error', got {duplicates!r}")
+    _progress.phase("reading the mesh")
     data = conversion.read_mesh(mesh)
     t_read = time.perf_counter()
     part_shape = shapes.shape_of(shape) if not _is_core_shape(shape) else None
@@ -346,6 +347,7 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, duplicates="glu
 
     # Flat elements found on the first recovery are left out by a second one, which reuses
     # the first's per-node face search (the costly part): same nodes, other elements.
+    _progress.phase("placing the nodes on the shape's faces and edges")
     handle = build(work, keep=collapsed == "skip")
     shape_measure = None
     reasons = []
@@ -640,6 +642,7 @@ def optimize(
             fewest.update(tangled=p["tangled"], sweep=p["sweep"])
         return None if progress is None else progress(p)
 
+    _progress.phase("optimizing")
     r = handle.optimize(measure=measure, progress=track, before=stats, fixed=held, **opts)
     if r["reason"] == "cancelled":
         raise Cancelled(f"optimization cancelled after {r['sweeps']} sweep(s); nothing changed")
@@ -648,6 +651,7 @@ def optimize(
     new_nodes = handle.positions()
     if data.glued is not None:  # a glued node goes where the node it is glued to went
         new_nodes = new_nodes[data.glued]
+    _progress.phase("measuring the result")
     after = _report(data, handle, measure, bridge)
     t3 = time.perf_counter()
     new_mesh = conversion.rebuild(data, new_nodes) if data.kind in ("mesh", "fem") else None

@@ -2,7 +2,8 @@
 
 The scale is absolute (q ∈ [0, 1]) so that the colors of a mesh before and after optimization
 compare directly: red (q → 0) · orange · yellow · green (q = 1); tangled elements are drawn in
-a dark purple that no quality value takes.
+a dark purple that no quality value takes, and elements left out of the measure (collapsed,
+duplicate or flat ones, see SurfMesh.measure) in grey.
 
 Headless: never imports FreeCADGui.
 """
@@ -13,6 +14,8 @@ import numpy as np
 
 #: color of tangled (inverted or degenerate) elements
 TANGLED_RGB = (0.35, 0.0, 0.45)
+#: color of elements left out of the measure (no quality: collapsed, duplicate, flat)
+SKIPPED_RGB = (0.6, 0.6, 0.6)
 
 # (quality, r, g, b) stops of the scale
 _STOPS = np.array(
@@ -26,24 +29,35 @@ _STOPS = np.array(
 )
 
 
-def quality_rgb(quality, tangled=None):
-    """(E, 3) float RGB in [0, 1] for per-element qualities (tangled → TANGLED_RGB)."""
+def quality_rgb(quality, tangled=None, skipped=None):
+    """(E, 3) float RGB in [0, 1] for per-element qualities (tangled → TANGLED_RGB, skipped →
+    SKIPPED_RGB)."""
     q = np.clip(np.nan_to_num(np.asarray(quality, dtype=float), nan=0.0), 0.0, 1.0)
     rgb = np.stack([np.interp(q, _STOPS[:, 0], _STOPS[:, c]) for c in (1, 2, 3)], axis=1)
     if tangled is not None:
         rgb[np.asarray(tangled, dtype=bool)] = TANGLED_RGB
+    if skipped is not None:
+        rgb[np.asarray(skipped, dtype=bool)] = SKIPPED_RGB
     return rgb
 
 
-def node_values(data, element_values, reduce="min"):
+def node_values(data, element_values, reduce="min", ignore=None):
     """Per-node values from per-element values (for node coloring of FEM tria6 meshes): the
-    minimum (default) or mean over the elements around each node."""
+    minimum (default) or mean over the elements around each node, without the elements where
+    ``ignore`` (a bool per element) is set; 1 where no element is left."""
     n = data.node_count
     out = np.full(n, np.inf if reduce == "min" else 0.0)
     counts = np.zeros(n)
     vals = np.asarray(element_values, dtype=float)
     sizes = np.diff(data.offsets)
     per_entry = np.repeat(vals, sizes)
+    if ignore is not None:
+        keep = ~np.repeat(np.asarray(ignore, dtype=bool), sizes)
+        per_entry = np.where(keep, per_entry, np.inf if reduce == "min" else 0.0)
+        if reduce != "min":
+            np.add.at(counts, data.conn, keep.astype(float))
+            np.add.at(out, data.conn, per_entry)
+            return np.where(counts > 0, out / np.maximum(counts, 1), 1.0)
     if reduce == "min":
         np.minimum.at(out, data.conn, per_entry)
         out[np.isinf(out)] = 1.0

@@ -12,9 +12,11 @@ MeshPart mesh, or the shape SurfMesh recorded on an optimized mesh).
 
 What is stored on a measured object (property group "SurfMesh"):
     SurfMeshMeasure (String), SurfMeshStats (Map: min, max, mean, std, tangled, elements),
-    SurfMeshQuality (FloatList, one per element in element order; 0 = tangled),
+    SurfMeshQuality (FloatList, one per element in element order; 0 = tangled, -1 = left out
+    of the measure: collapsed, duplicate or flat),
     SurfMeshColors (ColorList, one color per element: drawn by Mesh objects with Coloring;
-    on FEM objects the record of the colors given to the view).
+    on FEM objects the record of the colors given to the view, which FreeCAD does not save:
+    the GUI shows them again when the document is opened, see show_stored_colors).
 An optimized object also gets SurfMeshStatsBefore, SurfMeshQualityBefore, SurfMeshSource
 (link to the shape) and SurfMeshOriginal (link to the input mesh object).
 
@@ -100,10 +102,31 @@ def store_report(obj, report, before=False):
     _ensure(obj, "App::PropertyString", "SurfMeshMeasure", "Measure of the stored quality")
     _ensure(obj, "App::PropertyMap", "SurfMeshStats" + suffix, "Quality statistics")
     _ensure(obj, "App::PropertyFloatList", "SurfMeshQuality" + suffix,
-            "Quality per element (element order), 0 = tangled")
+            "Quality per element (element order), 0 = tangled, -1 = left out of the measure")
     obj.SurfMeshMeasure = report.measure
     setattr(obj, "SurfMeshStats" + suffix, _stats_map(report.stats))
-    setattr(obj, "SurfMeshQuality" + suffix, [float(q) for q in report.quality])
+    setattr(obj, "SurfMeshQuality" + suffix, [float(q) for q in stored_quality(report)])
+
+
+#: What SurfMeshQuality holds for an element left out of the measure.
+LEFT_OUT = -1.0
+
+
+def stored_quality(report):
+    """The per-element quality as stored (SurfMeshQuality): the report's, with LEFT_OUT for
+    the elements it left out."""
+    q = np.asarray(report.quality, dtype=float)
+    skipped = getattr(report, "skipped", None)
+    if skipped is not None and np.any(skipped):
+        q = np.where(skipped, LEFT_OUT, q)
+    return q
+
+
+def _stored_classes(quality):
+    """(quality, tangled, skipped) of a stored SurfMeshQuality list."""
+    q = np.asarray(quality, dtype=float)
+    skipped = q < 0.0
+    return np.where(skipped, 0.0, q), (q == 0.0), skipped
 
 
 # ---- colors ----------------------------------------------------------------------------------
@@ -114,14 +137,17 @@ def apply_colors(obj, report=None):
     if report is not None:
         quality = np.asarray(report.quality, dtype=float)
         tangled = np.asarray(report.tangled, dtype=bool)
+        skipped = (np.asarray(report.skipped, dtype=bool)
+                   if getattr(report, "skipped", None) is not None
+                   else np.zeros(len(quality), dtype=bool))
     elif "SurfMeshQuality" in obj.PropertiesList and obj.SurfMeshQuality:
-        quality = np.asarray(obj.SurfMeshQuality, dtype=float)
-        tangled = quality <= 0.0
+        quality, tangled, skipped = _stored_classes(obj.SurfMeshQuality)
     else:
         raise ValueError(f"{obj.Label!r} has no quality to show: measure it first")
     kind = _mesh_kind(obj)
-    rgb = coloring.quality_rgb(quality, tangled)
-    count = obj.Mesh.CountFacets if kind == "mesh" else len(conversion.read_mesh(obj).types)
+    rgb = coloring.quality_rgb(quality, tangled, skipped)
+    data = conversion.read_mesh(obj.FemMesh) if kind == "fem" else None
+    count = obj.Mesh.CountFacets if kind == "mesh" else len(data.types)
     if len(rgb) != count:
         raise ValueError("stored quality does not match the mesh's elements: measure again")
     # Mesh objects draw this property (Coloring); FEM objects keep it as the record of the
@@ -136,17 +162,43 @@ def apply_colors(obj, report=None):
         vo.Coloring = False  # toggle: the view keeps stale colors otherwise
         vo.Coloring = True
         return rgb
-    data = conversion.read_mesh(obj.FemMesh)
+    _color_fem_view(vo, data, rgb, quality, tangled, skipped)
+    return rgb
+
+
+def _color_fem_view(vo, data, rgb, quality, tangled, skipped):
+    """Gives a FEM mesh's view its colors: per element on tria3 meshes; per node (the least
+    quality of the measured elements around it) on others, where FreeCAD 0.20 draws element
+    colors wrong."""
     tri3 = conversion.ELEMENT_TYPES["tri3"]
     if np.all(data.types == tri3):
         vo.resetNodeColor()
         vo.ElementColor = {int(e): tuple(map(float, c)) for e, c in zip(data.element_ids, rgb)}
     else:
         vo.ElementColor = {}
-        node_q = coloring.node_values(data, np.where(tangled, 0.0, quality), reduce="min")
+        node_q = coloring.node_values(data, np.where(tangled, 0.0, quality), reduce="min",
+                                      ignore=skipped)
         node_rgb = coloring.quality_rgb(node_q, node_q <= 0.0)
         vo.NodeColor = {int(n): tuple(map(float, c)) for n, c in zip(data.node_ids, node_rgb)}
-    return rgb
+
+
+def show_stored_colors(obj):
+    """Shows the quality colors stored on FEM mesh object ``obj`` in its view again (FreeCAD
+    does not save a FEM view's colors): from its SurfMeshQuality, when it has SurfMeshColors
+    (it was colored and not cleared since). Changes no property of the document. Returns
+    whether colors were shown."""
+    vo = getattr(obj, "ViewObject", None)
+    if (vo is None or "FemMesh" not in obj.PropertiesList
+            or "SurfMeshColors" not in obj.PropertiesList
+            or "SurfMeshQuality" not in obj.PropertiesList or not obj.SurfMeshQuality):
+        return False
+    quality, tangled, skipped = _stored_classes(obj.SurfMeshQuality)
+    data = conversion.read_mesh(obj.FemMesh)
+    if len(quality) != len(data.types):
+        return False
+    _color_fem_view(vo, data, coloring.quality_rgb(quality, tangled, skipped), quality,
+                    tangled, skipped)
+    return True
 
 
 _VIEW_SAVED = "SurfMeshViewSaved"
@@ -351,9 +403,9 @@ def tangled_elements(obj, shape=None, measure="shape", worst=WORST_ELEMENTS, **k
 
 def optimize_object(obj, shape=None, measure="shape", boundary="fixed", name=None, color=True,
                     progress_callback=None, **options):
-    """Optimizes mesh object ``obj``; creates ``<name>_optimized`` (the original is kept) in
-    one undo transaction, stores before/after stats on it and colors it. Returns the new
-    object (its ``SurfMeshStats`` / ``SurfMeshStatsBefore`` hold the result).
+    """Optimizes mesh object ``obj``; creates ``<name>_optimized`` (the original is kept, and
+    hidden in the GUI) in one undo transaction, stores before/after stats on it and colors it.
+    Returns the new object (its ``SurfMeshStats`` / ``SurfMeshStatsBefore`` hold the result).
 
     ``progress_callback`` is called after every sweep (see SurfMesh.optimize); returning
     False cancels: then SurfMesh.Cancelled is raised and the document is unchanged.
@@ -403,6 +455,10 @@ def optimize_object(obj, shape=None, measure="shape", boundary="fixed", name=Non
         if color:
             apply_colors(new, res.after)
         doc.recompute()
+        # The new mesh takes the original's place in the 3D view (undone with the rest).
+        vo = getattr(obj, "ViewObject", None)
+        if vo is not None:
+            vo.Visibility = False
     except Exception:
         doc.abortTransaction()
         raise
@@ -428,11 +484,17 @@ def report_rows(obj, measures=None, shape=None):
         rows.append((m, "Optimized" if original is not None else obj.Label, r1.stats))
         if m == main:
             if original is not None:
-                series.append(("before", r0.quality, r0.stats["tangled"]))
-                series.append(("after", r1.quality, r1.stats["tangled"]))
+                series.append(("before", _measured(r0), r0.stats["tangled"]))
+                series.append(("after", _measured(r1), r1.stats["tangled"]))
             else:
-                series.append((obj.Label, r1.quality, r1.stats["tangled"]))
+                series.append((obj.Label, _measured(r1), r1.stats["tangled"]))
     return rows, series
+
+
+def _measured(report):
+    """The qualities of the elements a report measured (without those it left out)."""
+    q = np.asarray(report.quality, dtype=float)
+    return q if report.skipped is None else q[~np.asarray(report.skipped, dtype=bool)]
 
 
 def report_object(obj, shape=None, measures=None, histogram=None):

@@ -1,7 +1,9 @@
 """Progress of long runs: FreeCAD's progress indicator plus hooks a GUI may register.
 
 A hook is a callable taking the core's progress dict (sweep, max_sweeps, objective, tangled,
-min_quality, delta) and returning False to cancel.  The optimize task panel registers one
+min_quality, delta) and returning False to cancel; between the stages of a run (reading the
+mesh, placing it on the shape, optimizing, measuring) it is called with {"phase": text} (its
+answer then is not used).  The optimize task panel registers one
 (progress bar, Cancel button) while it runs a command through ``FreeCADGui.doCommand``, so the
 replayable command line needs no callback argument.
 
@@ -23,6 +25,12 @@ def hook(fn):
         yield fn
     finally:
         _hooks.remove(fn)
+
+
+def phase(text):
+    """Tells the registered hooks that a run enters stage ``text``."""
+    for fn in list(_hooks):
+        fn({"phase": text})
 
 
 def make_callback(user=None, title="SurfMesh: optimizing", total=100):

@@ -98,7 +98,8 @@ def write_json(path, data):
 
 def histogram_figure(series, title="Element quality", bins=20):
     """A matplotlib Figure (Agg canvas) with one quality histogram per entry of ``series``:
-    a list of (label, quality array, tangled count)."""
+    a list of (label, quality array, tangled count). Negative entries (elements left out of
+    the measure, as SurfMeshQuality stores them) are not counted."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -109,6 +110,9 @@ def histogram_figure(series, title="Element quality", bins=20):
     colors = ["#d62728", "#2ca02c", "#1f77b4", "#ff7f0e"]
     for k, (label, quality, tangled) in enumerate(series):
         q = np.asarray(quality, dtype=float)
+        q = q[~(q < 0.0)]
+        if len(q) == 0:
+            continue
         lab = f"{label} (min {q.min():.2f}, mean {q.mean():.2f}, tangled {int(tangled)})"
         ax.hist(q, bins=edges, alpha=0.55, color=colors[k % len(colors)], label=lab,
                 edgecolor="black", linewidth=0.4)

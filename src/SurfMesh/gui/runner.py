@@ -13,10 +13,29 @@ RESULT = "_surfmesh_result"
 
 def run(expression: str, title: str = "SurfMesh"):
     """Runs ``_surfmesh_result = <expression>`` through doCommand and returns its value.
-    Exceptions are re-raised (the console shows them as well)."""
+    Exceptions are re-raised (the console shows them as well). Meanwhile the cursor is busy
+    and the status bar names the stage the run is in."""
+    from PySide import QtCore, QtGui
+
+    from SurfMesh.app import progress
+
+    bar = FreeCADGui.getMainWindow().statusBar()
+
+    def stage(info):
+        if "phase" in info:
+            bar.showMessage(f"{title}: {info['phase']}…")
+            QtGui.QApplication.processEvents(QtCore.QEventLoop.ExcludeUserInputEvents)
+        return True
+
     FreeCADGui.addModule("SurfMesh")
     setattr(__main__, RESULT, None)
-    FreeCADGui.doCommand(f"{RESULT} = {expression}")
+    QtGui.QApplication.setOverrideCursor(QtCore.Qt.WaitCursor)
+    try:
+        with progress.hook(stage):
+            FreeCADGui.doCommand(f"{RESULT} = {expression}")
+    finally:
+        QtGui.QApplication.restoreOverrideCursor()
+        bar.clearMessage()
     return getattr(__main__, RESULT, None)
 
 

@@ -49,6 +49,20 @@ def selected_faces(shape_obj):
     return sorted(names, key=lambda n: int(n[4:]) if n[4:].isdigit() else 0)
 
 
+def why_not_optimizable(mesh, shape):
+    """Why the Optimize panel would fail on ``mesh`` whatever its settings (no shape known, a
+    volume mesh), in words; None when it may run."""
+    if shape is None:
+        return (f"no shape known for mesh {mesh.Label!r}: select the shape it lies on together "
+                "with the mesh")
+    fem = getattr(mesh, "FemMesh", None) if "FemMesh" in mesh.PropertiesList else None
+    if fem is not None and fem.VolumeCount > 0:
+        return (f"{mesh.Label!r} is a volume mesh ({fem.VolumeCount} volume elements): moving "
+                "its surface nodes would distort the volume elements. Optimize its surface (2D) "
+                "mesh, then mesh the volume from it; Measure works on it as it is")
+    return None
+
+
 def selected_meshes():
     return [o for o in FreeCADGui.Selection.getSelection() if is_mesh_object(o)]
 
@@ -71,7 +85,9 @@ def selected_mesh_or_say():
     if mesh is None:
         from SurfMesh.gui import runner
 
-        runner.show_error("SurfMesh", ValueError("select one mesh object (and its shape)"))
+        runner.show_error("SurfMesh", ValueError(
+            "select one mesh object, and at most one shape (the one it lies on; none when the "
+            "mesh was made from it)"))
     return mesh, shape
 
 

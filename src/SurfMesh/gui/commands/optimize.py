@@ -27,6 +27,12 @@ class OptimizeCommand:
         mesh, shape = selection.selected_mesh_or_say()
         if mesh is None:
             return
+        why = selection.why_not_optimizable(mesh, shape)
+        if why:
+            from SurfMesh.gui import runner
+
+            runner.show_error("SurfMesh: optimize", ValueError(why))
+            return
         from SurfMesh.gui.taskpanels.optimize_panel import OptimizePanel
 
         FreeCADGui.Control.showDialog(OptimizePanel(mesh, shape, selection.selected_faces(shape)))

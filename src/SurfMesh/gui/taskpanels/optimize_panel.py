@@ -13,6 +13,7 @@ import FreeCAD
 import FreeCADGui
 from PySide import QtCore, QtGui
 
+from SurfMesh import paths
 from SurfMesh.app import api, progress
 from SurfMesh.gui import preferences, runner, selection
 
@@ -32,6 +33,7 @@ class OptimizePanel:
         w = QtGui.QWidget()
         w.setObjectName("SurfMeshOptimizePanel")
         w.setWindowTitle("Optimize surface mesh")
+        w.setWindowIcon(QtGui.QIcon(paths.icon("SurfMesh_Optimize")))
         lay = QtGui.QFormLayout(w)
         info = QtGui.QLabel(
             f"Mesh: <b>{self.mesh.Label}</b><br>Shape: <b>"
@@ -162,6 +164,12 @@ class OptimizePanel:
             self.status.setText("stopping…")
 
     def _hook(self, info):
+        if "phase" in info:  # a stage before or after the sweeps: the bar shows "busy"
+            self.bar.setRange(0, 0 if info["phase"] != "optimizing" else 100)
+            self.status.setText(f"{info['phase']}…")
+            QtGui.QApplication.processEvents(QtCore.QEventLoop.AllEvents, 50)
+            return True
+        self.bar.setRange(0, 100)
         total = max(int(info.get("max_sweeps", 1)), 1)
         self.bar.setValue(int(100 * int(info.get("sweep", 0)) / total))
         self.status.setText(
@@ -195,7 +203,10 @@ class OptimizePanel:
         finally:
             self.running = False
             self.stop.setEnabled(False)
+            if self.bar.maximum() == 0:
+                self.bar.setRange(0, 100)
         self.result = new
+        self.bar.setRange(0, 100)
         self.bar.setValue(100)
         return new
 
@@ -203,9 +214,26 @@ class OptimizePanel:
     def getStandardButtons(self):
         return int(QtGui.QDialogButtonBox.Ok | QtGui.QDialogButtonBox.Cancel)
 
+    def _gone(self):
+        """What of the panel's mesh and shape was deleted (or its document closed), or None."""
+        for what, obj in (("mesh", self.mesh), ("shape", self.shape)):
+            try:
+                if obj is not None and obj.Document is None:
+                    return what
+            except (ReferenceError, RuntimeError):
+                return what
+        return None
+
     def accept(self):
         if self.running:
             return False
+        gone = self._gone()
+        if gone is not None:
+            runner.show_error("SurfMesh: optimize", ValueError(
+                f"the {gone} of this panel was deleted (or its document closed): nothing to "
+                "optimize"))
+            FreeCADGui.Control.closeDialog()
+            return True
         if self.shape is None:
             self.status.setText("no shape: close, select the mesh and its shape, try again")
             return False
@@ -213,7 +241,9 @@ class OptimizePanel:
         if new is None:
             return False  # keep the panel open (cancelled or error shown)
         FreeCADGui.Control.closeDialog()
-        FreeCAD.ActiveDocument.recompute()
+        new.Document.recompute()
+        FreeCADGui.Selection.clearSelection()
+        FreeCADGui.Selection.addSelection(new)
         return True
 
     def reject(self):

@@ -815,7 +815,7 @@ ElementEdges elementEdges(ElementType t) {
   return r;
 }
 
-void fail(const std::string& msg) { throw std::invalid_argument("CadMesh: " + msg); }
+void fail(const std::string& msg) { throw std::invalid_argument(msg); }
 
 /// A high-order element's side and interior nodes (those that are no element's corner) may lie
 /// up to this fraction of the element's longest corner-to-corner side off its face, beyond the

@@ -41,12 +41,12 @@ void sortUnique(std::vector<int>& v) {
 }  // namespace
 
 CadShape::CadShape(const TopoDS_Shape& shape) : shape_(shape) {
-  if (shape_.IsNull()) throw std::invalid_argument("CadShape: the shape is null (empty)");
+  if (shape_.IsNull()) throw std::invalid_argument("the shape is null (empty)");
   TopExp::MapShapes(shape_, TopAbs_FACE, faces_);
   TopExp::MapShapes(shape_, TopAbs_EDGE, edges_);
   TopExp::MapShapes(shape_, TopAbs_VERTEX, vertices_);
   if (faces_.Extent() == 0)
-    throw std::invalid_argument("CadShape: the shape has no faces (a mesh needs surfaces)");
+    throw std::invalid_argument("the shape has no faces (a mesh needs surfaces)");
 
   const int nf = faces_.Extent(), ne = edges_.Extent(), nv = vertices_.Extent();
   surfaces_.reserve(static_cast<std::size_t>(nf));
