@@ -20,6 +20,9 @@ class SurfMeshWorkbench(FreeCADGui.Workbench):
         from SurfMesh.gui import commands
 
         names = commands.register()
+        from SurfMesh.gui.preferences import PreferencePage
+
+        FreeCADGui.addPreferencePage(PreferencePage, "SurfMesh")
         self.appendToolbar("SurfMesh", names)
         self.appendMenu("SurfMesh", names)
 

@@ -57,6 +57,36 @@ try:
                  "SurfMesh_Report", "SurfMesh_ClearColors"):
         check(os.path.exists(paths.icon(name)), f"icon {name}.svg installed")
 
+    # ---- Edit > Preferences > SurfMesh: the measure of Measure and Select tangled ----------
+    from PySide import QtCore as _QtCore
+    from PySide import QtGui as _QtGui
+
+    from SurfMesh.gui import preferences as _prefs
+
+    _prefs.set_measure("shape")
+    seen = []
+
+    def _pick_oddy():
+        w = _QtGui.QApplication.activeModalWidget()
+        if w is None:
+            return
+        pages = w.findChildren(_QtGui.QWidget, "SurfMeshPreferences")
+        if pages:
+            combo = pages[0].findChild(_QtGui.QComboBox, "measure")
+            seen.append(combo.currentText())
+            combo.setCurrentIndex(combo.findText("oddy"))
+        w.accept()
+
+    poke = _QtCore.QTimer()
+    poke.setInterval(200)
+    poke.timeout.connect(_pick_oddy)
+    poke.start()
+    FreeCADGui.runCommand("Std_DlgPreferences")
+    poke.stop()
+    check(seen == ["shape"] and _prefs.measure() == "oddy",
+          f"the preference page shows the measure and stores the one chosen ({seen})")
+    _prefs.set_measure("shape")
+
     # ---- sample document: tangled FEM tria3 torus -----------------------------------------
     doc = FreeCAD.newDocument("SurfMeshGuiTest")
     doc.UndoMode = 1

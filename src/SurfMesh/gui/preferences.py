@@ -67,3 +67,40 @@ def set_optimize_settings(settings: dict):
             value = settings[name]
             value = {"String": str, "Float": float, "Int": int, "Bool": bool}[kind](value)
             getattr(p, "Set" + kind)(_param_name(name), value)
+
+
+class PreferencePage:
+    """Edit > Preferences > SurfMesh: the measure of *Measure quality* and *Select tangled
+    elements* (also set by the Optimize panel's last run), and the Optimize panel's settings
+    back to the optimizer's defaults."""
+
+    def __init__(self, parent=None):
+        from PySide import QtGui
+
+        self.form = QtGui.QWidget(parent)
+        self.form.setObjectName("SurfMeshPreferences")
+        self.form.setWindowTitle("SurfMesh")
+        lay = QtGui.QFormLayout(self.form)
+        self.measure = QtGui.QComboBox()
+        self.measure.setObjectName("measure")
+        self.measure.addItems(api.measure_names())
+        self.measure.setToolTip("Distortion measure of Measure quality and Select tangled "
+                                "elements (the Optimize panel sets it to the one it ran with)")
+        lay.addRow("Quality measure", self.measure)
+        self.reset = QtGui.QCheckBox("Reset the Optimize panel to the optimizer's defaults")
+        self.reset.setObjectName("reset")
+        self.reset.setToolTip("The panel opens with the settings of its last run; check this "
+                              "and press OK or Apply to start again from the defaults")
+        lay.addRow(self.reset)
+
+    def loadSettings(self):
+        names = api.measure_names()
+        cur = measure()
+        self.measure.setCurrentIndex(names.index(cur) if cur in names else 0)
+        self.reset.setChecked(False)
+
+    def saveSettings(self):
+        set_measure(self.measure.currentText())
+        if self.reset.isChecked():
+            set_optimize_settings({name: _default(name) for name in _OPTIMIZE_SETTINGS})
+            self.reset.setChecked(False)
