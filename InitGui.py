@@ -39,43 +39,77 @@ class SurfMeshWorkbench(FreeCADGui.Workbench):
 FreeCADGui.addWorkbench(SurfMeshWorkbench())
 
 
-class _SurfMeshColorsOnOpen:
-    """FreeCAD does not save the colors of a FEM mesh's view: when a document is opened, the
-    FEM meshes SurfMesh colored (SurfMeshColors) get them back from their stored quality
-    (SurfMesh.app.document.show_stored_colors). Runs once the document is restored; SurfMesh
-    is imported only for a document that has such a mesh."""
+class _SurfMeshViewObserver:
+    """Keeps SurfMesh's colors in the 3D views:
+    - FreeCAD does not save the colors of a FEM mesh's view: when a document is opened, the
+      FEM meshes SurfMesh colored (SurfMeshColors) get them back from their stored quality
+      (SurfMesh.app.document.show_stored_colors), once the document is restored;
+    - the color scale (SurfMesh.gui.legend) is shown while a visible mesh of the document
+      shows SurfMesh's colors.
+    SurfMesh is imported only for documents that have such meshes."""
+
+    def __init__(self):
+        self._pending = set()
 
     def slotCreatedDocument(self, doc):
-        self._later(doc.Name, 0)
+        self._later(doc.Name, 0, opened=True)
 
-    def _later(self, name, tries):
+    def slotDeletedDocument(self, doc):
+        if "SurfMesh.gui.legend" in sys.modules:
+            sys.modules["SurfMesh.gui.legend"]._nodes.pop(doc.Name, None)
+
+    def slotChangedObject(self, obj, prop):
+        if prop in ("SurfMeshColors", "Visibility") and "SurfMeshColors" in obj.PropertiesList:
+            self._later(obj.Document.Name, 0)
+
+    def slotRemoveDynamicProperty(self, obj, prop):
+        if prop == "SurfMeshColors":
+            self._later(obj.Document.Name, 0)
+
+    def slotDeletedObject(self, obj):
+        if "SurfMeshColors" in obj.PropertiesList:
+            self._later(obj.Document.Name, 0)
+
+    def _later(self, name, tries, opened=False):
         from PySide import QtCore
 
-        QtCore.QTimer.singleShot(0 if tries == 0 else 200, lambda: self._show(name, tries))
+        if tries == 0 and not opened:
+            if name in self._pending:  # one update for a burst of changes
+                return
+            self._pending.add(name)
+        QtCore.QTimer.singleShot(0 if tries == 0 else 200,
+                                 lambda: self._update(name, tries, opened))
 
-    def _show(self, name, tries):
+    def _update(self, name, tries, opened):
         import FreeCAD
 
+        self._pending.discard(name)
         doc = FreeCAD.listDocuments().get(name)
         if doc is None:
             return
         if getattr(doc, "Restoring", False):  # still being read
             if tries < 3000:
-                self._later(name, tries + 1)
+                self._later(name, tries + 1, opened)
             return
-        objs = [o for o in doc.Objects
-                if "SurfMeshColors" in o.PropertiesList and "FemMesh" in o.PropertiesList]
-        if not objs:
+        objs = [o for o in doc.Objects if "SurfMeshColors" in o.PropertiesList]
+        if not objs and "SurfMesh.gui.legend" not in sys.modules:
             return
-        from SurfMesh.app.document import show_stored_colors
+        try:
+            if opened:
+                from SurfMesh.app.document import show_stored_colors
 
-        for obj in objs:
-            try:
-                show_stored_colors(obj)
-            except Exception as exc:  # a damaged property: the document still opens
-                FreeCAD.Console.PrintWarning(f"SurfMesh: {obj.Label}: colors not shown: {exc}\n")
+                for obj in objs:
+                    if "FemMesh" in obj.PropertiesList:
+                        show_stored_colors(obj)
+            from SurfMesh.gui import legend
 
+            legend.update(doc)
+        except Exception as exc:  # a damaged property: the document still opens
+            FreeCAD.Console.PrintWarning(f"SurfMesh: {name}: colors not shown: {exc}\n")
+
+
+import sys  # noqa: E402
 
 import FreeCAD as _App  # noqa: E402
 
-_App.addDocumentObserver(_SurfMeshColorsOnOpen())
+_App.addDocumentObserver(_SurfMeshViewObserver())

@@ -15,9 +15,10 @@ code = 1
 def shares(img):
     """Shares of green (good quality), yellow/orange (fair/poor) and purple (tangled) among the
     colored pixels of a screenshot (white background and dark edges excluded); hue classes
-    survive the view's shading."""
+    survive the view's shading. The color scale at the left of the view is left out."""
     import numpy as np
 
+    img = img[:, int(0.22 * img.shape[1]):]  # without the color scale at the left
     a = img.reshape(-1, 3)
     a = a[(a.sum(axis=1) < 2.85) & (a.max(axis=1) > 0.15)]
     if len(a) == 0:
@@ -106,6 +107,10 @@ try:
     FreeCADGui.runCommand("SurfMesh_Measure")
     FreeCADGui.updateGui()
     check("SurfMeshColors" in mesh.PropertiesList, "FEM mesh got its colors")
+    from SurfMesh.gui import legend
+
+    check(legend.shown(doc) == "SurfMesh quality (shape)",
+          f"the color scale is shown with the measure ({legend.shown(doc)!r})")
     stats = SurfMesh.stats_of(mesh)
     check(stats["tangled"] == tangled and tangled > 0, "stats stored, tangled counted")
     q = np.array(mesh.SurfMeshQuality)
@@ -160,7 +165,14 @@ try:
     panel.over_relaxation.setValue(1.5)
     check("over_relaxation=1.5" in panel.command() and "monotone" not in panel.command(),
           f"panel passes the options changed, only those ({panel.command()})")
-    check(panel.accept() is True, "apply runs and closes the panel")
+    from SurfMesh.app import progress as _progress
+
+    stages = []
+    with _progress.stage_hook(stages.append):
+        check(panel.accept() is True, "apply runs and closes the panel")
+    check(stages == ["reading the mesh", "placing the nodes on the shape's faces and edges",
+                     "optimizing", "measuring the result"],
+          f"the run names its stages ({stages})")
     FreeCADGui.updateGui()
     new = doc.getObject("TorusMesh_optimized")
     check(new is not None, "TorusMesh_optimized created")
@@ -297,6 +309,8 @@ try:
     check("SurfMeshColors" not in mesh.PropertiesList, "tangled mesh's colors cleared")
     check(mesh.ViewObject.BackfaceCulling is True, "clearing gives the view its culling back")
     check(mesh.ViewObject.SelectionStyle == "Shape", "clearing gives the view its selection style")
+    FreeCADGui.updateGui()
+    check(legend.shown(doc) is None, "no visible colored mesh: no color scale")
 
     # ---- Mesh object: measure colors through Coloring -----------------------------------------
     import MeshPart
@@ -353,13 +367,28 @@ try:
     fem = examples.make_gmsh_mesh(doc, tor, 2.0, name="TorusMesh")
     examples.tangle_to(fem, tor.Shape, target=25, seed=1)
     tor.ViewObject.Visibility = False
-    SurfMesh.measure_object(fem)
     doc.recompute()
     view = FreeCADGui.ActiveDocument.ActiveView
     view.viewIsometric()
     view.fitAll()
+    FreeCADGui.updateGui()
+    def framing(cam):  # where fit all puts the camera (not its clipping planes)
+        return [ln for ln in cam.splitlines() if ln.split()[:1] in (["position"],
+                                                                     ["orientation"],
+                                                                     ["height"])]
+
+    camera = framing(view.getCamera())
+    SurfMesh.measure_object(fem)
     FreeCADGui.Selection.clearSelection()
     FreeCADGui.updateGui()
+    view.fitAll()
+    from pivy import coin
+
+    boxing = coin.SoGetBoundingBoxAction(coin.SbViewportRegion(800, 600))
+    boxing.apply(legend._nodes[doc.Name][0])
+    check(boxing.getBoundingBox().isEmpty(), "the color scale has no bounding box")
+    check(legend.shown(doc) is not None and framing(view.getCamera()) == camera,
+          f"the color scale takes no part in fit all ({camera} {framing(view.getCamera())})")
     shot6 = os.path.join(out, "gui_before_save.png")
     view.saveImage(shot6, 800, 600, "White")
     g6, y6, p6 = shares(pixels(shot6))
@@ -381,6 +410,10 @@ try:
           f"the same colors after opening it again ({g7:.3f} green, {y7:.3f} poor, "
           f"{p7:.5f} tangled)")
     check(not FreeCADGui.getDocument(doc.Name).Modified, "showing them changes nothing")
+    check(legend.shown(doc) == "SurfMesh quality (shape)", "and the color scale")
+    left = pixels(shot7)[150:450, 5:30]  # the scale's bar, left of the mesh
+    check(float(np.mean((left[..., 0] > 0.6) & (left[..., 2] < 0.3))) > 0.3,
+          "the scale is drawn (red to green bar at the left)")
     FreeCAD.closeDocument(doc.Name)
     code = 0
 except BaseException:

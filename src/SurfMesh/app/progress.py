@@ -1,9 +1,9 @@
 """Progress of long runs: FreeCAD's progress indicator plus hooks a GUI may register.
 
 A hook is a callable taking the core's progress dict (sweep, max_sweeps, objective, tangled,
-min_quality, delta) and returning False to cancel; between the stages of a run (reading the
-mesh, placing it on the shape, optimizing, measuring) it is called with {"phase": text} (its
-answer then is not used).  The optimize task panel registers one
+min_quality, delta) and returning False to cancel. A stage hook (``stage_hook``) is called
+with the text of each stage a run enters (reading the mesh, placing it on the shape,
+optimizing, measuring the result).  The optimize task panel registers one
 (progress bar, Cancel button) while it runs a command through ``FreeCADGui.doCommand``, so the
 replayable command line needs no callback argument.
 
@@ -27,10 +27,23 @@ def hook(fn):
         _hooks.remove(fn)
 
 
+_stage_hooks = []
+
+
+@contextlib.contextmanager
+def stage_hook(fn):
+    """Registers ``fn(text)``, called when a run enters a stage, for a ``with`` block."""
+    _stage_hooks.append(fn)
+    try:
+        yield fn
+    finally:
+        _stage_hooks.remove(fn)
+
+
 def phase(text):
-    """Tells the registered hooks that a run enters stage ``text``."""
-    for fn in list(_hooks):
-        fn({"phase": text})
+    """Tells the registered stage hooks that a run enters stage ``text``."""
+    for fn in list(_stage_hooks):
+        fn(text)
 
 
 def make_callback(user=None, title="SurfMesh: optimizing", total=100):

@@ -21,17 +21,15 @@ def run(expression: str, title: str = "SurfMesh"):
 
     bar = FreeCADGui.getMainWindow().statusBar()
 
-    def stage(info):
-        if "phase" in info:
-            bar.showMessage(f"{title}: {info['phase']}…")
-            QtGui.QApplication.processEvents(QtCore.QEventLoop.ExcludeUserInputEvents)
-        return True
+    def stage(text):
+        bar.showMessage(f"{title}: {text}…")
+        QtGui.QApplication.processEvents(QtCore.QEventLoop.ExcludeUserInputEvents)
 
     FreeCADGui.addModule("SurfMesh")
     setattr(__main__, RESULT, None)
     QtGui.QApplication.setOverrideCursor(QtCore.Qt.WaitCursor)
     try:
-        with progress.hook(stage):
+        with progress.stage_hook(stage):
             FreeCADGui.doCommand(f"{RESULT} = {expression}")
     finally:
         QtGui.QApplication.restoreOverrideCursor()

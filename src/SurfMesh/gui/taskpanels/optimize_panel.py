@@ -163,12 +163,13 @@ class OptimizePanel:
             self.stop_requested = True
             self.status.setText("stopping…")
 
+    def _stage(self, text):
+        """A stage of the run: the bar shows "busy" outside the sweeps."""
+        self.bar.setRange(0, 100 if text == "optimizing" else 0)
+        self.status.setText(f"{text}…")
+        QtGui.QApplication.processEvents(QtCore.QEventLoop.AllEvents, 50)
+
     def _hook(self, info):
-        if "phase" in info:  # a stage before or after the sweeps: the bar shows "busy"
-            self.bar.setRange(0, 0 if info["phase"] != "optimizing" else 100)
-            self.status.setText(f"{info['phase']}…")
-            QtGui.QApplication.processEvents(QtCore.QEventLoop.AllEvents, 50)
-            return True
         self.bar.setRange(0, 100)
         total = max(int(info.get("max_sweeps", 1)), 1)
         self.bar.setValue(int(100 * int(info.get("sweep", 0)) / total))
@@ -190,7 +191,7 @@ class OptimizePanel:
         preferences.set_measure(self.measure.currentText())
         preferences.set_optimize_settings(self.options())
         try:
-            with progress.hook(self._hook):
+            with progress.hook(self._hook), progress.stage_hook(self._stage):
                 new = runner.run(self.command())
         except api.Cancelled:
             self.status.setText("cancelled: the document is unchanged")
