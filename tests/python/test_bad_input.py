@@ -458,6 +458,8 @@ class BadInputApi(unittest.TestCase):
                 self.assertEqual(rep.stats["tangled"], len(flipped))
                 self.assertTrue(any("wound against the rest of their face" in w
                                     for w in rep.bridge["warnings"]), rep.bridge["warnings"])
+                # the report names them by the mesh's own element ids (FEM ids here)
+                self.assertEqual(sorted(rep.bridge["miswound_elements"]), ids)
                 listed = ", ".join(str(i) for i in ids)
                 self.expect_error(mesh, "wound against the rest of their face",
                                   f"element(s) {listed}", call=("optimize",))
@@ -517,14 +519,15 @@ class BadInputApi(unittest.TestCase):
 
     def test_negative_zero_or_nan_tolerances(self):
         mesh = make_mesh(self.nodes, self.tris)
-        for bad in (-1.0, 0.0, math.nan, math.inf):
+        for bad in (-1.0, 0.0, math.nan, math.inf, "a", True):
             with self.subTest(tolerance=bad):
                 self.expect_error(mesh, "tolerance", tolerance=bad)
         for key, bad in (("rel_tol", -1e-5), ("move_tol", -1.0), ("rel_tol", math.nan),
                          ("delta", 0.0), ("max_sweeps", 0), ("max_sweeps", -3),
                          ("threads", -1), ("delta_policy", "sometimes"),
                          ("over_relaxation", 2.0), ("over_relaxation", 0.5),
-                         ("over_relaxation", math.nan)):
+                         ("over_relaxation", math.nan), ("monotone", "no"),
+                         ("monotone", "False"), ("monotone", 1)):
             with self.subTest(option=key, value=bad):
                 self.expect_error(mesh, key, call=("optimize",), **{key: bad})
         self.expect_error(mesh, "unknown option", "bogus", call=("optimize",), bogus=1)

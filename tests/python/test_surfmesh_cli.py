@@ -159,6 +159,22 @@ class TestCli(unittest.TestCase):
         pts = np.array([(p.x, p.y, p.z) for p in f1.Nodes.values()])
         self.assertLess(T.torus_distance(pts, R, r).max(), 1e-6)
 
+    def test_vtk_keeps_double_precision(self):
+        # VTK files hold the optimized nodes in double precision: on the torus to 1e-12, as
+        # the .msh output (FreeCAD's own VTK writer keeps 6 digits: 1e-5 off the surface).
+        from SurfMesh.app import fileio
+
+        for ext in (".vtk", ".vtu"):
+            with self.subTest(ext=ext):
+                out = os.path.join(self.dir, "out_torus" + ext)
+                code, so, se = run_cli("optimize", self.brep, os.path.join(self.dir, "torus4.msh"),
+                                       "-o", out)
+                self.assertEqual(code, 0, se)
+                back = fileio.read_mesh(out).data
+                _, x0, e0, _ = read_msh(os.path.join(self.dir, "torus4.msh"))
+                self.assertEqual(back.element_count, len(e0))
+                self.assertLess(T.torus_distance(back.nodes, R, r).max(), 1e-12)
+
     def test_fixed_nodes_and_faces(self):
         src = os.path.join(self.dir, "torus4.msh")
         t0, x0, _, _ = read_msh(src)

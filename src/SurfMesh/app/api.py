@@ -266,7 +266,10 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, duplicates="glu
     """
     t0 = time.perf_counter()
     _check_boundary(boundary)
-    if tolerance is not None and not (tolerance > 0 and np.isfinite(tolerance)):
+    if tolerance is not None and (isinstance(tolerance, bool)
+                                  or not isinstance(tolerance, (int, float, np.floating,
+                                                                np.integer))
+                                  or not (tolerance > 0 and np.isfinite(tolerance))):
         raise ValueError(f"tolerance must be a positive number, got {tolerance!r}")
     if collapsed not in ("skip", "error"):
         raise ValueError(f"collapsed must be 'skip' or 'error', got {collapsed!r}")
@@ -486,8 +489,17 @@ def _flat_boundary_elements(work, handle):
     return out, q
 
 
-def _bridge_report(handle):
-    return dict(handle.report)
+def _bridge_report(handle, data):
+    """The bridge's report for the user: element and node lists by the user's ids (FEM and
+    file ids; 0-based indices of a Mesh.Mesh or of arrays), not the core's indices."""
+    out = dict(handle.report)
+    if "miswound_elements" in out:
+        out["miswound_elements"] = _user_element_ids(
+            data, [int(e) for e in np.asarray(out["miswound_elements"])])
+    if "placed_nodes" in out:
+        out["placed_nodes"] = [int(data.node_ids[int(n)])
+                               for n in np.asarray(out["placed_nodes"])]
+    return out
 
 
 def _is_core_shape(obj):
@@ -530,7 +542,7 @@ def _report(data, handle, name, bridge=None, measured=None) -> QualityReport:
         stats=stats,
         element_ids=data.element_ids,
         element_types=data.type_names(),
-        bridge=bridge if bridge is not None else _bridge_report(handle),
+        bridge=bridge if bridge is not None else _bridge_report(handle, data),
         skipped=skipped,
         element_faces=faces,
         across=across,
@@ -613,8 +625,8 @@ def optimize(
         mesh, shape, boundary, tolerance, hints, collapsed, duplicates, timings=timings,
         moving=True,
     )
-    bridge = _bridge_report(handle)
-    miswound = [int(e) for e in np.asarray(bridge.get("miswound_elements", []))]
+    bridge = _bridge_report(handle, data)
+    miswound = [int(e) for e in np.asarray(handle.report.get("miswound_elements", []))]
     if miswound:
         raise ValueError(
             f"{len(miswound)} element(s) are wound against the rest of their face's mesh "
@@ -881,4 +893,6 @@ def _check_options(o):
     t = o["threads"]
     if isinstance(t, bool) or not isinstance(t, (int, np.integer)) or t < 0:
         raise ValueError(f"threads must be an integer ≥ 0, got {t!r}")
+    if not isinstance(o["monotone"], (bool, np.bool_)):
+        raise ValueError(f"monotone must be True or False, got {o['monotone']!r}")
     o["monotone"] = bool(o["monotone"])

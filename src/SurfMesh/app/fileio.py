@@ -21,6 +21,8 @@ from SurfMesh.app import conversion
 SHAPE_EXTS = {".step", ".stp", ".iges", ".igs", ".brep", ".brp", ".rle", ".fcstd"}
 GMSH_EXTS = {".msh"}
 FEM_EXTS = {".unv", ".inp", ".vtk", ".vtu", ".med", ".z88", ".dat", ".bdf"}
+# Formats written through meshio (double precision) rather than FreeCAD's FEM writer.
+_DOUBLE_EXTS = {".vtk", ".vtu"}
 MESH_EXTS = {".stl", ".obj", ".ply", ".off", ".ast", ".bms"}
 
 # Gmsh element type codes ↔ SurfMesh element names (complete Lagrange triangles, quad4).
@@ -413,6 +415,12 @@ def write_mesh(out, src: MeshFile, new_nodes, msh_version=None):
         version = msh_version or (src.msh_version if src.fmt == "gmsh" else 4.1)
         version = 2.2 if float(version) < 3 else 4.1
         _write_gmsh(out, src, new_nodes, version)
+    elif ext in _DOUBLE_EXTS:
+        # FreeCAD's VTK writer stores points as float with 6 digits (1e-5 off the surface on a
+        # part of size 100): meshio writes them as double, in the same node order.
+        import meshio
+
+        meshio.write(out, meshio.Mesh(new_nodes, _meshio_cells(data)))
     elif ext in FEM_EXTS:
         fem = conversion.rebuild(data, new_nodes) if src.fmt == "fem" else _fem_from(data, new_nodes)
         try:

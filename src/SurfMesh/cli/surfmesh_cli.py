@@ -101,7 +101,7 @@ def _bridge_summary(bridge, data):
             "hints_rejected", "flipped_faces", "glued_nodes", "warnings", "summary")
     out = {k: bridge[k] for k in keys if k in bridge}
     # high-order side nodes put on their element's face, by the file's node ids
-    out["placed_nodes"] = [int(data.node_ids[n]) for n in bridge.get("placed_nodes", [])]
+    out["placed_nodes"] = [int(n) for n in bridge.get("placed_nodes", [])]
     return out
 
 
