@@ -362,6 +362,41 @@ class TestOptimize(ApiCase):
         d = T.distance_to_shape(shape, res.nodes[:: max(1, len(res.nodes) // 150)])
         self.assertLess(d.max(), 1e-6 * shape.BoundBox.DiagonalLength + 1e-7)
 
+    def test_oddy_untangles_what_the_shape_measure_untangles(self):
+        # FreeCAD's Gmsh mesh of the crank arm (diagonal / 25) around one tangled sliver at a
+        # fillet (tests/data/occt_crankarm_fillet_fold.unv, two rings of elements, 654): the
+        # shape measure untangles it; the Oddy measure's barrier holds the fold from where the
+        # input is, so the run untangles with the shape measure first, then optimizes with Oddy.
+        import os
+
+        import Fem
+        import Part
+
+        from SurfMesh.app import conversion
+
+        shape = Part.Shape()
+        shape.read(os.path.join(T.data_dir(), "occt_crankarm.brep"))
+        fem = Fem.read(os.path.join(T.data_dir(), "occt_crankarm_fillet_fold.unv"))
+        diag = shape.BoundBox.DiagonalLength
+        for boundary in ("fixed", "slide"):
+            with self.subTest(boundary=boundary):
+                by_shape = SurfMesh.optimize(fem, shape, measure="shape", boundary=boundary)
+                self.assertEqual(by_shape.after.stats["tangled"], 0)
+                res = SurfMesh.optimize(fem, shape, measure="oddy", boundary=boundary)
+                self.assertEqual(res.before.stats["tangled"], 1)
+                self.assertEqual(res.after.stats["tangled"], 0, res.warnings)
+                self.assertEqual(res.tangled_movable, [])
+                # measured with Oddy, as asked; the nodes it moved lie on the part
+                self.assertEqual(res.after.measure, "oddy")
+                again = SurfMesh.measure(res.mesh, shape, measure="oddy")
+                self.assertEqual(again.stats["tangled"], 0)
+                self.assertAlmostEqual(again.stats["mean"], res.after.stats["mean"], places=9)
+                x0 = conversion.read_mesh(fem).nodes
+                moved = np.nonzero(np.any(res.nodes != x0, axis=1))[0]
+                self.assertGreater(len(moved), 0)
+                # (FreeCAD's distToShape near a trimming loop: up to 3e-8 × diagonal)
+                self.assertLess(T.distance_to_shape(shape, res.nodes[moved]).max(), 1e-7 * diag)
+
     def test_unrepairable_tangled_elements_are_named(self):
         # BRepMesh leaves tangled triangles on the propeller's blades; two have every node on
         # CAD vertices or edges (the surface turns by more than 100° across them): a fixed

@@ -2473,22 +2473,9 @@ OptimizeResult withNodesFixed(SurfaceMesh& mesh, Pred fixed, Run run) {
   return res;
 }
 
-}  // namespace
-
-OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
-                            const ProgressCallback& progress, const QualityStats* before) {
-  if (!opt.fixedNodes.empty()) {
-    // Nodes the caller holds: Fixed for the run (their elements' normals and measures are
-    // those of any fixed node), their own kinds back afterwards, whatever happens.
-    if (opt.fixedNodes.size() != mesh.nodeCount())
-      throw std::invalid_argument("fixedNodes has " + std::to_string(opt.fixedNodes.size()) +
-                                  " entries for " + std::to_string(mesh.nodeCount()) + " nodes");
-    OptimizeOptions rest = opt;
-    rest.fixedNodes.clear();
-    return withNodesFixed(
-        mesh, [&](std::size_t i) { return opt.fixedNodes[i] != 0; },
-        [&] { return optimizeMesh(mesh, rest, progress, before); });
-  }
+/// The run with sliding (NodeKind::Edge) nodes in two phases (see optimizeMesh), or one run.
+OptimizeResult optimizeBoundary(SurfaceMesh& mesh, const OptimizeOptions& opt,
+                                const ProgressCallback& progress, const QualityStats* before) {
   const bool sliding =
       std::find(mesh.nodeKind.begin(), mesh.nodeKind.end(), NodeKind::Edge) != mesh.nodeKind.end();
   if (!sliding || opt.maxSweeps == 0) return optimizeHolding(mesh, opt, progress, before);
@@ -2516,6 +2503,72 @@ OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
                                    [&] { return optimizeHolding(mesh, opt, phased, &held.after); });
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return res;
+}
+
+/// A measure other than the shape measure that leaves tangled elements a node may move (the
+/// Oddy measure's barrier can hold a fold the shape measure's opens: a crank arm's sliver):
+/// the mesh is untangled with the shape measure from the input, then optimized with the
+/// measure from there. That result is kept when it leaves fewer tangled elements; otherwise
+/// the first run's. A cancelled run leaves the mesh as it was before the first.
+OptimizeResult optimizeUntanglingFirst(SurfaceMesh& mesh, const OptimizeOptions& opt,
+                                       const ProgressCallback& progress,
+                                       const QualityStats* before) {
+  const auto t0 = std::chrono::steady_clock::now();
+  MeshPositions input{mesh.xyz, mesh.uv, mesh.nodeT, mesh.cornerUV};
+  int offset = 0;
+  ProgressCallback shifted;
+  if (progress)
+    shifted = [&](const OptimizeProgress& p) {
+      OptimizeProgress q = p;
+      q.sweep += offset;
+      q.maxSweeps += offset;
+      return progress(q);
+    };
+  OptimizeResult first = optimizeBoundary(mesh, opt, shifted, before);
+  if (first.reason == StopReason::Cancelled || first.tangledMovable.empty()) return first;
+  MeshPositions reached{mesh.xyz, mesh.uv, mesh.nodeT, mesh.cornerUV};
+  MeshPositions(input).restore(mesh);  // the shape measure starts from the input
+  OptimizeOptions byShape = opt;
+  byShape.measure = "shape";
+  offset = first.sweeps;
+  const OptimizeResult untangled = continueRun(
+      mesh, first, input, [&] { return optimizeBoundary(mesh, byShape, shifted, nullptr); });
+  if (untangled.reason == StopReason::Cancelled) return untangled;
+  offset = untangled.sweeps;
+  OptimizeResult res = continueRun(mesh, untangled, input,
+                                   [&] { return optimizeBoundary(mesh, opt, shifted, nullptr); });
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (res.reason == StopReason::Cancelled) return res;
+  if (res.after.tangled >= first.after.tangled) {
+    reached.restore(mesh);
+    first.sweeps = res.sweeps;  // the work done
+    first.seconds = seconds;
+    return first;
+  }
+  res.seconds = seconds;
+  return res;
+}
+
+}  // namespace
+
+OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
+                            const ProgressCallback& progress, const QualityStats* before) {
+  if (!opt.fixedNodes.empty()) {
+    // Nodes the caller holds: Fixed for the run (their elements' normals and measures are
+    // those of any fixed node), their own kinds back afterwards, whatever happens.
+    if (opt.fixedNodes.size() != mesh.nodeCount())
+      throw std::invalid_argument("fixedNodes has " + std::to_string(opt.fixedNodes.size()) +
+                                  " entries for " + std::to_string(mesh.nodeCount()) + " nodes");
+    OptimizeOptions rest = opt;
+    rest.fixedNodes.clear();
+    return withNodesFixed(
+        mesh, [&](std::size_t i) { return opt.fixedNodes[i] != 0; },
+        [&] { return optimizeMesh(mesh, rest, progress, before); });
+  }
+  if (opt.measure != "shape" && opt.maxSweeps > 0)
+    return optimizeUntanglingFirst(mesh, opt, progress, before);
+  return optimizeBoundary(mesh, opt, progress, before);
 }
 
 }  // namespace surfmesh

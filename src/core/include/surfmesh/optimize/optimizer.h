@@ -198,6 +198,11 @@ struct OptimizeResult {
 /// elements or a lower minimum quality than the fixed boundary. `sweeps` counts both phases,
 /// progress reports sweeps out of 2 × maxSweeps.
 ///
+/// With a measure other than "shape", a run that leaves tangled elements some node may move is
+/// followed by one that untangles the input with the shape measure (whose barrier opens folds
+/// the Oddy measure's can hold, e.g. a sliver at a fillet) and one with the measure from there;
+/// that result is kept when it leaves fewer tangled elements (`sweeps` counts all three).
+///
 /// On cancellation
 /// (callback returned false) or on an exception the mesh is left exactly as it was.
 /// Throws std::invalid_argument for an invalid mesh or options.
