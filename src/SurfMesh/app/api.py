@@ -690,7 +690,7 @@ def optimize(
             hint = ("the run reached max_sweeps while their number was still dropping: try more "
                     "sweeps")
         else:
-            hint = ("no motion of their movable nodes repairs them"
+            hint = ("the run found no motion of their movable nodes that repairs them"
                     if r["reason"] != "max_sweeps" else
                     f"the run reached max_sweeps, but their number has not dropped over its last "
                     f"{quiet} sweeps, so more sweeps are unlikely to help")
