@@ -324,3 +324,62 @@ def fileio_nodes(path):
     from SurfMesh.app import fileio
 
     return fileio.read_mesh(path).data.nodes
+
+
+class FlatElementLeftOut(unittest.TestCase):
+    """A second-order triangle in a cusp of its face (a straight CAD edge tangent to an arc at a
+    CAD vertex) has a zero angle there: it is tangled by a hair, all its corners lie on CAD
+    vertices and one edge, and it is left out as flat. Its third side runs through the face,
+    and the side node there is shared with a thin neighbour, which the run improves by
+    bending that side into the flat element. The run must not fold what it does not measure:
+    the flat element's nodes stay, and measured again the result has no tangled element.
+    Before, the side node moved 0.73 (the element's height is 4.5) and the re-measured
+    result had the flat element tangled. Reference: the node positions themselves."""
+
+    def setUp(self):
+        import math
+
+        import Part
+
+        V = FreeCAD.Vector
+        rad, h = 6.35, 4.49
+        xa = -rad + math.sqrt(rad**2 - h**2)  # where the arc meets the line y = h
+        arc = Part.ArcOfCircle(Part.Circle(V(-rad, 0, 0), V(0, 0, 1), rad), 0.0,
+                               math.atan2(h, xa + rad))
+        edges = [Part.LineSegment(V(0, 0, 0), V(0, 12, 0)).toShape(),  # tangent to the arc
+                 Part.LineSegment(V(0, 12, 0), V(-10, 12, 0)).toShape(),
+                 Part.LineSegment(V(-10, 12, 0), V(-10, h, 0)).toShape(),
+                 Part.LineSegment(V(-10, h, 0), V(xa, h, 0)).toShape(), arc.toShape()]
+        self.face = Part.Face(Part.Wire(Part.__sortEdges__(edges)))
+        self.assertTrue(self.face.isValid())
+        # The cusp element C, Q, P: side C-Q on the line, P-C on the arc, its side node where
+        # the side's tangent at C is the line's turned a hair across it (tangled by a hair).
+        # Its neighbour Q, T, P is thin (height 0.2).
+        cusp, q, p, t = (0.0, 0.0), (0.0, h), (xa, h), (xa / 2, h + 0.2)
+        mx = xa / 4 + 1e-3
+        on_arc = (mx, math.sqrt(rad**2 - (mx + rad) ** 2))
+
+        def mid(a, b):
+            return ((a[0] + b[0]) / 2, (a[1] + b[1]) / 2)
+
+        pts = [cusp, q, p, t, mid(cusp, q), mid(q, p), on_arc, mid(q, t), mid(t, p)]
+        tri6 = conversion.ELEMENT_TYPES["tri6"]
+        self.data = conversion.MeshData(
+            kind="arrays", nodes=np.array([(x, y, 0.0) for x, y in pts]),
+            types=np.array([tri6, tri6]), offsets=np.array([0, 6, 12]),
+            conn=np.array([0, 1, 2, 4, 5, 6, 1, 3, 2, 7, 8, 5]),
+            node_ids=np.arange(len(pts)), element_ids=np.array([1, 2]))
+
+    def test_the_nodes_of_a_flat_element_left_out_stay(self):
+        before = SurfMesh.measure(self.data, self.face)
+        self.assertEqual(before.stats["tangled"], 0)
+        self.assertEqual(before.bridge["skipped_elements"], [1])
+        self.assertTrue(any("1 flat element(s)" in w for w in before.bridge["warnings"]))
+        res = SurfMesh.optimize(self.data, self.face)
+        self.assertEqual(res.after.stats["tangled"], 0)
+        # the flat element's nodes, its side node shared with the neighbour among them, stay
+        np.testing.assert_array_equal(res.nodes[:7], self.data.nodes[:7])
+        again = SurfMesh.measure(dataclasses.replace(self.data, nodes=res.nodes), self.face)
+        self.assertEqual(again.stats["tangled"], 0)
+        self.assertEqual(again.bridge["skipped_elements"], [1])
+        self.assertGreaterEqual(again.stats["min"], before.stats["min"])

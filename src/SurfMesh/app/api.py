@@ -304,6 +304,7 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, duplicates="glu
     dup = data.duplicate_elements() & ~bad
     work = data
     data.kept = None
+    data.flat = None
     crowded = np.zeros(data.element_count, dtype=bool)
     if collapsed == "skip":
         bad = bad | dup
@@ -382,6 +383,9 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, duplicates="glu
             keep = ~bad if bad.any() else np.ones(data.element_count, dtype=bool)
             idx = np.nonzero(keep)[0]
             keep[idx[flat | miswound]] = False
+            if flat.any():
+                data.flat = np.zeros(data.element_count, dtype=bool)
+                data.flat[idx[flat]] = True
             bad = ~keep
             work = data.subset(keep)
             data.kept = keep
@@ -641,6 +645,10 @@ def optimize(
     # the held nodes that would have moved (kind 0: fixed anyway)
     held_nodes = (0 if held is None
                   else int(np.count_nonzero(held & (np.asarray(handle.node_kinds()) != 0))))
+    # The nodes of the flat elements left out stay where they are (see _flat_nodes).
+    flat_nodes = _flat_nodes(data, handle)
+    if flat_nodes is not None:
+        held = flat_nodes if held is None else held | flat_nodes
     t0 = time.perf_counter()
     before = _report(data, handle, measure, bridge,
                      measured=measured if measure == "shape" else None)
@@ -834,6 +842,25 @@ def _held_nodes(data, handle, shape, faces, fixed_nodes):
         # a glued node moves with the one it is glued to: that one is held
         held[idx if data.glued is None else data.glued[idx]] = True
     return held
+
+
+def _flat_nodes(data, handle):
+    """The core's bool mask of the nodes of the flat elements left out (see
+    :func:`_flat_boundary_elements`) that the run would move, or None when there are none.
+
+    A flat element is not measured, so the optimizer cannot see it fold: a high-order one
+    in a cusp of its face (two tangent CAD edges at a corner: zero angle there) shares side
+    nodes with measured elements, and moving those by a fraction of the element's size turns
+    it inside out while every measured element improves. Measured again, it is then tangled
+    (and no longer flat). Holding its nodes keeps it exactly as it was, so it is left out
+    again; every other node moves as before (nothing changes in a mesh without flat elements,
+    nor where their nodes all lie on fixed CAD edges and vertices, as Gmsh's slivers along an
+    edge do)."""
+    flat = getattr(data, "flat", None)
+    if flat is None or not flat.any():
+        return None
+    nodes = data.nodes_of(flat) & (np.asarray(handle.node_kinds()) != 0)
+    return nodes if nodes.any() else None
 
 
 def _input_element_indices(data, core_indices):

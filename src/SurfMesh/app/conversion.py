@@ -62,6 +62,9 @@ class MeshData:
     hint_vertex: Optional[np.ndarray] = None
     source: object = None  # the Mesh.Mesh / Fem.FemMesh the arrays were read from
     kept: Optional[np.ndarray] = None  # set by api.prepare when elements were left out
+    # Set by api.prepare when flat elements were left out (bool per element): optimize holds
+    # their nodes, so that no run folds them.
+    flat: Optional[np.ndarray] = None
     # Set by api.prepare when coincident nodes were glued: glued[i] is the node that node i
     # moves with (i itself for most nodes); ``conn`` then names only those nodes.
     glued: Optional[np.ndarray] = None
