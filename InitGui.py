@@ -59,16 +59,22 @@ class _SurfMeshViewObserver:
             sys.modules["SurfMesh.gui.legend"]._nodes.pop(doc.Name, None)
 
     def slotChangedObject(self, obj, prop):
-        if prop in ("SurfMeshColors", "Visibility") and "SurfMeshColors" in obj.PropertiesList:
-            self._later(obj.Document.Name, 0)
+        if prop in ("SurfMeshColors", "Visibility"):
+            self._touched(obj)
 
     def slotRemoveDynamicProperty(self, obj, prop):
         if prop == "SurfMeshColors":
-            self._later(obj.Document.Name, 0)
+            self._touched(obj, colored=True)
 
     def slotDeletedObject(self, obj):
-        if "SurfMeshColors" in obj.PropertiesList:
-            self._later(obj.Document.Name, 0)
+        self._touched(obj)
+
+    def _touched(self, obj, colored=False):
+        try:
+            if colored or "SurfMeshColors" in obj.PropertiesList:
+                self._later(obj.Document.Name, 0)
+        except Exception:  # an object on its way out: nothing to show
+            pass
 
     def _later(self, name, tries, opened=False):
         from PySide import QtCore
