@@ -11,7 +11,9 @@
 #include <BRepBuilderAPI_MakeVertex.hxx>
 #include <BRepClass_FaceClassifier.hxx>
 #include <BRepExtrema_DistShapeShape.hxx>
+#include <BRepFilletAPI_MakeFillet.hxx>
 #include <BRepPrimAPI_MakeBox.hxx>
+#include <BRepPrimAPI_MakeCylinder.hxx>
 #include <BRep_Builder.hxx>
 #include <BRep_Tool.hxx>
 #include <GeomAPI_ProjectPointOnCurve.hxx>
@@ -22,6 +24,7 @@
 #include <TopExp_Explorer.hxx>
 #include <TopoDS.hxx>
 #include <TopoDS_Compound.hxx>
+#include <TopoDS_Edge.hxx>
 #include <gp_Pnt.hxx>
 #include <gp_Pnt2d.hxx>
 #include <gtest/gtest.h>
@@ -483,6 +486,84 @@ TEST(CadBridge, OpenModelWithFacesNotOrientedAlikeKeepsEachFaceWinding) {
   const int faceY = cm.mesh().elemFace[ey];
   EXPECT_EQ(cm.report().flippedFaces, std::vector<int>{faceY});
   EXPECT_EQ(tangledCount(cm), 0u);
+}
+
+TEST(CadBridge, FilletElementOnItsEdgeIsNotMiswound) {
+  // A cylinder with its top edge rounded: a plane disk of radius 4 at z = 10 and a fillet
+  // (torus, tangent to the disk) down to the side at radius 5. A patch of mesh on both, as Gmsh
+  // may make it: each face wound consistently, the fillet against the disk (each surface
+  // wound by its parametrisation), and on the fillet, next to the circle, "caps": triangles
+  // with all three nodes on the circle, which lie flat in the disk's plane, on the disk's side
+  // of the circle. A cap's nodes are all on both faces and its centroid is on the disk: the
+  // nearest face is the disk, where it is wound against the disk's elements next to it; but
+  // it is wound as the fillet's element across its third side, and goes on the fillet. Before,
+  // the caps were reported as wound against the rest of the disk's mesh, and a valid mesh
+  // refused (Gmsh's recombined mesh of a filleted part; SurfMesh's own output, a node of a
+  // thin face put on its boundary). A fillet element really reversed is still reported.
+  const double R = 5.0, rho = 1.0, H = 10.0;
+  TopoDS_Shape cyl = BRepPrimAPI_MakeCylinder(R, H).Shape();
+  BRepFilletAPI_MakeFillet mk(cyl);
+  for (TopExp_Explorer ex(cyl, TopAbs_EDGE); ex.More(); ex.Next()) {
+    const TopoDS_Edge ed = TopoDS::Edge(ex.Current());
+    if (BRep_Tool::Degenerated(ed)) continue;
+    Standard_Real t0, t1;
+    const Handle(Geom_Curve) c = BRep_Tool::Curve(ed, t0, t1);
+    if (c.IsNull()) continue;
+    const gp_Pnt p0 = c->Value(t0), p1 = c->Value(0.5 * (t0 + t1));
+    if (std::abs(p0.Z() - H) < 1e-9 && std::abs(p1.Z() - H) < 1e-9) mk.Add(rho, ed);
+  }
+  ASSERT_EQ(mk.NbContours(), 1);
+  auto shape = std::make_shared<CadShape>(mk.Shape());
+  ASSERT_EQ(shape->faceCount(), 4);
+  const int m = 4;       // caps
+  const double d = 0.1;  // angle between nodes on the circle
+  auto at = [](double r, double t, double z) { return Vec3(r * std::cos(t), r * std::sin(t), z); };
+  MeshInput in;
+  const double rc = R - rho;  // the circle between the disk and the fillet
+  // Nodes (angles from 1 rad, clear of the seams): the circle (2m + 1), the disk's ring at
+  // radius rc − 1 (2m + 1), the fillet's edge with the side (m + 1).
+  auto circle = [&](int i) { return static_cast<std::int32_t>(i); };
+  auto ring = [&](int i) { return static_cast<std::int32_t>(2 * m + 1 + i); };
+  auto lower = [&](int j) { return static_cast<std::int32_t>(4 * m + 2 + j); };
+  for (int i = 0; i <= 2 * m; ++i) in.nodes.push_back(at(rc, 1.0 + i * d, H));
+  for (int i = 0; i <= 2 * m; ++i) in.nodes.push_back(at(rc - 1.0, 1.0 + i * d, H));
+  for (int j = 0; j <= m; ++j) in.nodes.push_back(at(R, 1.0 + 2 * j * d, H - rho));
+  auto tri = [&](std::int32_t a, std::int32_t b, std::int32_t c) {
+    in.types.push_back(ElementType::Tri3);
+    in.conn.insert(in.conn.end(), {a, b, c});
+    return static_cast<std::int32_t>(in.types.size() - 1);
+  };
+  // The disk's strip, wound along its outward normal (+z).
+  for (int i = 0; i < 2 * m; ++i) {
+    tri(ring(i), circle(i), circle(i + 1));
+    tri(ring(i), circle(i + 1), ring(i + 1));
+  }
+  // The fillet, wound against its outward normal: caps, then the band down to the side.
+  std::vector<std::int32_t> caps, band;
+  for (int j = 0; j < m; ++j) {
+    caps.push_back(tri(circle(2 * j), circle(2 * j + 1), circle(2 * j + 2)));
+    band.push_back(tri(circle(2 * j), circle(2 * j + 2), lower(j)));
+    band.push_back(tri(circle(2 * j + 2), lower(j + 1), lower(j)));
+  }
+  const std::size_t diskElement = 0, filletElement = static_cast<std::size_t>(band[0]);
+  int fillet = -1;
+  {
+    CadMesh cm(shape, in);
+    fillet = cm.mesh().elemFace[filletElement];
+    ASSERT_NE(cm.mesh().elemFace[diskElement], fillet);
+    EXPECT_TRUE(cm.report().miswoundElements.empty());
+    EXPECT_EQ(cm.report().flippedFaces, std::vector<int>{fillet});
+    for (std::int32_t e : caps)
+      EXPECT_EQ(cm.mesh().elemFace[static_cast<std::size_t>(e)], fillet) << "cap " << e;
+  }
+  // A band element reversed (one not next to a cap): reported, alone.
+  const std::int32_t r = band[3];
+  std::swap(in.conn[3 * static_cast<std::size_t>(r) + 1],
+            in.conn[3 * static_cast<std::size_t>(r) + 2]);
+  CadMesh cm(shape, in);
+  EXPECT_EQ(cm.report().miswoundElements, std::vector<std::int32_t>{r});
+  for (std::int32_t e : caps)
+    EXPECT_EQ(cm.mesh().elemFace[static_cast<std::size_t>(e)], fillet) << "cap " << e;
 }
 
 TEST(CadBridge, HintsAreUsedAndVerified) {

@@ -1014,6 +1014,81 @@ std::vector<std::int32_t> miswoundElements(const std::vector<EdgePair>& edges,
   return out;
 }
 
+/// Settles the faces of the elements whose nodes are all within the tolerance of several faces
+/// (`candidates[e]`, sorted, empty for an element with one face): the nearest face (step 2 of
+/// CadMesh's constructor) is a guess there — on a thin face between faces tangent to it, the
+/// centroid of an element spanning the thin face may be nearer to the neighbour, depending on
+/// where the mesher or a smoother put its nodes. Such an element, when its winding disagrees
+/// with a neighbour on its face f (across a manifold corner edge), goes to the candidate g
+/// where it agrees with more of its neighbours than it disagrees with, by more than on f: an
+/// element of a face meshed with the opposite winding to its neighbour's (Gmsh winds each
+/// surface by its parametrisation), put on the neighbour, is then not read as wound against
+/// that face's mesh (BridgeReport::miswoundElements). An element reversed against all its
+/// neighbours has no such candidate and stays. Every move raises the number of links within a
+/// face wound alike minus those wound oppositely: the loop ends.
+void settleDoubtfulFaces(const std::vector<EdgePair>& edges,
+                         const std::vector<std::vector<int>>& candidates,
+                         std::vector<std::int32_t>& elemFace) {
+  const std::size_t E = elemFace.size();
+  std::vector<std::int32_t> work;
+  for (std::size_t e = 0; e < E; ++e)
+    if (candidates[e].size() > 1) work.push_back(static_cast<std::int32_t>(e));
+  if (work.empty()) return;
+  // Links of each element across manifold edges (CSR): the other element, +1 wound alike.
+  std::vector<std::int64_t> deg(E + 1, 0);
+  for (const EdgePair& p : edges) {
+    ++deg[static_cast<std::size_t>(p.e0) + 1];
+    ++deg[static_cast<std::size_t>(p.e1) + 1];
+  }
+  for (std::size_t e = 0; e < E; ++e) deg[e + 1] += deg[e];
+  std::vector<std::pair<std::int32_t, std::int8_t>> adj(static_cast<std::size_t>(deg[E]));
+  {
+    std::vector<std::int64_t> fill(deg.begin(), deg.end() - 1);
+    for (const EdgePair& p : edges) {
+      const std::int8_t r = p.alike ? 1 : -1;
+      adj[static_cast<std::size_t>(fill[static_cast<std::size_t>(p.e0)]++)] = {p.e1, r};
+      adj[static_cast<std::size_t>(fill[static_cast<std::size_t>(p.e1)]++)] = {p.e0, r};
+    }
+  }
+  std::vector<unsigned char> queued(E, 0);
+  for (std::int32_t e : work) queued[static_cast<std::size_t>(e)] = 1;
+  std::vector<int> good, bad;
+  for (std::size_t q = 0; q < work.size(); ++q) {
+    const std::size_t e = static_cast<std::size_t>(work[q]);
+    queued[e] = 0;
+    const std::vector<int>& cand = candidates[e];
+    good.assign(cand.size(), 0);
+    bad.assign(cand.size(), 0);
+    for (std::int64_t k = deg[e]; k < deg[e + 1]; ++k) {
+      const auto& [o, r] = adj[static_cast<std::size_t>(k)];
+      const auto it =
+          std::lower_bound(cand.begin(), cand.end(), elemFace[static_cast<std::size_t>(o)]);
+      if (it == cand.end() || *it != elemFace[static_cast<std::size_t>(o)]) continue;
+      ++(r > 0 ? good : bad)[static_cast<std::size_t>(it - cand.begin())];
+    }
+    const std::size_t cur = static_cast<std::size_t>(
+        std::lower_bound(cand.begin(), cand.end(), elemFace[e]) - cand.begin());
+    if (cur >= cand.size() || cand[cur] != elemFace[e] || bad[cur] == 0) continue;
+    std::size_t best = cur;
+    int bestScore = good[cur] - bad[cur];
+    for (std::size_t i = 0; i < cand.size(); ++i)
+      if (good[i] > 0 && good[i] - bad[i] > bestScore) {
+        best = i;
+        bestScore = good[i] - bad[i];
+      }
+    if (best == cur) continue;
+    elemFace[e] = cand[best];
+    // Doubtful neighbours may settle now.
+    for (std::int64_t k = deg[e]; k < deg[e + 1]; ++k) {
+      const std::size_t o = static_cast<std::size_t>(adj[static_cast<std::size_t>(k)].first);
+      if (candidates[o].size() > 1 && !queued[o]) {
+        queued[o] = 1;
+        work.push_back(static_cast<std::int32_t>(o));
+      }
+    }
+  }
+}
+
 }  // namespace
 
 /// The hint a node's classification was forced by.
@@ -1483,6 +1558,9 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   // global projections). offFace marks an element put on a face its nodes are each within the
   // tolerance of; one left on no face (elemFace −1) is an error, reported below for the first.
   std::vector<unsigned char> offFace(E, 0);
+  // The faces of an element whose nodes are all within the tolerance of several (settled by
+  // the mesh's winding below); empty for the others.
+  std::vector<std::vector<int>> doubtfulFaces(E);
   parallelFor(E, projectors, [&](std::size_t e, Projector& pr) {
     thread_local std::vector<int> common, tmp;  // kept from element to element (no allocation)
     const std::int32_t* nd = input.conn.data() + offsets[e];
@@ -1536,7 +1614,9 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
       return;
     }
     // Several faces qualify (small elements at an edge, faces tangent to each other, thin
-    // walls): the face nearest to the element's nodes and to its centroid.
+    // walls): the face nearest to the element's nodes and to its centroid, until the mesh's
+    // winding says otherwise (settleDoubtfulFaces).
+    doubtfulFaces[e] = common;
     Vec3 c = Vec3::Zero();
     for (int k = 0; k < nn; ++k) c += input.nodes[static_cast<std::size_t>(nd[k])];
     c /= nn;
@@ -1568,6 +1648,9 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
     }
     if (offFace[e] && offFaceElements++ == 0) firstOffFace = e;
   }
+  const std::vector<EdgePair> manifoldEdges = manifoldEdgePairs(input, offsets);
+  settleDoubtfulFaces(manifoldEdges, doubtfulFaces, elemFace);
+  doubtfulFaces = std::vector<std::vector<int>>();
   if (offFaceElements)
     report_.warnings.push_back(
         std::to_string(offFaceElements) +
@@ -2029,9 +2112,8 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   // the per-face votes.
   std::vector<int> windingSign;
   {
-    const std::vector<EdgePair> edges = manifoldEdgePairs(input, offsets);
-    windingSign = faceWindingSigns(edges, elemFace, NF, agree, disagree);
-    report_.miswoundElements = miswoundElements(edges, elemFace);
+    windingSign = faceWindingSigns(manifoldEdges, elemFace, NF, agree, disagree);
+    report_.miswoundElements = miswoundElements(manifoldEdges, elemFace);
   }
   if (!report_.miswoundElements.empty()) {
     const std::int32_t e0 = report_.miswoundElements[0];
