@@ -6,9 +6,11 @@
 #include <BRepClass3d_SolidClassifier.hxx>
 #include <BRepClass_FaceClassifier.hxx>
 #include <BRepMesh_IncrementalMesh.hxx>
+#include <BRepPrimAPI_MakeBox.hxx>
 #include <BRepTools.hxx>
 #include <BRepTools_WireExplorer.hxx>
 #include <BRepTopAdaptor_FClass2d.hxx>
+#include <BRep_Builder.hxx>
 #include <BRep_Tool.hxx>
 #include <Geom2d_Curve.hxx>
 #include <GeomAPI_ProjectPointOnSurf.hxx>
@@ -77,6 +79,14 @@ bool strictlyInsideByOcc(BRepTopAdaptor_FClass2d& ref, const OccFaceSurface& s, 
   if (!s.isVPeriodic() && s.vTurnPeriod() == 0.0 && !g->IsVPeriodic() && (w.y() < v0 || w.y() > v1))
     return false;
   return ref.Perform(gp_Pnt2d(w.x(), w.y()), recadre ? Standard_True : Standard_False) == TopAbs_IN;
+}
+
+/// contains()'s full reference: strictlyInsideByOcc, and φ(u,v) outside the tolerance zones
+/// of the face's edges and vertices (inBoundaryTolerance(), checked on its own by
+/// ContainsExcludesTheToleranceZonesOfTheFacesEdgesAndVertices).
+bool containedByOcc(BRepTopAdaptor_FClass2d& ref, const OccFaceSurface& s, const Vec2& p,
+                    bool recadre = true) {
+  return strictlyInsideByOcc(ref, s, p, recadre) && !s.inBoundaryTolerance(s.value(p.x(), p.y()));
 }
 
 /// Interior (u,v) points of a face: the nodes of its BRepMesh triangulation that are not on
@@ -340,7 +350,7 @@ TEST(OccFaceSurface, ContainsAgreesWithTheOccClassifierEverywhere) {
         if (!s.isVPeriodic() &&
             (w.y() < b.vmin - s.uvTolerance() || w.y() > b.vmax + s.uvTolerance()))
           continue;
-        const bool expected = strictlyInsideByOcc(ref, s, p, recadre);
+        const bool expected = containedByOcc(ref, s, p, recadre);
         const bool got = s.contains(p.x(), p.y());
         ++checked;
         inside += expected ? 1 : 0;
@@ -372,7 +382,7 @@ TEST(OccFaceSurface, TheCopiesShareTheClassifierAndTheGrid) {
     const std::unique_ptr<Surface> copy = s.clone();
     BRepTopAdaptor_FClass2d ref(face, s.uvTolerance());
     for (const Vec2& p : uvLattice(s.faceUVBounds(), 29)) {
-      const bool expected = strictlyInsideByOcc(ref, s, p);
+      const bool expected = containedByOcc(ref, s, p);
       EXPECT_EQ(copy->contains(p.x(), p.y()), expected) << "face " << f << " at " << p.transpose();
       EXPECT_EQ(s.contains(p.x(), p.y()), expected) << "face " << f << " at " << p.transpose();
       ++checked;
@@ -524,7 +534,7 @@ TEST(OccFaceSurface, PreparedCopiesOnTwoThreadsAgreeWithTheClassifier) {
     const std::unique_ptr<Surface> third = s->clone();
     BRepTopAdaptor_FClass2d ref(s->face(), s->uvTolerance());
     for (const Vec2& p : uvLattice(s->faceUVBounds(), 17)) {
-      EXPECT_EQ(third->contains(p.x(), p.y()), strictlyInsideByOcc(ref, *s, p))
+      EXPECT_EQ(third->contains(p.x(), p.y()), containedByOcc(ref, *s, p))
           << "face " << s->faceId() << " at " << p.transpose();
       ++checked;
     }
@@ -571,7 +581,7 @@ TEST(OccFaceSurface, CopiesOnTwoThreadsAgreeWithTheClassifierNextToHoles) {
                                                      w.x() <= b.umax + original.uvTolerance())) &&
                          (original.isVPeriodic() || (w.y() >= b.vmin - original.uvTolerance() &&
                                                      w.y() <= b.vmax + original.uvTolerance()));
-      expected[k] = inBox && strictlyInsideByOcc(ref, original, pts[k], recadre);
+      expected[k] = inBox && containedByOcc(ref, original, pts[k], recadre);
     }
     std::vector<char> got[2];
     std::vector<std::unique_ptr<Surface>> copies;
@@ -647,7 +657,8 @@ TEST(OccFaceSurface, ContainsExcludesTheToleranceBandAndTheSurfacesOutside) {
           // Three bands inside the loop: IN for OCC and for contains().
           const Vec2 in(q.X() + side * 3.0 * tol * nrm.X(), q.Y() + side * 3.0 * tol * nrm.Y());
           if (in.x() >= u0 && in.x() <= u1 && in.y() >= v0 && in.y() <= v1 &&
-              ref.Perform(gp_Pnt2d(in.x(), in.y()), Standard_True) == TopAbs_IN) {
+              ref.Perform(gp_Pnt2d(in.x(), in.y()), Standard_True) == TopAbs_IN &&
+              !s.inBoundaryTolerance(s.value(in.x(), in.y()))) {
             EXPECT_TRUE(s.contains(in.x(), in.y())) << "face " << f << " IN at " << in.transpose();
             ++inner;
           }
@@ -660,6 +671,80 @@ TEST(OccFaceSurface, ContainsExcludesTheToleranceBandAndTheSurfacesOutside) {
   EXPECT_GT(onBand, 100u);
   EXPECT_GT(beyondRange, 20u);
   EXPECT_GT(inner, 100u);
+}
+
+// An edge's tolerance is a zone around its 3D curve where OCC counts a point ON the edge, and
+// where the CAD recovery's tolerance hints (FreeCAD's getNodesByEdge rule) put a node on the
+// edge; the same for a vertex. On imported parts it reaches 1e-3 and more (and the 3D curve
+// lies that far from the loop its pcurve draws), far wider than the face's own tolerance that
+// sets the classifier's band. contains() must reject the face's points in those zones: a node
+// pushed there against the loop is read back as an edge node, measured to the edge's 3D
+// curve. A box with one edge (and its two vertices) at tolerance 0.05: points of each face
+// along that edge are outside at 0.025 from it and inside at 0.1; along the box's other edges
+// (tolerance 1e-7) they are inside at 0.025.
+TEST(OccFaceSurface, ContainsExcludesTheToleranceZonesOfTheFacesEdgesAndVertices) {
+  const TopoDS_Shape box = BRepPrimAPI_MakeBox(10.0, 10.0, 10.0).Shape();
+  TopTools_IndexedMapOfShape edges;
+  TopExp::MapShapes(box, TopAbs_EDGE, edges);
+  const TopoDS_Edge wide = TopoDS::Edge(edges(1));
+  const double tol = 0.05;
+  BRep_Builder builder;
+  builder.UpdateEdge(wide, tol);
+  for (TopExp_Explorer ex(wide, TopAbs_VERTEX); ex.More(); ex.Next())
+    builder.UpdateVertex(TopoDS::Vertex(ex.Current()), tol);
+  const CadShape shape(box);
+  std::size_t zone = 0, free = 0, corners = 0;
+  for (int f = 0; f < shape.faceCount(); ++f) {
+    const TopoDS_Face& face = shape.face(f);
+    const OccFaceSurface& s = shape.surface(f);
+    BRepTopAdaptor_FClass2d ref(face, s.uvTolerance());
+    for (TopExp_Explorer ex(face, TopAbs_EDGE); ex.More(); ex.Next()) {
+      const TopoDS_Edge& e = TopoDS::Edge(ex.Current());
+      const bool isWide = e.IsSame(wide);
+      double a = 0, c = 0;
+      const auto pc = BRep_Tool::CurveOnSurface(e, face, a, c);
+      ASSERT_FALSE(pc.IsNull());
+      for (const double t : {0.3, 0.5, 0.7}) {
+        gp_Pnt2d q;
+        gp_Vec2d d;
+        pc->D1(a + (c - a) * t, q, d);
+        // The plane's (u,v) are lengths: the inward normal of the loop, at unit speed.
+        gp_Vec2d nrm(-d.Y(), d.X());
+        nrm.Normalize();
+        const gp_Pnt2d probe(q.X() + 2.0 * tol * nrm.X(), q.Y() + 2.0 * tol * nrm.Y());
+        if (ref.Perform(probe) != TopAbs_IN) nrm.Reverse();
+        auto at = [&](double dist) { return Vec2(q.X() + dist * nrm.X(), q.Y() + dist * nrm.Y()); };
+        ASSERT_EQ(ref.Perform(gp_Pnt2d(at(0.5 * tol).x(), at(0.5 * tol).y())), TopAbs_IN);
+        const Vec2 near = at(0.5 * tol), far = at(2.0 * tol);
+        EXPECT_TRUE(s.contains(far.x(), far.y())) << "face " << f << " at " << far.transpose();
+        if (isWide) {
+          EXPECT_FALSE(s.contains(near.x(), near.y()))
+              << "face " << f << " at " << near.transpose() << ", 0.025 from the wide edge";
+          EXPECT_TRUE(s.inBoundaryTolerance(s.value(near.x(), near.y())));
+          ++zone;
+        } else {
+          EXPECT_TRUE(s.contains(near.x(), near.y()))
+              << "face " << f << " at " << near.transpose() << ", 0.025 from a tight edge";
+          ++free;
+        }
+      }
+      // Next to the wide edge's vertices, off the wide edge itself: in the vertex's ball.
+      if (isWide) continue;
+      for (TopExp_Explorer vx(e, TopAbs_VERTEX); vx.More(); vx.Next()) {
+        const TopoDS_Vertex& v = TopoDS::Vertex(vx.Current());
+        if (BRep_Tool::Tolerance(v) < tol) continue;
+        const gp_Pnt2d q = BRep_Tool::Parameters(v, face);
+        const Vec2 c2(0.5 * (s.faceUVBounds().umin + s.faceUVBounds().umax),
+                      0.5 * (s.faceUVBounds().vmin + s.faceUVBounds().vmax));
+        const Vec2 in = Vec2(q.X(), q.Y()) + 0.6 * tol * (c2 - Vec2(q.X(), q.Y())).normalized();
+        EXPECT_FALSE(s.contains(in.x(), in.y())) << "face " << f << " at " << in.transpose();
+        ++corners;
+      }
+    }
+  }
+  EXPECT_EQ(zone, 2u * 3u);  // the wide edge bounds two faces
+  EXPECT_EQ(free, (4u * 6u - 2u) * 3u);
+  EXPECT_GT(corners, 0u);
 }
 
 TEST(OccFaceSurface, PeriodicFacesWrapAroundTheirOwnRange) {

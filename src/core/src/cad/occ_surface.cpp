@@ -4,6 +4,8 @@
 #include <BRepTools.hxx>
 #include <BRepTopAdaptor_FClass2d.hxx>
 #include <BRep_Tool.hxx>
+#include <Extrema_ExtPC.hxx>
+#include <Extrema_LocateExtPC.hxx>
 #include <Geom2dAdaptor_Curve.hxx>
 #include <Geom2d_Curve.hxx>
 #include <Geom_Surface.hxx>
@@ -12,6 +14,7 @@
 #include <TopAbs_State.hxx>
 #include <TopExp.hxx>
 #include <TopExp_Explorer.hxx>
+#include <TopTools_IndexedMapOfShape.hxx>
 #include <TopoDS.hxx>
 #include <TopoDS_Vertex.hxx>
 #include <gp_Pnt.hxx>
@@ -464,12 +467,40 @@ struct OccFaceSurface::TrimCells {
   }
 };
 
-/// What the copies of one face share: its classifier and its grid's pcurve index, each built
-/// once, by the first query of any copy that needs it (the CAD recovery's included).
+/// The tolerance zones of a face's boundary: a ball of its tolerance around each vertex of
+/// the face, and around each non-degenerated edge the points within its tolerance of its 3D
+/// curve. An edge's curve is kept as a polyline through points of the curve (within `dev`
+/// of it both ways), in chunks of kChunk segments with their boxes grown by tolerance + dev:
+/// a point farther than that from the polyline is outside the zone, one nearer than
+/// tolerance − dev inside; in between the curve itself decides.
+struct OccFaceSurface::ToleranceZones {
+  static constexpr std::size_t kChunk = 8;
+  struct Edge {
+    TopoDS_Edge edge;
+    double tol = 0.0, dev = 0.0;
+    Box3 box = {kInf, kInf, kInf, -kInf, -kInf, -kInf};
+    std::vector<double> t;         // the polyline's points: curve parameters …
+    std::vector<Vec3> x;           // … and positions, in the curve's order
+    std::vector<Box3> chunkBoxes;  // segments [kChunk·c, kChunk·(c + 1)) of the polyline
+  };
+  std::vector<Edge> edges;
+  std::vector<std::pair<Vec3, double>> vertices;  // point, tolerance
+  bool empty() const { return edges.empty() && vertices.empty(); }
+};
+
+/// Per copy: the edges' curve adaptors of the zones (OCC adaptors are not thread-safe).
+struct OccFaceSurface::ZoneCurves {
+  std::vector<std::unique_ptr<BRepAdaptor_Curve>> curves;
+};
+
+/// What the copies of one face share: its classifier, its grid's pcurve index and the
+/// tolerance zones of its boundary, each built once, by the first query of any copy that
+/// needs it (the CAD recovery's included).
 struct OccFaceSurface::TrimShared {
-  std::once_flag classifierOnce, gridOnce;
+  std::once_flag classifierOnce, gridOnce, zonesOnce;
   std::unique_ptr<BRepTopAdaptor_FClass2d> classifier;
   std::unique_ptr<TrimGrid> grid;  // null: not usable (a missing or pathological pcurve)
+  std::unique_ptr<ToleranceZones> zones;
   /// Serializes the classifier's queries: BRepTopAdaptor_FClass2d::Perform is const but not
   /// thread-safe (its sequences of wires cache the last item they were asked for).
   std::mutex classifierMutex;
@@ -584,6 +615,199 @@ std::unique_ptr<OccFaceSurface::TrimGrid> buildTrimGrid(const TopoDS_Face& face,
 
 }  // namespace
 
+namespace {
+
+/// Squared distance from p to the segment a–b.
+double segmentDistance2(const Vec3& a, const Vec3& b, const Vec3& p) {
+  const Vec3 e = b - a;
+  const double l2 = e.squaredNorm();
+  const double t = l2 > 0.0 ? std::clamp((p - a).dot(e) / l2, 0.0, 1.0) : 0.0;
+  return (a + t * e - p).squaredNorm();
+}
+
+/// The zones of `face` (see OccFaceSurface::ToleranceZones): of its edges and vertices more
+/// than twice as tolerant as the face itself (the classifier's band, the face's tolerance,
+/// keeps contains() off the others: on a part built by OCC, whose tolerances are all 1e-7,
+/// there are none). An edge's polyline: its curve
+/// cut in 8 pieces, halved until the curve at a quarter, half and three quarters of a piece
+/// is within dev = max(tolerance / 2, 1/1000 of the edge's box) of its chord.
+std::unique_ptr<OccFaceSurface::ToleranceZones> buildToleranceZones(const TopoDS_Face& face) {
+  using Zones = OccFaceSurface::ToleranceZones;
+  auto z = std::make_unique<Zones>();
+  TopTools_IndexedMapOfShape vertices, edges;
+  TopExp::MapShapes(face, TopAbs_VERTEX, vertices);
+  TopExp::MapShapes(face, TopAbs_EDGE, edges);
+  const double wide = 2.0 * BRep_Tool::Tolerance(face);
+  for (int k = 1; k <= vertices.Extent(); ++k) {
+    const TopoDS_Vertex& v = TopoDS::Vertex(vertices(k));
+    if (BRep_Tool::Tolerance(v) > wide)
+      z->vertices.emplace_back(toVec(BRep_Tool::Pnt(v)), BRep_Tool::Tolerance(v));
+  }
+  for (int k = 1; k <= edges.Extent(); ++k) {
+    const TopoDS_Edge& e = TopoDS::Edge(edges(k));
+    if (BRep_Tool::Degenerated(e)) continue;  // its vertex's zone covers it
+    if (!(BRep_Tool::Tolerance(e) > wide)) continue;
+    Zones::Edge ze;
+    ze.edge = e;
+    ze.tol = BRep_Tool::Tolerance(e);
+    try {
+      const BRepAdaptor_Curve c(e);
+      const double f = c.FirstParameter(), l = c.LastParameter();
+      if (!std::isfinite(f) || !std::isfinite(l) || !(l > f)) continue;
+      auto at = [&](double t) { return toVec(c.Value(t)); };
+      Box3 b = {kInf, kInf, kInf, -kInf, -kInf, -kInf};
+      constexpr int kStart = 8;
+      std::vector<double> ts;
+      std::vector<Vec3> xs;
+      for (int i = 0; i <= kStart; ++i) {
+        ts.push_back(f + (l - f) * i / kStart);
+        xs.push_back(at(ts.back()));
+        for (std::size_t a = 0; a < 3; ++a) {
+          b[a] = std::min(b[a], xs.back()[static_cast<int>(a)]);
+          b[a + 3] = std::max(b[a + 3], xs.back()[static_cast<int>(a)]);
+        }
+      }
+      const double size = std::sqrt((b[3] - b[0]) * (b[3] - b[0]) + (b[4] - b[1]) * (b[4] - b[1]) +
+                                    (b[5] - b[2]) * (b[5] - b[2]));
+      ze.dev = std::max(0.1 * ze.tol, 1e-4 * size);
+      const double dev2 = ze.dev * ze.dev;
+      ze.x.push_back(xs[0]);
+      ze.t.push_back(ts[0]);
+      struct Piece {
+        double t0, t1;
+        Vec3 p0, p1;
+        int depth;
+      };
+      std::vector<Piece> stack;
+      for (int i = kStart; i > 0; --i)  // popped in the curve's order
+        stack.push_back({ts[static_cast<std::size_t>(i - 1)], ts[static_cast<std::size_t>(i)],
+                         xs[static_cast<std::size_t>(i - 1)], xs[static_cast<std::size_t>(i)], 0});
+      bool ok = true;
+      while (!stack.empty() && ok) {
+        const Piece pc = stack.back();
+        stack.pop_back();
+        const double tm = 0.5 * (pc.t0 + pc.t1);
+        const Vec3 pm = at(tm);
+        const bool fine = segmentDistance2(pc.p0, pc.p1, pm) <= dev2 &&
+                          segmentDistance2(pc.p0, pc.p1, at(0.5 * (pc.t0 + tm))) <= dev2 &&
+                          segmentDistance2(pc.p0, pc.p1, at(0.5 * (tm + pc.t1))) <= dev2;
+        if (!fine && pc.depth < 20) {
+          stack.push_back({tm, pc.t1, pm, pc.p1, pc.depth + 1});
+          stack.push_back({pc.t0, tm, pc.p0, pm, pc.depth + 1});
+          continue;
+        }
+        ok = pc.p1.allFinite() && ze.x.size() < 1000000;
+        ze.x.push_back(pc.p1);
+        ze.t.push_back(pc.t1);
+      }
+      if (!ok) continue;
+      const double grow = ze.tol + ze.dev;
+      const std::size_t segments = ze.x.size() - 1, K = Zones::kChunk;
+      for (std::size_t c = 0; c * K < segments; ++c) {
+        Box3 cb = {kInf, kInf, kInf, -kInf, -kInf, -kInf};
+        for (std::size_t k = c * K; k <= std::min(segments, (c + 1) * K); ++k)
+          for (std::size_t a = 0; a < 3; ++a) {
+            cb[a] = std::min(cb[a], ze.x[k][static_cast<int>(a)] - grow);
+            cb[a + 3] = std::max(cb[a + 3], ze.x[k][static_cast<int>(a)] + grow);
+          }
+        for (std::size_t a = 0; a < 3; ++a) {
+          ze.box[a] = std::min(ze.box[a], cb[a]);
+          ze.box[a + 3] = std::max(ze.box[a + 3], cb[a + 3]);
+        }
+        ze.chunkBoxes.push_back(cb);
+      }
+    } catch (const Standard_Failure&) {
+      continue;  // no usable 3D curve
+    }
+    z->edges.push_back(std::move(ze));
+  }
+  return z;
+}
+
+/// Distance from p to curve c (edge e's): the nearest of its ends and of the minima
+/// Extrema_ExtPC finds (the CAD recovery's tolerance hints measure it so); `fallback` when
+/// OCC fails.
+double curveDistance(const BRepAdaptor_Curve& c, const gp_Pnt& P, double fallback) {
+  try {
+    double d2 = std::min(c.Value(c.FirstParameter()).SquareDistance(P),
+                         c.Value(c.LastParameter()).SquareDistance(P));
+    Extrema_ExtPC ext(P, c);
+    if (ext.IsDone())
+      for (int i = 1; i <= ext.NbExt(); ++i)
+        if (ext.IsMin(i)) d2 = std::min(d2, ext.SquareDistance(i));
+    return std::sqrt(d2);
+  } catch (const Standard_Failure&) {
+    return fallback;
+  }
+}
+
+}  // namespace
+
+const OccFaceSurface::ToleranceZones& OccFaceSurface::zones() const {
+  TrimShared& t = *trim_;
+  std::call_once(t.zonesOnce, [&]() { t.zones = buildToleranceZones(face_); });
+  return *t.zones;
+}
+
+bool OccFaceSurface::inBoundaryTolerance(const Vec3& p) const {
+  const ToleranceZones& z = zones();
+  for (const auto& [x, tol] : z.vertices)
+    if ((x - p).squaredNorm() <= tol * tol) return true;
+  constexpr std::size_t K = ToleranceZones::kChunk;
+  for (std::size_t ei = 0; ei < z.edges.size(); ++ei) {
+    const ToleranceZones::Edge& e = z.edges[ei];
+    if (boxDistance2(e.box, p) > 0.0) continue;
+    // The nearest polyline segment.
+    double best2 = kInf;
+    std::size_t seg = 0;
+    const std::size_t segments = e.x.size() - 1;
+    for (std::size_t c = 0; c < e.chunkBoxes.size(); ++c) {
+      if (boxDistance2(e.chunkBoxes[c], p) > 0.0) continue;
+      for (std::size_t k = c * K; k < std::min(segments, (c + 1) * K); ++k) {
+        const double d2 = segmentDistance2(e.x[k], e.x[k + 1], p);
+        if (d2 < best2) {
+          best2 = d2;
+          seg = k;
+        }
+      }
+    }
+    const double reach = e.tol + e.dev;
+    if (best2 > reach * reach) continue;  // farther than tol from the curve
+    const double dp = std::sqrt(best2);
+    if (dp + e.dev <= e.tol) return true;  // nearer than tol
+    // In between: the curve decides, by a local search from the nearest segment (the curve
+    // is within dev of the polyline there), the segment's ends (points of the curve) bound
+    // it; the whole curve (the hints' distance) when the local search fails.
+    if (!zoneCurves_) zoneCurves_ = std::make_unique<ZoneCurves>();
+    auto& slot = zoneCurves_->curves;
+    if (slot.size() < z.edges.size()) slot.resize(z.edges.size());
+    if (!slot[ei]) slot[ei] = std::make_unique<BRepAdaptor_Curve>(e.edge);
+    const BRepAdaptor_Curve& c = *slot[ei];
+    const gp_Pnt P(p.x(), p.y(), p.z());
+    double d = std::sqrt(std::min((e.x[seg] - p).squaredNorm(), (e.x[seg + 1] - p).squaredNorm()));
+    bool located = false;
+    try {
+      const Vec3 a = e.x[seg], ab = e.x[seg + 1] - e.x[seg];
+      const double l2 = ab.squaredNorm();
+      const double s = l2 > 0.0 ? std::clamp((p - a).dot(ab) / l2, 0.0, 1.0) : 0.0;
+      const double t0 = e.t[seg] + s * (e.t[seg + 1] - e.t[seg]);
+      Extrema_LocateExtPC loc(P, c, t0, Precision::PConfusion());
+      if (loc.IsDone() && loc.IsMin()) {
+        const double tl = loc.Point().Parameter();
+        if (tl >= e.t[seg] - (e.t[seg + 1] - e.t[seg]) &&
+            tl <= e.t[seg + 1] + (e.t[seg + 1] - e.t[seg])) {
+          d = std::min(d, std::sqrt(loc.SquareDistance()));
+          located = true;
+        }
+      }
+    } catch (const Standard_Failure&) {
+    }
+    if (!located) d = std::min(d, curveDistance(c, P, dp));
+    if (d <= e.tol) return true;
+  }
+  return false;
+}
+
 const OccFaceSurface::TrimGrid* OccFaceSurface::trimGrid() const {
   TrimShared& t = *trim_;
   std::call_once(t.gridOnce, [&]() {
@@ -622,9 +846,12 @@ bool OccFaceSurface::contains(double u, double v) const {
         v <= surfaceBounds_.vmax))
     return false;  // NaN too
   const int known = containsFast(u, v);
-  if (known >= 0) return known == 1;
-  const Vec2 w = wrap(Vec2(u, v));
-  return classifyWithClassifier(w.x(), w.y(), false, true);
+  bool inside = known == 1;
+  if (known < 0) {
+    const Vec2 w = wrap(Vec2(u, v));
+    inside = classifyWithClassifier(w.x(), w.y(), false, true);
+  }
+  return inside && (zones().empty() || !inBoundaryTolerance(value(u, v)));
 }
 
 int OccFaceSurface::containsFast(double u, double v) const {

@@ -12,7 +12,9 @@
 //     uTurnPeriod()/vTurnPeriod() give the underlying period to find a point's (u,v) there;
 //   * normalSign() = −1 when face.Orientation() == TopAbs_REVERSED;
 //   * contains(u,v) classifies (u,v) against the face's trimming loops (holes, inner wires)
-//     with BRepTopAdaptor_FClass2d, after wrapping periodic coordinates; ON counts as inside.
+//     with BRepTopAdaptor_FClass2d, after wrapping periodic coordinates (see contains() for
+//     what counts as outside: the classifier's ON band, and φ(u,v) within the tolerance of
+//     an edge or vertex of the face);
 //     A 48 × 48 grid over the face's (u,v) box, with 16 × 16 sub-cells in the cells a pcurve
 //     comes near, answers at once in every (sub-)cell no pcurve comes near: such regions are
 //     classified once (by the classifier at one centre, then flood-filled); only points in
@@ -93,7 +95,18 @@ class OccFaceSurface final : public Surface {
   /// a loop (within uvTolerance() of it, on either side) counts as outside: a node moved
   /// only to (u,v) that contains() accepts stays on the face as FreeCAD measures it
   /// (Face.distToShape), not merely within the face's tolerance of it.
+  /// So does a point whose φ(u,v) lies within the tolerance zone of one of the face's
+  /// boundary entities (inBoundaryTolerance()): OCC counts it ON that edge or vertex, and a
+  /// node there is read back as an edge (vertex) node by the CAD recovery's tolerance hints
+  /// and by FreeCAD's getNodesByEdge — at up to the edge's tolerance from its 3D curve, which
+  /// on imported parts (1e-3 and more) lies that far from the loop its pcurve draws.
   bool contains(double u, double v) const override;
+  /// Whether point p is within the tolerance of a vertex of the face (BRep_Tool::Tolerance)
+  /// or within the tolerance of a non-degenerated edge of the face from its 3D curve (the
+  /// distance the CAD recovery's tolerance hints take: Extrema_ExtPC and the ends), for the
+  /// vertices and edges more than twice as tolerant as the face (the classifier's band keeps
+  /// contains() off the others). The zones are built on first use and shared by the copies.
+  bool inBoundaryTolerance(const Vec3& p) const;
   /// The trimming-loop part of contains() where it needs no classifier query at (u,v)
   /// itself: 1 inside, 0 outside (outside the face's parameter box, in a periodic direction
   /// modulo the period; in a sub-cell no trimming loop passes through; or, in one that a loop
@@ -133,6 +146,10 @@ class OccFaceSurface final : public Surface {
   struct TrimGrid;
   struct TrimCells;
   struct TrimShared;
+  /// The tolerance zones of the face's edges and vertices (inBoundaryTolerance()), shared,
+  /// and the curve adaptors this copy measures them with.
+  struct ToleranceZones;
+  struct ZoneCurves;
 
  private:
   TopoDS_Face face_;
@@ -147,10 +164,12 @@ class OccFaceSurface final : public Surface {
   double uTurn_ = 0.0, vTurn_ = 0.0;
   int normalSign_ = 1;
   double uvTol_ = 1e-9;
-  std::shared_ptr<TrimShared> trim_;            // classifier + grid, built when first needed
-  mutable std::unique_ptr<TrimCells> cells_;    // this copy's cell states (with the grid)
-  OccFaceSurface(const OccFaceSurface& other);  // clone(): shares trim_, copies cells_
-  const TrimGrid* trimGrid() const;             // trim_'s grid, built on first use (thread-safe)
+  std::shared_ptr<TrimShared> trim_;                // classifier + grid, built when first needed
+  mutable std::unique_ptr<TrimCells> cells_;        // this copy's cell states (with the grid)
+  mutable std::unique_ptr<ZoneCurves> zoneCurves_;  // this copy's edge adaptors (zones)
+  OccFaceSurface(const OccFaceSurface& other);      // clone(): shares trim_, copies cells_
+  const TrimGrid* trimGrid() const;     // trim_'s grid, built on first use (thread-safe)
+  const ToleranceZones& zones() const;  // trim_'s zones, built on first use (thread-safe)
   /// The face's OCC classifier (BRepTopAdaptor_FClass2d with uvTolerance(), built on first
   /// use, shared by the copies, its queries serialized) at a wrapped (u,v): Perform, or with
   /// `band` TestOnRestriction. IN counts as inside, and ON too unless `strict`.
