@@ -954,6 +954,35 @@ std::vector<int> faceWindingSigns(const std::vector<EdgePair>& edges,
   return out;
 }
 
+/// Links between elements across manifold edges, CSR by element: adj[deg[e] … deg[e+1]) holds
+/// (the other element, +1 when the two are wound alike, −1 otherwise), for the edge pairs
+/// where keep(pair) holds.
+struct WindingLinks {
+  std::vector<std::int64_t> deg;
+  std::vector<std::pair<std::int32_t, std::int8_t>> adj;
+};
+
+template <class Keep>
+WindingLinks windingLinks(const std::vector<EdgePair>& edges, std::size_t E, Keep keep) {
+  WindingLinks l;
+  l.deg.assign(E + 1, 0);
+  for (const EdgePair& p : edges)
+    if (keep(p)) {
+      ++l.deg[static_cast<std::size_t>(p.e0) + 1];
+      ++l.deg[static_cast<std::size_t>(p.e1) + 1];
+    }
+  for (std::size_t e = 0; e < E; ++e) l.deg[e + 1] += l.deg[e];
+  l.adj.resize(static_cast<std::size_t>(l.deg[E]));
+  std::vector<std::int64_t> fill(l.deg.begin(), l.deg.end() - 1);
+  for (const EdgePair& p : edges) {
+    if (!keep(p)) continue;
+    const std::int8_t r = p.alike ? 1 : -1;
+    l.adj[static_cast<std::size_t>(fill[static_cast<std::size_t>(p.e0)]++)] = {p.e1, r};
+    l.adj[static_cast<std::size_t>(fill[static_cast<std::size_t>(p.e1)]++)] = {p.e0, r};
+  }
+  return l;
+}
+
 /// BridgeReport::miswoundElements: per connected part of a face's mesh (through the manifold
 /// corner edges between two of its elements), the elements of the less common winding.
 std::vector<std::int32_t> miswoundElements(const std::vector<EdgePair>& edges,
@@ -961,26 +990,11 @@ std::vector<std::int32_t> miswoundElements(const std::vector<EdgePair>& edges,
   const std::size_t E = elemFace.size();
   // Links between two elements of one face across a manifold edge: r = +1 same winding (the
   // edge run in opposite directions), −1 opposite windings. CSR by element.
-  auto inOneFace = [&](const EdgePair& p) {
+  const WindingLinks links = windingLinks(edges, E, [&](const EdgePair& p) {
     return elemFace[static_cast<std::size_t>(p.e0)] == elemFace[static_cast<std::size_t>(p.e1)];
-  };
-  std::vector<std::int64_t> deg(E + 1, 0);
-  for (const EdgePair& p : edges)
-    if (inOneFace(p)) {
-      ++deg[static_cast<std::size_t>(p.e0) + 1];
-      ++deg[static_cast<std::size_t>(p.e1) + 1];
-    }
-  for (std::size_t e = 0; e < E; ++e) deg[e + 1] += deg[e];
-  std::vector<std::pair<std::int32_t, std::int8_t>> adj(static_cast<std::size_t>(deg[E]));
-  {
-    std::vector<std::int64_t> fill(deg.begin(), deg.end() - 1);
-    for (const EdgePair& p : edges) {
-      if (!inOneFace(p)) continue;
-      const std::int8_t r = p.alike ? 1 : -1;
-      adj[static_cast<std::size_t>(fill[static_cast<std::size_t>(p.e0)]++)] = {p.e1, r};
-      adj[static_cast<std::size_t>(fill[static_cast<std::size_t>(p.e1)]++)] = {p.e0, r};
-    }
-  }
+  });
+  const std::vector<std::int64_t>& deg = links.deg;
+  const auto& adj = links.adj;
   std::vector<std::int8_t> cls(E, 0);
   std::vector<std::int32_t> part, out;
   for (std::size_t root = 0; root < E; ++root) {
@@ -1035,21 +1049,9 @@ void settleDoubtfulFaces(const std::vector<EdgePair>& edges,
     if (candidates[e].size() > 1) work.push_back(static_cast<std::int32_t>(e));
   if (work.empty()) return;
   // Links of each element across manifold edges (CSR): the other element, +1 wound alike.
-  std::vector<std::int64_t> deg(E + 1, 0);
-  for (const EdgePair& p : edges) {
-    ++deg[static_cast<std::size_t>(p.e0) + 1];
-    ++deg[static_cast<std::size_t>(p.e1) + 1];
-  }
-  for (std::size_t e = 0; e < E; ++e) deg[e + 1] += deg[e];
-  std::vector<std::pair<std::int32_t, std::int8_t>> adj(static_cast<std::size_t>(deg[E]));
-  {
-    std::vector<std::int64_t> fill(deg.begin(), deg.end() - 1);
-    for (const EdgePair& p : edges) {
-      const std::int8_t r = p.alike ? 1 : -1;
-      adj[static_cast<std::size_t>(fill[static_cast<std::size_t>(p.e0)]++)] = {p.e1, r};
-      adj[static_cast<std::size_t>(fill[static_cast<std::size_t>(p.e1)]++)] = {p.e0, r};
-    }
-  }
+  const WindingLinks links = windingLinks(edges, E, [](const EdgePair&) { return true; });
+  const std::vector<std::int64_t>& deg = links.deg;
+  const auto& adj = links.adj;
   std::vector<unsigned char> queued(E, 0);
   for (std::int32_t e : work) queued[static_cast<std::size_t>(e)] = 1;
   std::vector<int> good, bad;

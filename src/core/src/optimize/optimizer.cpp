@@ -1964,6 +1964,10 @@ struct MeshPositions {
   std::vector<Vec2> uv;
   std::vector<double> nodeT;
   std::vector<Vec2> cornerUV;
+  /// A copy of the mesh's positions.
+  static MeshPositions of(const SurfaceMesh& mesh) {
+    return {mesh.xyz, mesh.uv, mesh.nodeT, mesh.cornerUV};
+  }
   bool empty() const { return xyz.empty(); }
   void restore(SurfaceMesh& mesh) {
     mesh.xyz = std::move(xyz);
@@ -1972,6 +1976,19 @@ struct MeshPositions {
     mesh.cornerUV = std::move(cornerUV);
   }
 };
+
+/// `progress` for a run that follows runs of `offset` sweeps in all (read at each call):
+/// sweeps counted from the first run's start, out of `total` when positive, else out of the
+/// run's own maximum plus `offset`. Empty when `progress` is.
+ProgressCallback afterSweeps(const ProgressCallback& progress, const int& offset, int total = 0) {
+  if (!progress) return {};
+  return [&progress, &offset, total](const OptimizeProgress& p) {
+    OptimizeProgress q = p;
+    q.sweep += offset;
+    q.maxSweeps = total > 0 ? total : p.maxSweeps + offset;
+    return progress(q);
+  };
+}
 
 /// One run. `before`, when given, is the quality the caller already measured on this mesh
 /// (the sliding phase starts from the held phase's result): it is not measured again.
@@ -2437,14 +2454,7 @@ OptimizeResult optimizeHolding(SurfaceMesh& mesh, const OptimizeOptions& opt,
                                const ProgressCallback& progress, const QualityStats* before) {
   MeshPositions input;  // kept (no copy: the arrays the first run replaced) for a second run
   int offset = 0;
-  ProgressCallback shifted;
-  if (progress)
-    shifted = [&](const OptimizeProgress& p) {
-      OptimizeProgress q = p;
-      q.sweep += offset;
-      q.maxSweeps += offset;
-      return progress(q);
-    };
+  const ProgressCallback shifted = afterSweeps(progress, offset);
   OptimizeResult held = optimizeOnce(mesh, opt, shifted, before, true, &input);
   if (held.reason == StopReason::Cancelled || held.tangledMovable.empty() || !held.heldAcross)
     return held;
@@ -2484,16 +2494,9 @@ OptimizeResult optimizeBoundary(SurfaceMesh& mesh, const OptimizeOptions& opt,
   // and (monotone) never lowers the minimum quality of a valid mesh, so sliding never ends
   // worse than the fixed boundary would in those two respects.
   const auto t0 = std::chrono::steady_clock::now();
-  MeshPositions input{mesh.xyz, mesh.uv, mesh.nodeT, mesh.cornerUV};
+  MeshPositions input = MeshPositions::of(mesh);
   int offset = 0;
-  ProgressCallback phased;
-  if (progress)
-    phased = [&](const OptimizeProgress& p) {
-      OptimizeProgress q = p;
-      q.sweep += offset;
-      q.maxSweeps = 2 * opt.maxSweeps;
-      return progress(q);
-    };
+  const ProgressCallback phased = afterSweeps(progress, offset, 2 * opt.maxSweeps);
   const OptimizeResult held = withNodesFixed(
       mesh, [&](std::size_t i) { return mesh.nodeKind[i] == NodeKind::Edge; },
       [&] { return optimizeHolding(mesh, opt, phased, before); });
@@ -2514,19 +2517,12 @@ OptimizeResult optimizeUntanglingFirst(SurfaceMesh& mesh, const OptimizeOptions&
                                        const ProgressCallback& progress,
                                        const QualityStats* before) {
   const auto t0 = std::chrono::steady_clock::now();
-  MeshPositions input{mesh.xyz, mesh.uv, mesh.nodeT, mesh.cornerUV};
+  MeshPositions input = MeshPositions::of(mesh);
   int offset = 0;
-  ProgressCallback shifted;
-  if (progress)
-    shifted = [&](const OptimizeProgress& p) {
-      OptimizeProgress q = p;
-      q.sweep += offset;
-      q.maxSweeps += offset;
-      return progress(q);
-    };
+  const ProgressCallback shifted = afterSweeps(progress, offset);
   OptimizeResult first = optimizeBoundary(mesh, opt, shifted, before);
   if (first.reason == StopReason::Cancelled || first.tangledMovable.empty()) return first;
-  MeshPositions reached{mesh.xyz, mesh.uv, mesh.nodeT, mesh.cornerUV};
+  MeshPositions reached = MeshPositions::of(mesh);
   MeshPositions(input).restore(mesh);  // the shape measure starts from the input
   OptimizeOptions byShape = opt;
   byShape.measure = "shape";
