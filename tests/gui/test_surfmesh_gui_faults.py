@@ -128,8 +128,10 @@ try:
     ok.click()  # runs the optimization (returns once it ends)
     presser.stop()
     FreeCADGui.updateGui()
-    check(presser.clicked_at is not None and presser.clicked_at.startswith("sweep 1:"),
-          f"Stop pressed during the run, after sweep 1 ({presser.clicked_at!r})")
+    # (pressed at the first event check after a sweep was reported: sweep 1, or a later one
+    # when a sweep takes less than the presser's 10 ms poll)
+    check(presser.clicked_at is not None and presser.clicked_at.startswith("sweep "),
+          f"Stop pressed during the run, after a sweep ({presser.clicked_at!r})")
     check("cancelled" in status.text(), f"panel says cancelled ({status.text()!r})")
     check(snapshot() == before, "Stop mid-run: document, undo stack and nodes unchanged")
     check(doc.getObject("TorusMesh_optimized") is None, "Stop mid-run: no result object")
@@ -144,8 +146,8 @@ try:
     ok.click()
     presser.stop()
     FreeCADGui.updateGui()
-    check(presser.clicked_at is not None and presser.clicked_at.startswith("sweep 1:"),
-          f"Cancel pressed during the run, after sweep 1 ({presser.clicked_at!r})")
+    check(presser.clicked_at is not None and presser.clicked_at.startswith("sweep "),
+          f"Cancel pressed during the run, after a sweep ({presser.clicked_at!r})")
     check("cancelled" in status.text(), "panel says cancelled after Cancel")
     check(snapshot() == before, "Cancel mid-run: document, undo stack and nodes unchanged")
     check(panel_form() is form and FreeCADGui.Control.activeDialog(),

@@ -364,9 +364,10 @@ class TestOptimize(ApiCase):
 
     def test_oddy_untangles_what_the_shape_measure_untangles(self):
         # FreeCAD's Gmsh mesh of the crank arm (diagonal / 25) around one tangled sliver at a
-        # fillet (tests/data/occt_crankarm_fillet_fold.unv, two rings of elements, 654): the
-        # shape measure untangles it; the Oddy measure's barrier holds the fold from where the
-        # input is, so the run untangles with the shape measure first, then optimizes with Oddy.
+        # fillet next to a tolerant CAD edge (tests/data/occt_crankarm_fillet_fold.unv, two
+        # rings of elements, 654): untangling it takes a node where OCC counts it on that edge,
+        # which smoothing moves avoid. Both measures untangle it (where the Oddy run alone
+        # cannot, the run untangles with the shape measure first, then optimizes with Oddy).
         import os
 
         import Fem

@@ -841,17 +841,18 @@ bool OccFaceSurface::classifyWithClassifier(double u, double v, bool band, bool 
   return st == TopAbs_IN || (st == TopAbs_ON && !strict);
 }
 
-bool OccFaceSurface::contains(double u, double v) const {
+bool OccFaceSurface::containsNearBoundary(double u, double v) const {
   if (!(u >= surfaceBounds_.umin && u <= surfaceBounds_.umax && v >= surfaceBounds_.vmin &&
         v <= surfaceBounds_.vmax))
     return false;  // NaN too
   const int known = containsFast(u, v);
-  bool inside = known == 1;
-  if (known < 0) {
-    const Vec2 w = wrap(Vec2(u, v));
-    inside = classifyWithClassifier(w.x(), w.y(), false, true);
-  }
-  return inside && (zones().empty() || !inBoundaryTolerance(value(u, v)));
+  if (known >= 0) return known == 1;
+  const Vec2 w = wrap(Vec2(u, v));
+  return classifyWithClassifier(w.x(), w.y(), false, true);
+}
+
+bool OccFaceSurface::contains(double u, double v) const {
+  return containsNearBoundary(u, v) && (zones().empty() || !inBoundaryTolerance(value(u, v)));
 }
 
 int OccFaceSurface::containsFast(double u, double v) const {

@@ -1056,7 +1056,7 @@ class NodeUpdater {
         if (s_.mesh.nodeKind[j] != NodeKind::Face || s_.mesh.nodeFace[j] != face) continue;
         const Eigen::Vector2d xi = lt.nodes()[static_cast<std::size_t>(k)];
         const Vec2 t = surf.wrap((1.0 - xi.x() - xi.y()) * c[0] + xi.x() * c[1] + xi.y() * c[2]);
-        ok = t.allFinite() && surf.contains(t.x(), t.y());
+        ok = t.allFinite() && surf.containsNearBoundary(t.x(), t.y());
         moved.push_back(j);
         target.push_back(t);
       }
@@ -1122,7 +1122,7 @@ class NodeUpdater {
         s_.mesh.faceOrientation[static_cast<std::size_t>(face)] * surf.normalSign());
     for (std::size_t q = 0; q < nodes.size(); ++q) {
       const Vec2 w = surf.wrap(uv[q]);
-      if (!w.allFinite() || !surf.contains(w.x(), w.y())) return false;
+      if (!w.allFinite() || !surf.containsNearBoundary(w.x(), w.y())) return false;
       const SurfaceD1 d = surf.d1(w.x(), w.y());
       if (isDegenerate(d)) return false;
       const std::size_t j = nodes[q];
@@ -1414,7 +1414,11 @@ class NodeUpdater {
       auto tryStep = [&](const Vec2& step) {
         lostQuality = false;
         const Vec2 uvT = surf.wrap(uv0 + step);
-        if (!surf.contains(uvT.x(), uvT.y())) return false;
+        // A node untangling a fold may go where OCC counts it on a tolerant edge of its face;
+        // smoothing keeps nodes out of those zones (see OccFaceSurface::contains).
+        if (!(cur.tangled > 0 ? surf.containsNearBoundary(uvT.x(), uvT.y())
+                              : surf.contains(uvT.x(), uvT.y())))
+          return false;
         const SurfaceD2 dT = surf.d2(uvT.x(), uvT.y());
         if (isDegenerate(dT.du, dT.dv)) return false;
         const Vec3 c = dT.du.cross(dT.dv);
@@ -1497,7 +1501,7 @@ class NodeUpdater {
         for (int k = 0; k < nt; ++k)
           for (double a : {1.0, 0.5, 0.25}) {
             const Vec2 uvT = surf.wrap(uv0 + a * (targets[k] - uv0));
-            if (!surf.contains(uvT.x(), uvT.y())) continue;
+            if (!surf.containsNearBoundary(uvT.x(), uvT.y())) continue;
             const SurfaceD2 dT = surf.d2(uvT.x(), uvT.y());
             if (isDegenerate(dT.du, dT.dv)) continue;
             const Vec3 cr = dT.du.cross(dT.dv);

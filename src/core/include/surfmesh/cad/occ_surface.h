@@ -101,6 +101,8 @@ class OccFaceSurface final : public Surface {
   /// and by FreeCAD's getNodesByEdge — at up to the edge's tolerance from its 3D curve, which
   /// on imported parts (1e-3 and more) lies that far from the loop its pcurve draws.
   bool contains(double u, double v) const override;
+  /// contains() without the tolerance zones (the trimming loops and the classifier's band).
+  bool containsNearBoundary(double u, double v) const override;
   /// Whether point p is within the tolerance of a vertex of the face (BRep_Tool::Tolerance)
   /// or within the tolerance of a non-degenerated edge of the face from its 3D curve (the
   /// distance the CAD recovery's tolerance hints take: Extrema_ExtPC and the ends), for the

@@ -120,6 +120,9 @@ class ReversedSurface final : public Surface {
   double vPeriod() const override { return s_->vPeriod(); }
   int normalSign() const override { return -s_->normalSign(); }
   bool contains(double u, double v) const override { return s_->contains(u, v); }
+  bool containsNearBoundary(double u, double v) const override {
+    return s_->containsNearBoundary(u, v);
+  }
   std::unique_ptr<Surface> clone() const override;
   std::string describe() const override;
 

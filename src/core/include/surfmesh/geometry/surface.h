@@ -74,6 +74,11 @@ class Surface {
   /// non-periodic directions; trimmed faces override it to test their trimming loops.
   virtual bool contains(double u, double v) const;
 
+  /// contains() without keeping points out of the tolerance zones of the boundary's edges and
+  /// vertices (OccFaceSurface; the same as contains() elsewhere): for the moves that untangle
+  /// a fold, which may need a node where OCC counts it on a tolerant edge.
+  virtual bool containsNearBoundary(double u, double v) const { return contains(u, v); }
+
   /// Builds ahead what contains() would build on its first call (a trimmed face's lookup
   /// grid), so that callers can do it in parallel over surfaces. Safe to call concurrently
   /// with any use of other copies; the default does nothing.
