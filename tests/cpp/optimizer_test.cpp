@@ -698,3 +698,40 @@ TEST(Optimizer, PinnedNeedlesDoNotStopTheRunEarly) {
 }
 
 }  // namespace
+
+TEST(Optimizer, AnotherMeasureLeavingFoldsIsRedoneFromTheShapeMeasuresUntangling) {
+  // With one sweep per run, the Oddy run leaves folds some node may move on the tangled torus
+  // of Table 2: the run is redone from the input (a shape run, then an Oddy run, each one
+  // sweep, or two when the across hold adds its second run), so more sweeps are counted than
+  // one run makes; the result never has more tangled elements than the input, nodes stay on
+  // the surface, and cancelling in a later run (up to the last sweep) leaves the mesh exactly
+  // as it was.
+  const TorusSurface torus(10, 4);
+  const Case base =
+      makeCase(torus, periodicGridMesh(50, 32, 0, 2 * kPi, 0, 2 * kPi, true), 73, 1.2, 5);
+  OptimizeOptions opt;
+  opt.measure = "oddy";
+  opt.maxSweeps = 1;
+  Case c = base;
+  const OptimizeResult r = optimizeMesh(c.mesh, opt);
+  EXPECT_GE(r.sweeps, 3);
+  EXPECT_LE(r.after.tangled, r.before.tangled);
+  EXPECT_GT(r.before.tangled, 0u);
+  const MeshQuality q = measureQuality(c.mesh, measureByName("oddy"));
+  EXPECT_EQ(q.stats.tangled, r.after.tangled);
+  for (std::size_t i = 0; i < c.mesh.nodeCount(); ++i)
+    EXPECT_LT((c.mesh.xyz[i] - torus.value(c.mesh.uv[i].x(), c.mesh.uv[i].y())).norm(), 1e-12);
+  for (int stopAt : {2, r.sweeps}) {
+    Case d = base;
+    int calls = 0;
+    const OptimizeResult rc = optimizeMesh(d.mesh, opt, [&](const OptimizeProgress& p) {
+      ++calls;
+      return p.sweep < stopAt;
+    });
+    EXPECT_EQ(rc.reason, StopReason::Cancelled) << stopAt;
+    EXPECT_EQ(calls, stopAt) << stopAt;
+    EXPECT_EQ(d.mesh.xyz, base.mesh.xyz) << stopAt;
+    EXPECT_EQ(d.mesh.uv, base.mesh.uv) << stopAt;
+    EXPECT_EQ(d.mesh.cornerUV, base.mesh.cornerUV) << stopAt;
+  }
+}
