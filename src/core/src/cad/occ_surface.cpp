@@ -37,6 +37,25 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
+/// A box that contains nothing (grown by include()).
+constexpr Box3 kEmptyBox = {kInf, kInf, kInf, -kInf, -kInf, -kInf};
+
+/// Grows b to take in the ball of radius r around p.
+void include(Box3& b, const Vec3& p, double r = 0.0) {
+  for (std::size_t k = 0; k < 3; ++k) {
+    b[k] = std::min(b[k], p[static_cast<int>(k)] - r);
+    b[k + 3] = std::max(b[k + 3], p[static_cast<int>(k)] + r);
+  }
+}
+
+/// Grows b to take in box c.
+void include(Box3& b, const Box3& c) {
+  for (std::size_t k = 0; k < 3; ++k) {
+    b[k] = std::min(b[k], c[k]);
+    b[k + 3] = std::max(b[k + 3], c[k + 3]);
+  }
+}
+
 Vec3 toVec(const gp_Pnt& p) { return Vec3(p.X(), p.Y(), p.Z()); }
 Vec3 toVec(const gp_Vec& v) { return Vec3(v.X(), v.Y(), v.Z()); }
 
@@ -127,14 +146,9 @@ std::vector<Box3> surfacePatchBoxes(const Adaptor3d_Surface& s, const ParamBound
       auto at = [&](int a, int c) -> const Vec3& {
         return grid[static_cast<std::size_t>((2 * ci + a) * m + 2 * cj + c)];
       };
-      Box3 box = {kInf, kInf, kInf, -kInf, -kInf, -kInf};
+      Box3 box = kEmptyBox;
       for (int a = 0; a < 3; ++a)
-        for (int c = 0; c < 3; ++c)
-          for (std::size_t k = 0; k < 3; ++k) {
-            const double x = at(a, c)[static_cast<int>(k)];
-            box[k] = std::min(box[k], x);
-            box[k + 3] = std::max(box[k + 3], x);
-          }
+        for (int c = 0; c < 3; ++c) include(box, at(a, c));
       double bulge = (at(1, 1) - 0.25 * (at(0, 0) + at(2, 0) + at(0, 2) + at(2, 2))).norm();
       for (int k = 0; k < 3; ++k) {
         bulge = std::max(bulge, (at(1, k) - 0.5 * (at(0, k) + at(2, k))).norm());
@@ -478,7 +492,7 @@ struct OccFaceSurface::ToleranceZones {
   struct Edge {
     TopoDS_Edge edge;
     double tol = 0.0, dev = 0.0;
-    Box3 box = {kInf, kInf, kInf, -kInf, -kInf, -kInf};
+    Box3 box = kEmptyBox;
     std::vector<double> t;         // the polyline's points: curve parameters …
     std::vector<Vec3> x;           // … and positions, in the curve's order
     std::vector<Box3> chunkBoxes;  // segments [kChunk·c, kChunk·(c + 1)) of the polyline
@@ -630,7 +644,7 @@ double segmentDistance2(const Vec3& a, const Vec3& b, const Vec3& p) {
 /// keeps contains() off the others: on a part built by OCC, whose tolerances are all 1e-7,
 /// there are none). An edge's polyline: its curve
 /// cut in 8 pieces, halved until the curve at a quarter, half and three quarters of a piece
-/// is within dev = max(tolerance / 2, 1/1000 of the edge's box) of its chord.
+/// is within dev = max(tolerance / 10, 1e-4 × the diagonal of the edge's box) of its chord.
 std::unique_ptr<OccFaceSurface::ToleranceZones> buildToleranceZones(const TopoDS_Face& face) {
   using Zones = OccFaceSurface::ToleranceZones;
   auto z = std::make_unique<Zones>();
@@ -655,17 +669,14 @@ std::unique_ptr<OccFaceSurface::ToleranceZones> buildToleranceZones(const TopoDS
       const double f = c.FirstParameter(), l = c.LastParameter();
       if (!std::isfinite(f) || !std::isfinite(l) || !(l > f)) continue;
       auto at = [&](double t) { return toVec(c.Value(t)); };
-      Box3 b = {kInf, kInf, kInf, -kInf, -kInf, -kInf};
+      Box3 b = kEmptyBox;
       constexpr int kStart = 8;
       std::vector<double> ts;
       std::vector<Vec3> xs;
       for (int i = 0; i <= kStart; ++i) {
         ts.push_back(f + (l - f) * i / kStart);
         xs.push_back(at(ts.back()));
-        for (std::size_t a = 0; a < 3; ++a) {
-          b[a] = std::min(b[a], xs.back()[static_cast<int>(a)]);
-          b[a + 3] = std::max(b[a + 3], xs.back()[static_cast<int>(a)]);
-        }
+        include(b, xs.back());
       }
       const double size = std::sqrt((b[3] - b[0]) * (b[3] - b[0]) + (b[4] - b[1]) * (b[4] - b[1]) +
                                     (b[5] - b[2]) * (b[5] - b[2]));
@@ -704,16 +715,10 @@ std::unique_ptr<OccFaceSurface::ToleranceZones> buildToleranceZones(const TopoDS
       const double grow = ze.tol + ze.dev;
       const std::size_t segments = ze.x.size() - 1, K = Zones::kChunk;
       for (std::size_t c = 0; c * K < segments; ++c) {
-        Box3 cb = {kInf, kInf, kInf, -kInf, -kInf, -kInf};
+        Box3 cb = kEmptyBox;
         for (std::size_t k = c * K; k <= std::min(segments, (c + 1) * K); ++k)
-          for (std::size_t a = 0; a < 3; ++a) {
-            cb[a] = std::min(cb[a], ze.x[k][static_cast<int>(a)] - grow);
-            cb[a + 3] = std::max(cb[a + 3], ze.x[k][static_cast<int>(a)] + grow);
-          }
-        for (std::size_t a = 0; a < 3; ++a) {
-          ze.box[a] = std::min(ze.box[a], cb[a]);
-          ze.box[a + 3] = std::max(ze.box[a + 3], cb[a + 3]);
-        }
+          include(cb, ze.x[k], grow);
+        include(ze.box, cb);
         ze.chunkBoxes.push_back(cb);
       }
     } catch (const Standard_Failure&) {
