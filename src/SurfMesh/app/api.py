@@ -282,12 +282,7 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, duplicates="glu
     if data.element_count == 0:
         raise ValueError("the mesh has no elements")
     if moving and data.volume_elements:
-        raise ValueError(
-            f"the mesh has {data.volume_elements} volume element(s) ({data.volume_types}) "
-            "besides its surface elements: moving the surface nodes would distort them (their "
-            "interior nodes do not follow), and those along the surface could be inverted. "
-            "Optimize the surface (2D) mesh, then mesh the volume from it; measure works as it is"
-        )
+        raise ValueError(volume_mesh_refusal(data.volume_elements, data.volume_types))
     if data.volume_elements:
         data = _surface_nodes_only(data)
     if hints not in ("auto", "tolerance", "all", "none", "given"):
@@ -491,6 +486,15 @@ def _flat_boundary_elements(work, handle):
             if len(edges) <= 1:
                 out[e] = True
     return out, q
+
+
+def volume_mesh_refusal(count, types=None):
+    """Why optimize refuses a mesh with ``count`` volume elements (of ``types``, when known)."""
+    kinds = f" ({types})" if types else ""
+    return (f"the mesh has {count} volume element(s){kinds} besides its surface elements: "
+            "moving the surface nodes would distort them (their interior nodes do not follow), "
+            "and those along the surface could be inverted. Optimize the surface (2D) mesh, "
+            "then mesh the volume from it; measure works as it is")
 
 
 def _bridge_report(handle, data):

@@ -47,22 +47,18 @@ def node_values(data, element_values, reduce="min", ignore=None):
     ``ignore`` (a bool per element) is set; 1 where no element is left."""
     n = data.node_count
     out = np.full(n, np.inf if reduce == "min" else 0.0)
-    counts = np.zeros(n)
-    vals = np.asarray(element_values, dtype=float)
     sizes = np.diff(data.offsets)
-    per_entry = np.repeat(vals, sizes)
+    per_entry = np.repeat(np.asarray(element_values, dtype=float), sizes)
+    conn = data.conn
     if ignore is not None:
         keep = ~np.repeat(np.asarray(ignore, dtype=bool), sizes)
-        per_entry = np.where(keep, per_entry, np.inf if reduce == "min" else 0.0)
-        if reduce != "min":
-            np.add.at(counts, data.conn, keep.astype(float))
-            np.add.at(out, data.conn, per_entry)
-            return np.where(counts > 0, out / np.maximum(counts, 1), 1.0)
+        per_entry, conn = per_entry[keep], conn[keep]
     if reduce == "min":
-        np.minimum.at(out, data.conn, per_entry)
+        np.minimum.at(out, conn, per_entry)
         out[np.isinf(out)] = 1.0
     else:
-        np.add.at(out, data.conn, per_entry)
-        np.add.at(counts, data.conn, 1.0)
+        counts = np.zeros(n)
+        np.add.at(out, conn, per_entry)
+        np.add.at(counts, conn, 1.0)
         out = np.where(counts > 0, out / np.maximum(counts, 1), 1.0)
     return out

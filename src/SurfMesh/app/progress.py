@@ -15,29 +15,26 @@ from __future__ import annotations
 import contextlib
 
 _hooks = []
-
-
-@contextlib.contextmanager
-def hook(fn):
-    """Registers ``fn`` for the duration of a ``with`` block."""
-    _hooks.append(fn)
-    try:
-        yield fn
-    finally:
-        _hooks.remove(fn)
-
-
 _stage_hooks = []
 
 
 @contextlib.contextmanager
-def stage_hook(fn):
-    """Registers ``fn(text)``, called when a run enters a stage, for a ``with`` block."""
-    _stage_hooks.append(fn)
+def _registered(hooks, fn):
+    hooks.append(fn)
     try:
         yield fn
     finally:
-        _stage_hooks.remove(fn)
+        hooks.remove(fn)
+
+
+def hook(fn):
+    """Registers ``fn`` for the duration of a ``with`` block."""
+    return _registered(_hooks, fn)
+
+
+def stage_hook(fn):
+    """Registers ``fn(text)``, called when a run enters a stage, for a ``with`` block."""
+    return _registered(_stage_hooks, fn)
 
 
 def phase(text):

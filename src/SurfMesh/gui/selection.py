@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import FreeCADGui
 
-from SurfMesh.app import shapes
+from SurfMesh.app import api, document, shapes
 
 
 def is_mesh_object(obj) -> bool:
@@ -53,13 +53,13 @@ def why_not_optimizable(mesh, shape):
     """Why the Optimize panel would fail on ``mesh`` whatever its settings (no shape known, a
     volume mesh), in words; None when it may run."""
     if shape is None:
-        return (f"no shape known for mesh {mesh.Label!r}: select the shape it lies on together "
-                "with the mesh")
+        try:
+            document.resolve_shape(mesh)
+        except ValueError as exc:
+            return str(exc)
     fem = getattr(mesh, "FemMesh", None) if "FemMesh" in mesh.PropertiesList else None
     if fem is not None and fem.VolumeCount > 0:
-        return (f"{mesh.Label!r} is a volume mesh ({fem.VolumeCount} volume elements): moving "
-                "its surface nodes would distort the volume elements. Optimize its surface (2D) "
-                "mesh, then mesh the volume from it; Measure works on it as it is")
+        return f"{mesh.Label!r}: " + api.volume_mesh_refusal(fem.VolumeCount)
     return None
 
 
