@@ -19,13 +19,17 @@ import argparse
 import json
 import os
 import subprocess
+import sys
 import tempfile
 
 import gmsh
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 SHARED = os.path.normpath(os.path.join(HERE, "..", "..", "shared", "data", "cad"))
-CLI = os.path.expanduser("~/.local/share/FreeCAD/Mod/SurfMesh/SurfMesh/cli/surfmesh_cli.py")
+# SURFMESH_CLI: another copy's command line (e.g. a private package built from a branch; run it
+# with PYTHONPATH set to the folder holding that SurfMesh package).
+CLI = os.environ.get("SURFMESH_CLI") or os.path.expanduser(
+    "~/.local/share/FreeCAD/Mod/SurfMesh/SurfMesh/cli/surfmesh_cli.py")
 
 
 def make_mesh(part, order, div, out):
@@ -53,6 +57,7 @@ def main():
     if not os.path.exists(CLI):
         raise SystemExit(f"{CLI} not found: run scripts/install.sh first")
     work = tempfile.mkdtemp(prefix="surfmesh_ho_")
+    print(f"meshes and reports in {work}", file=sys.stderr)
     gmsh.initialize()
     gmsh.option.setNumber("General.Terminal", 0)
     print(f"| part | order | elements | side nodes placed | tangled (held / movable left) | min q "
