@@ -817,3 +817,30 @@ TEST(HighOrderOptimize, PaperTable4PropellerBladeOrder5IsSmoothed) {
 }
 
 }  // namespace
+
+TEST(HighOrderOptimize, FoldBetweenFixedCornersIsHeldWhateverTheCornerNormals) {
+  // One quadratic triangle on a unit cylinder spanning 115° of it: corners 0 and 1 at u = ∓1,
+  // corner 2 at u = 0 higher up, all three fixed, as are the side nodes of sides 0–1 and 1–2;
+  // only the side node of side 2–0 may move. Side 0–1's node is raised towards corner 2, so at
+  // corner 1 the side 1→0 turns past side 1→2: the element folds there, where the free node's
+  // shape function has no gradient. The element's normal (the sum of its corner normals) cannot
+  // change since no corner moves, so no motion repairs it — yet the surface normal at corner 0,
+  // 115° away, does not see the fold, which the check for a fold between fixed nodes asked of
+  // every corner normal. The element must be reported with those no motion repairs.
+  const CylinderSurface cyl(1.0, -2.0, 2.0);
+  const std::vector<Vec2> uv = {{-1.0, 0.0}, {1.0, 0.0}, {0.0, 1.0},
+                                {0.0, 0.9},  {0.5, 0.5}, {-0.5, 0.5}};
+  const std::vector<std::int32_t> conn = {0, 1, 2, 3, 4, 5};
+  SurfaceMesh m = makeSingleSurfaceMesh(cyl, uv, ElementType::Tri6, conn, {0, 1, 2, 3, 4});
+  ASSERT_EQ(m.nodeKind[5], NodeKind::Face);
+  const Vec3 n = elementReferenceNormal(m, 0);
+  const Jacobian32 J1 = highOrderJacobianAtNode(ElementType::Tri6, m.xyz.data(), 1);
+  ASSERT_TRUE(jacobianValidity(J1, equilateralWinv(), n).tangled);  // the fold at corner 1
+  ASSERT_FALSE(jacobianValidity(J1, equilateralWinv(), m.referenceNormal(0, uv[0])).tangled);
+  ASSERT_TRUE(measureQuality(m, measureByName("shape")).tangled[0]);
+
+  const OptimizeResult r = optimizeMesh(m, OptimizeOptions{});
+  EXPECT_EQ(r.after.tangled, 1u);
+  EXPECT_EQ(r.tangledUnmovable, std::vector<std::int32_t>{0});
+  EXPECT_TRUE(r.tangledMovable.empty());
+}

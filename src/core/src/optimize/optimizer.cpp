@@ -1851,8 +1851,20 @@ bool foldHeld(const SurfaceMesh& m, const std::vector<Vec3>& xyz, std::size_t e,
     return true;
   }
   const int nc = cornerCount(type);
+  // With no corner that may move, n (the sum of the corner normals) cannot change either: a fold
+  // against it between nodes that may not move stays, whatever the corner normals say (a
+  // second-order triangle on a strongly curved face, its one movable side node far from the
+  // corner where it folds). With no node that may move, nothing changes.
+  bool cornerMoves = false, nodeMoves = false;
+  for (int k = 0; k < m.elementSize(e); ++k)
+    if (movable(k)) {
+      nodeMoves = true;
+      cornerMoves = cornerMoves || k < nc;
+    }
+  if (!nodeMoves) return true;
   auto folded = [&](const Jacobian32& J, const Mat2& Winv) {
     if (!jacobianValidity(J, Winv, n).tangled) return false;
+    if (!cornerMoves) return true;
     for (int k = 0; k < nc; ++k) {  // surface normals only for a fold between fixed nodes
       const Vec3 nk = m.referenceNormal(m.elemFace[e], m.elementUV(e)[k]);
       if (nk.squaredNorm() > 0.0 && !jacobianValidity(J, Winv, nk).tangled) return false;
