@@ -903,6 +903,13 @@ class NodeUpdater {
       if (!relaxHere && hBackoff != s_.harmonicBackoff.end() && sweep < hBackoff->second.nextSweep)
         continue;
       bool kept = false, relaxed = false;
+      if (relaxHere) {
+        const std::size_t g = widenElement(e, patch, face, surf);
+        if (g > 0) {
+          gained += g;
+          kept = true;
+        }
+      }
       for (int ring = 0; ring <= 3 && !kept; ++ring) {
         if (ring > 0) {  // grow by one ring of Face nodes of this face
           const std::size_t n0 = patch.size();
@@ -963,6 +970,7 @@ class NodeUpdater {
           }
           if (change == 0.0) break;
         }
+        straightSides(patch, face, surf, &iter);
         // Place, count, keep or put back.
         save(patch, &uvSave, &xyzSave, &nSave);
         const bool ok = placeAll(patch, iter, face, surf);
@@ -1074,10 +1082,142 @@ class NodeUpdater {
     return gained;
   }
 
+  /// Escape for one tangled element e whose movable nodes (`nodes`: its Face nodes on `face`)
+  /// must move together: a second-order triangle with its base on a CAD edge and its apex and
+  /// two side nodes inside a narrow face untangles only when the apex and both side nodes move
+  /// at once, which neither the node-by-node steps nor the harmonic layout (a non-convex
+  /// outline) nor the joint Newton steps on f̂ (whose δ-regularized merit may prefer a fold)
+  /// find. A compass search in (u,v) over those nodes maximizes the smallest scaled det S
+  /// over e and the valid elements around them (the validity the sweeps weigh, without the
+  /// measure), from their positions and a few perturbations of them (a fixed sequence per
+  /// element: the result does not depend on threads); kept only when fewer of the elements
+  /// around the nodes stay tangled — strict progress, like every escape. Returns the number
+  /// of elements untangled.
+  std::size_t widenElement(std::size_t e, const std::vector<std::size_t>& nodes, int face,
+                           const Surface& surf) {
+    std::vector<std::size_t> elems, watch;
+    elementsAround(nodes, &elems);
+    const std::size_t t0 = tangledAmong(elems);
+    if (t0 == 0) return 0;
+    watch.push_back(e);  // e and the valid elements around it: none may fold
+    for (std::size_t q : elems)
+      if (q != e && !s_.evalWhole(q, 0.0).tangled) watch.push_back(q);
+    auto objective = [&]() {
+      double o = kInf;
+      for (std::size_t q : watch) o = std::min(o, s_.evalWhole(q, 0.0).minSigma);
+      return o;
+    };
+    // Initial step: half the extent in (u,v) of e's corners.
+    const Vec2 c0 = cornerOnFace(e, 0, face, surf, s_.mesh.elementUV(e)[0]);
+    Vec2 lo = c0, hi = c0;
+    for (int k = 1; k < cornerCount(s_.mesh.elemType[e]); ++k) {
+      const Vec2 ck = cornerOnFace(e, k, face, surf, c0);
+      lo = lo.cwiseMin(ck);
+      hi = hi.cwiseMax(ck);
+    }
+    Vec2 h0 = 0.5 * (hi - lo);
+    if (!(h0.maxCoeff() > 0.0) || !h0.allFinite()) return 0;
+    h0 = h0.cwiseMax(Vec2::Constant(1e-3 * h0.maxCoeff()));
+    std::vector<Vec2> uvSave, best, one(1);
+    std::vector<Vec3> xyzSave, nSave;
+    std::vector<std::size_t> single(1);
+    save(nodes, &uvSave, &xyzSave, &nSave);
+    const double o0 = objective();
+    double bestO = o0;
+    auto placeOne = [&](std::size_t j, const Vec2& uv) {
+      single[0] = j;
+      one[0] = uv;
+      return placeAll(single, one, face, surf);
+    };
+    static const Vec2 kDirs[8] = {{1, 0}, {-1, 0},  {0, 1},  {0, -1},
+                                  {1, 1}, {-1, -1}, {1, -1}, {-1, 1}};
+    std::uint64_t seed = 0x9e3779b97f4a7c15ull * (e + 1);
+    auto unit = [&]() {  // in [−1, 1), a fixed sequence per element
+      seed ^= seed << 13;
+      seed ^= seed >> 7;
+      seed ^= seed << 17;
+      return static_cast<double>(seed >> 11) * (2.0 / 9007199254740992.0) - 1.0;
+    };
+    for (int start = 0; start < kWidenStarts && !(bestO > 0.0); ++start) {
+      if (start > 0) {
+        restore(nodes, uvSave, xyzSave, nSave);
+        const double r = start % 2 ? 0.5 : 1.5;
+        for (std::size_t q = 0; q < nodes.size(); ++q)
+          placeOne(nodes[q], uvSave[q] + r * Vec2(unit() * h0.x(), unit() * h0.y()));
+      }
+      double o = objective();
+      Vec2 h = h0;
+      for (int it = 0; it < 60 && h.x() > 1e-6 * h0.x(); ++it) {
+        bool moved = false;
+        for (std::size_t j : nodes)
+          for (const Vec2& d : kDirs) {
+            const Vec2 old = s_.uv[j];
+            if (!placeOne(j, old + Vec2(d.x() * h.x(), d.y() * h.y()))) continue;
+            const double o1 = objective();
+            if (o1 > o) {
+              o = o1;
+              moved = true;
+            } else {
+              placeOne(j, old);
+            }
+          }
+        if (!moved) h *= 0.5;
+      }
+      if (o > bestO) {
+        bestO = o;
+        best.clear();
+        for (std::size_t j : nodes) best.push_back(s_.uv[j]);
+      }
+    }
+    restore(nodes, uvSave, xyzSave, nSave);
+    if (best.empty() || !placeAll(nodes, best, face, surf)) {
+      restore(nodes, uvSave, xyzSave, nSave);
+      return 0;
+    }
+    const std::size_t t1 = tangledAmong(elems);
+    if (t1 < t0) return t0 - t1;
+    restore(nodes, uvSave, xyzSave, nSave);
+    return 0;
+  }
+
+  /// The harmonic layout of escapeTangledElements is of the corners (a node's neighbours are
+  /// the corners of its elements). A side or interior node of a high-order triangle in `patch`
+  /// (no element's corner) goes instead to its place on straight sides in (u,v) between its
+  /// element's corners, as laid out in `uv` (the patch's corners) or where they are: the
+  /// average of the six corners of a side's two elements would bend that side towards one of
+  /// them (a second-order element with a Face corner and two Face side nodes between two nodes
+  /// on a CAD edge stayed folded after every harmonic layout).
+  void straightSides(const std::vector<std::size_t>& patch, int face, const Surface& surf,
+                     std::vector<Vec2>* uv) const {
+    for (std::size_t q = 0; q < patch.size(); ++q) {
+      const std::size_t j = patch[q];
+      if (s_.begin(j) == s_.end(j)) continue;
+      const std::size_t p0 = static_cast<std::size_t>(s_.begin(j));
+      const std::size_t f = static_cast<std::size_t>(s_.inc.elem[p0]);
+      const int local = s_.inc.local[p0];
+      const ElementType type = s_.mesh.elemType[f];
+      if (!isHighOrderTriangle(type) || local < cornerCount(type)) continue;
+      const Vec2 ref = (*uv)[q];
+      Vec2 c[3];
+      for (int k = 0; k < 3; ++k) {
+        const std::size_t o = static_cast<std::size_t>(s_.mesh.elementNodes(f)[k]);
+        const auto it = std::find(patch.begin(), patch.end(), o);
+        c[k] = it == patch.end()
+                   ? cornerOnFace(f, k, face, surf, ref)
+                   : surf.unwrapNear((*uv)[static_cast<std::size_t>(it - patch.begin())], ref);
+      }
+      const Eigen::Vector2d xi =
+          lagrangeTriangle(elementOrder(type)).nodes()[static_cast<std::size_t>(local)];
+      (*uv)[q] = (1.0 - xi.x() - xi.y()) * c[0] + xi.x() * c[1] + xi.y() * c[2];
+    }
+  }
+
   /// Patch untangling budget of one escape (per element and ring at most two attempts), and
   /// the largest patch it untangles (at most 60 sweeps over its nodes per attempt).
   static constexpr int kMaxRelaxPatches = 48;
   static constexpr std::size_t kMaxRelaxPatchNodes = 96;
+  /// Starts of widenElement's search (its nodes' positions, then perturbations of them).
+  static constexpr int kWidenStarts = 8;
 
  private:
   int relaxTries_ = 0;

@@ -27,9 +27,13 @@
 // node whose Newton step fails or only creeps tries the centre of its kernel in (u,v) and the
 // centroid of its neighbours; a sliding node scans its interval on the edge; between sweeps
 // without progress, the Face nodes of a stuck element and of up to three rings around it are
-// moved together to the harmonic embedding of that patch, and after three such sweeps in a
-// row the patch is also untangled jointly (Newton steps on its nodes alone that may tangle
-// more elements while the objective drops, δ stepped down from 4× to 1/16 of the sweep's,
+// moved together to the harmonic embedding of that patch (of its corners; a high-order
+// element's side nodes on straight sides in (u,v) between them), and after three such sweeps in
+// a row the element's own Face nodes first move together by a compass search in (u,v) that
+// maximizes the smallest det S over it and the valid elements around them (a second-order
+// triangle with its base on a CAD edge and its apex and two side nodes in a narrow face opens
+// only so), then the patch is also untangled jointly (Newton steps on its nodes alone that may
+// tangle more elements while the objective drops, δ stepped down from 4× to 1/16 of the sweep's,
 // projected areas in place of signed ones so that thin elements standing across a curved
 // surface can turn over; an element that stays stuck is untangled jointly again only after a
 // backoff of 1, 2, 4, then deltaStallSweeps sweeps, or when ε changes level, and its
@@ -39,9 +43,11 @@
 // element that folds where only nodes that may not move act (a tangled corner triangle of a
 // quadrilateral on three such nodes; a high-order triangle tangled at a node or quadrature
 // point where the shape functions of its movable nodes have no gradient, e.g. at a CAD vertex
-// between two element edges on fixed CAD edges): it is held from the start (while other
-// elements are tangled it still sets δ and takes part in the escapes, so the run is the same
-// until no other element is tangled; then it smooths with δ = 0). Neither do, after
+// between two element edges on fixed CAD edges; when no corner may move, the element's normal
+// cannot change, and such a fold counts whatever the surface's normals at its corners say): it
+// is held from the start (while other elements are tangled it still sets δ and takes part in
+// the escapes, so the run is the same until no other element is tangled; then it smooths with
+// δ = 0). Neither do, after
 // 6 × deltaStallSweeps sweeps without fewer tangled elements than ever before (each level of
 // ε tried twice), the elements still tangled: their nodes are held from then on,
 // the rest of the mesh is smoothed with δ = 0, and they are reported in tangledMovable.
