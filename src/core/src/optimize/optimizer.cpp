@@ -1087,12 +1087,12 @@ class NodeUpdater {
   /// two side nodes inside a narrow face untangles only when the apex and both side nodes move
   /// at once, which neither the node-by-node steps nor the harmonic layout (a non-convex
   /// outline) nor the joint Newton steps on f̂ (whose δ-regularized merit may prefer a fold)
-  /// find. A compass search in (u,v) over those nodes maximizes the smallest scaled det S
-  /// over e and the valid elements around them (the validity the sweeps weigh, without the
-  /// measure), from their positions and a few perturbations of them (a fixed sequence per
-  /// element: the result does not depend on threads); kept only when fewer of the elements
-  /// around the nodes stay tangled — strict progress, like every escape. Returns the number
-  /// of elements untangled.
+  /// find. A compass search in (u,v) over those nodes raises the smallest scaled det S over e
+  /// and the valid elements around them (the validity the sweeps weigh, without the measure)
+  /// until it is positive, from their positions and perturbations of them (a fixed sequence
+  /// per element: the result does not depend on threads); kept only when fewer of the elements
+  /// around the nodes stay tangled — strict progress, like every escape. Returns the number of
+  /// elements untangled.
   std::size_t widenElement(std::size_t e, const std::vector<std::size_t>& nodes, int face,
                            const Surface& surf) {
     std::vector<std::size_t> elems, watch;
@@ -1147,7 +1147,9 @@ class NodeUpdater {
       }
       double o = objective();
       Vec2 h = h0;
-      for (int it = 0; it < 60 && h.x() > 1e-6 * h0.x(); ++it) {
+      // Until e and its neighbours are valid (the sweeps then smooth them), or the step is
+      // 1e-4 of the first.
+      for (int it = 0; it < 60 && !(o > 0.0) && h.x() > 1e-4 * h0.x(); ++it) {
         bool moved = false;
         for (std::size_t j : nodes)
           for (const Vec2& d : kDirs) {
@@ -1217,7 +1219,7 @@ class NodeUpdater {
   static constexpr int kMaxRelaxPatches = 48;
   static constexpr std::size_t kMaxRelaxPatchNodes = 96;
   /// Starts of widenElement's search (its nodes' positions, then perturbations of them).
-  static constexpr int kWidenStarts = 8;
+  static constexpr int kWidenStarts = 16;
 
  private:
   int relaxTries_ = 0;
