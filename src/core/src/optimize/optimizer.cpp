@@ -904,7 +904,24 @@ class NodeUpdater {
         continue;
       bool kept = false, relaxed = false;
       if (relaxHere) {
-        const std::size_t g = widenElement(e, patch, face, surf);
+        // e's own nodes, then with the Face nodes of the elements around them
+        std::size_t g = widenElement(e, patch, face, surf);
+        if (g == 0) {
+          std::vector<std::size_t> wider = patch;
+          for (std::size_t q = 0; q < patch.size(); ++q)
+            for (std::int64_t p = s_.begin(patch[q]); p < s_.end(patch[q]); ++p) {
+              const std::size_t f =
+                  static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
+              const std::int32_t* fn = s_.mesh.elementNodes(f);
+              for (int k = 0; k < s_.mesh.elementSize(f); ++k) {
+                const std::size_t j = static_cast<std::size_t>(fn[k]);
+                if (movableHere(j) && std::find(wider.begin(), wider.end(), j) == wider.end())
+                  wider.push_back(j);
+              }
+            }
+          if (wider.size() > patch.size() && wider.size() <= kMaxWidenNodes)
+            g = widenElement(e, wider, face, surf);
+        }
         if (g > 0) {
           gained += g;
           kept = true;
@@ -1092,7 +1109,8 @@ class NodeUpdater {
   /// until it is positive, from their positions and perturbations of them (a fixed sequence
   /// per element: the result does not depend on threads); kept only when fewer of the elements
   /// around the nodes stay tangled — strict progress, like every escape. Returns the number of
-  /// elements untangled.
+  /// elements untangled. escapeTangledElements tries e's own nodes, then those with the Face
+  /// nodes of the elements around them (a neighbour in the way must give room).
   std::size_t widenElement(std::size_t e, const std::vector<std::size_t>& nodes, int face,
                            const Surface& surf) {
     std::vector<std::size_t> elems, watch;
@@ -1220,6 +1238,8 @@ class NodeUpdater {
   static constexpr std::size_t kMaxRelaxPatchNodes = 96;
   /// Starts of widenElement's search (its nodes' positions, then perturbations of them).
   static constexpr int kWidenStarts = 16;
+  /// Most nodes widenElement moves (e's and one ring around them).
+  static constexpr std::size_t kMaxWidenNodes = 24;
 
  private:
   int relaxTries_ = 0;

@@ -29,16 +29,16 @@
 // without progress, the Face nodes of a stuck element and of up to three rings around it are
 // moved together to the harmonic embedding of that patch (of its corners; a high-order
 // element's side nodes on straight sides in (u,v) between them), and after three such sweeps in
-// a row the element's own Face nodes first move together by a compass search in (u,v) that
-// maximizes the smallest det S over it and the valid elements around them (a second-order
-// triangle with its base on a CAD edge and its apex and two side nodes in a narrow face opens
-// only so), then the patch is also untangled jointly (Newton steps on its nodes alone that may
-// tangle more elements while the objective drops, δ stepped down from 4× to 1/16 of the sweep's,
-// projected areas in place of signed ones so that thin elements standing across a curved
-// surface can turn over; an element that stays stuck is untangled jointly again only after a
-// backoff of 1, 2, 4, then deltaStallSweeps sweeps, or when ε changes level, and its
-// harmonic layout alone is retried after the same backoff — see
-// OptimizeResult::patchUntanglings). Tangled elements without a movable node cannot change:
+// a row the element's own Face nodes (then with those of the elements around them) first move
+// together by a compass search in (u,v) that raises the smallest det S over it and the valid
+// elements around them until it is positive (a second-order triangle with its base on a CAD
+// edge and its apex and two side nodes in a narrow face opens only so), then the patch is also
+// untangled jointly (Newton steps on its nodes alone that may tangle more elements while the
+// objective drops, δ stepped down from 4× to 1/16 of the sweep's, projected areas in place of
+// signed ones so that thin elements standing across a curved surface can turn over; an element that
+// stays stuck is untangled jointly again only after a backoff of 1, 2, 4, then deltaStallSweeps
+// sweeps, or when ε changes level, and its harmonic layout alone is retried after the same backoff
+// — see OptimizeResult::patchUntanglings). Tangled elements without a movable node cannot change:
 // they do not keep δ > 0 and are reported (OptimizeResult::warnings). The same holds for an
 // element that folds where only nodes that may not move act (a tangled corner triangle of a
 // quadrilateral on three such nodes; a high-order triangle tangled at a node or quadrature
