@@ -7,7 +7,8 @@
 Gmsh 4.8.4 meshes each part (element size = bounding-box diagonal / div) and raises the mesh to
 each order (its high-order nodes projected on the CAD surfaces, as Gmsh does), then the
 installed workbench's command line (`freecadcmd surfmesh_cli.py -- optimize`, run after
-scripts/install.sh) optimizes it; one Markdown row per run from its JSON report: elements,
+scripts/install.sh; SURFMESH_CLI=path runs another script instead, e.g. one that imports a copy
+of the package built from a branch) optimizes it; one Markdown row per run from its JSON report: elements,
 the side nodes the recovery put on their element's face (a side node that Gmsh placed off it,
 see README: meshes with any were refused before), tangled before → after (of those left: folded
 where no node may move / with a movable node), min and mean quality after, sweeps, the optimizer's seconds and why it stopped. Gmsh's curved
