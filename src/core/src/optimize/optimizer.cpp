@@ -549,6 +549,10 @@ struct State {
   // so retrying it at every stalled sweep mostly repeats a failure (hundreds of stuck
   // elements made it cost more than the sweep on a second-order mesh).
   std::unordered_map<std::size_t, RelaxBackoff> harmonicBackoff;
+  // The backoff of widenElement's joint search (see escapeTangledElements), without the cap
+  // of deltaStallSweeps: a search that failed mostly fails again, and costs hundreds of
+  // element evaluations per start.
+  std::unordered_map<std::size_t, RelaxBackoff> widenBackoff;
   std::size_t patchUntanglings = 0;  // elements whose patches were relaxed (per escape)
   std::size_t straightened = 0;      // elements untangled by straightenHighOrder
   std::int32_t clock = 0;            // advanced once per color
@@ -868,9 +872,11 @@ class NodeUpdater {
   /// sweep until the run gives up — 48 of them by default). The smallest
   /// patch that leaves fewer tangled elements among all elements of the moved nodes is kept —
   /// strict progress, so it cannot cycle. Runs on one thread between sweeps, only while
-  /// tangled elements stall; returns the number of elements untangled.
+  /// tangled elements stall; returns the number of elements untangled. Before the patches,
+  /// with `relax`, the element's own nodes try a joint search (widenElement), except for the
+  /// elements `held` marks (held folds and the like: no motion of theirs makes them valid).
   std::size_t escapeTangledElements(const std::vector<unsigned char>& frozen, bool relax, int sweep,
-                                    int epsilonLevel) {
+                                    int epsilonLevel, const std::vector<unsigned char>& held) {
     std::size_t gained = 0;
     std::vector<std::size_t> patch, elems;
     std::vector<Vec2> uvSave, iter;
@@ -903,7 +909,9 @@ class NodeUpdater {
       if (!relaxHere && hBackoff != s_.harmonicBackoff.end() && sweep < hBackoff->second.nextSweep)
         continue;
       bool kept = false, relaxed = false;
-      if (relaxHere) {
+      auto wBackoff = s_.widenBackoff.find(e);
+      if (relaxHere && !held[e] &&  // (a held element cannot become valid)
+          (wBackoff == s_.widenBackoff.end() || sweep >= wBackoff->second.nextSweep)) {
         // e's own nodes, then with the Face nodes of the elements around them
         std::size_t g = widenElement(e, patch, face, surf);
         if (g == 0) {
@@ -925,6 +933,9 @@ class NodeUpdater {
         if (g > 0) {
           gained += g;
           kept = true;
+          if (wBackoff != s_.widenBackoff.end()) s_.widenBackoff.erase(wBackoff);
+        } else {
+          s_.widenBackoff[e].failed(sweep, 1 << 20);  // retried after 1, 2, 4, 8… sweeps
         }
       }
       for (int ring = 0; ring <= 3 && !kept; ++ring) {
@@ -2450,7 +2461,7 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
     if (stuckSweeps > 0) {
       NodeUpdater up(s, *workers[0]);
       std::size_t gained = s.allTri3 ? 0 : up.straightenHighOrder(noEscape, true);
-      gained += up.escapeTangledElements(noEscape, stuckSweeps >= 3, sweep, epsilonLevel);
+      gained += up.escapeTangledElements(noEscape, stuckSweeps >= 3, sweep, epsilonLevel, frozen);
       if (gained > 0) g = fullEval(s.deltaHat);  // stuck elements untangled by joint moves
     }
     // The report comes after the escapes: it describes the mesh as the sweep leaves it (the
