@@ -297,7 +297,7 @@ class GmshSideNodesOffTheirFace(unittest.TestCase):
         self.assertGreater(off_face, 0)
         self.assertLess(res.after.stats["tangled"], res.before.stats["tangled"])
 
-    def test_folds_a_joint_move_of_an_elements_nodes_opens_are_opened(self):
+    def test_second_order_folds_a_joint_move_opens(self):
         # Gmsh's order-2 propeller at diagonal / 17 has folded elements with their base on a CAD
         # edge and a Face corner and two Face side nodes in a narrow face: only a joint move of
         # those three nodes opens them, which neither the node-by-node steps nor the patch
