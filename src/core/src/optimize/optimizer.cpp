@@ -1131,11 +1131,26 @@ class NodeUpdater {
     watch.push_back(e);  // e and the valid elements around it: none may fold
     for (std::size_t q : elems)
       if (q != e && !s_.evalWhole(q, 0.0).tangled) watch.push_back(q);
-    auto objective = [&]() {
+    // Their smallest det S, kept per element: a trial move of one node evaluates only the
+    // watched elements of that node (aff).
+    std::vector<double> sig(watch.size());
+    std::vector<std::vector<std::size_t>> aff(nodes.size());
+    for (std::size_t q = 0; q < nodes.size(); ++q)
+      for (std::int64_t p = s_.begin(nodes[q]); p < s_.end(nodes[q]); ++p) {
+        const auto f = static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
+        const auto it = std::find(watch.begin(), watch.end(), f);
+        if (it != watch.end()) aff[q].push_back(static_cast<std::size_t>(it - watch.begin()));
+      }
+    auto minSig = [&]() {
       double o = kInf;
-      for (std::size_t q : watch) o = std::min(o, s_.evalWhole(q, 0.0).minSigma);
+      for (double v : sig) o = std::min(o, v);
       return o;
     };
+    auto objective = [&]() {
+      for (std::size_t w = 0; w < watch.size(); ++w) sig[w] = s_.evalWhole(watch[w], 0.0).minSigma;
+      return minSig();
+    };
+    std::vector<double> sigSave;
     // Initial step: half the extent in (u,v) of e's corners.
     const Vec2 c0 = cornerOnFace(e, 0, face, surf, s_.mesh.elementUV(e)[0]);
     Vec2 lo = c0, hi = c0;
@@ -1180,16 +1195,23 @@ class NodeUpdater {
       // 1e-4 of the first.
       for (int it = 0; it < 60 && !(o > 0.0) && h.x() > 1e-4 * h0.x(); ++it) {
         bool moved = false;
-        for (std::size_t j : nodes)
+        for (std::size_t q = 0; q < nodes.size(); ++q)
           for (const Vec2& d : kDirs) {
+            const std::size_t j = nodes[q];
             const Vec2 old = s_.uv[j];
             if (!placeOne(j, old + Vec2(d.x() * h.x(), d.y() * h.y()))) continue;
-            const double o1 = objective();
+            sigSave.clear();
+            for (std::size_t w : aff[q]) {
+              sigSave.push_back(sig[w]);
+              sig[w] = s_.evalWhole(watch[w], 0.0).minSigma;
+            }
+            const double o1 = minSig();
             if (o1 > o) {
               o = o1;
               moved = true;
             } else {
               placeOne(j, old);
+              for (std::size_t k = 0; k < aff[q].size(); ++k) sig[aff[q][k]] = sigSave[k];
             }
           }
         if (!moved) h *= 0.5;
