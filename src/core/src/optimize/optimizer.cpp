@@ -1004,6 +1004,54 @@ class NodeUpdater {
           restore(patch, uvSave, xyzSave, nSave);
         }
       }
+      // Last: each Face node of the element alone, at the best point of a grid over its
+      // neighbours (sampleNeighbourhood).
+      for (int k = 0; k < s_.mesh.elementSize(e) && !kept; ++k) {
+        const std::size_t j = static_cast<std::size_t>(nd[k]);
+        if (!movableHere(j)) continue;
+        const std::size_t g = sampleNeighbourhood(j, face, surf);
+        if (g > 0) {
+          kept = true;
+          gained += g;
+        }
+      }
+      // Then, with the joint untangling allowed: a Face node of the element where the element
+      // is valid (sampleNeighbourhood), the other Face nodes of its elements untangled around
+      // it (relaxPatch), kept when fewer elements around them all are tangled.
+      for (int k = 0; k < s_.mesh.elementSize(e) && !kept && relaxHere; ++k) {
+        const std::size_t j = static_cast<std::size_t>(nd[k]);
+        Vec2 target;
+        if (!movableHere(j) || relaxTries_ >= kMaxRelaxPatches ||
+            !sampleNeighbourhood(j, face, surf, static_cast<std::int64_t>(e), &target))
+          continue;
+        patch.clear();
+        for (std::int64_t p = s_.begin(j); p < s_.end(j); ++p) {
+          const std::size_t f = static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
+          const std::int32_t* fn = s_.mesh.elementNodes(f);
+          for (int q = 0; q < s_.mesh.elementSize(f); ++q) {
+            const std::size_t o = static_cast<std::size_t>(fn[q]);
+            if (o != j && movableHere(o) && !inPatch(o)) patch.push_back(o);
+          }
+        }
+        if (patch.empty() || patch.size() > kMaxRelaxPatchNodes) continue;
+        patch.push_back(j);
+        elementsAround(patch, &elems);
+        auto countTangled = [&]() { return tangledAmong(elems); };
+        const std::size_t t0 = countTangled();
+        save(patch, &uvSave, &xyzSave, &nSave);
+        patch.pop_back();  // j stays at the target
+        ++relaxTries_;
+        relaxed = true;
+        const std::size_t t1 =
+            placeAll({j}, {target}, face, surf) ? relaxPatch(patch, countTangled, t0) : t0;
+        patch.push_back(j);
+        if (t1 < t0) {
+          kept = true;
+          gained += t0 - t1;
+        } else {
+          restore(patch, uvSave, xyzSave, nSave);
+        }
+      }
       if (kept && backoff != s_.relaxBackoff.end()) s_.relaxBackoff.erase(backoff);
       if (kept && hBackoff != s_.harmonicBackoff.end()) s_.harmonicBackoff.erase(hBackoff);
       if (!kept && !relaxed) s_.harmonicBackoff[e].failed(sweep, s_.opt.deltaStallSweeps);
@@ -1703,6 +1751,89 @@ class NodeUpdater {
       uvj = cj.uvOnFace(face, s_.t[j], corner);
     }
     return surf.unwrapNear(uvj, near);
+  }
+
+  /// Escape of last resort for a tangled element that the Newton steps, the kernel centre, the
+  /// neighbours' centroid and the patch untanglings leave: Face node i (of `face`) tries the
+  /// centres of a kSampleGrid² grid over the parametric box of its elements' other corners.
+  /// Without `valid`: moves to the one leaving the fewest elements of its submesh tangled (then
+  /// the lowest f̂), when that is fewer than at its position — strict progress, like every
+  /// escape; returns the number of elements untangled. On a thin, strongly curved face a
+  /// triangle can stand across the surface with its free node far along the face from the
+  /// others (the bottle's thread): the valid positions, nearer to them, lie beyond a barrier of
+  /// f̂ that no local step crosses, and off the kernel (the triangle is wound right in (u,v)).
+  /// With `valid` (an element of i's): sets *target to the point where that element is valid
+  /// and the fewest elements of the submesh are tangled (then the lowest f̂), without moving i;
+  /// returns 1 when there is one.
+  std::size_t sampleNeighbourhood(std::size_t i, int face, const Surface& surf,
+                                  std::int64_t valid = -1, Vec2* target = nullptr) {
+    static constexpr int kSampleGrid = 16;
+    const Vec2 uv0 = s_.uv[i];
+    Vec2 lo = uv0, hi = uv0;
+    int validAt = -1;  // valid's index in i's incidence
+    for (std::int64_t p = s_.begin(i); p < s_.end(i); ++p) {
+      const std::size_t e = static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
+      const int nc = cornerCount(s_.mesh.elemType[e]);
+      if (s_.inc.local[static_cast<std::size_t>(p)] >= nc) return 0;  // a high-order side node
+      if (static_cast<std::int64_t>(e) == valid) validAt = static_cast<int>(p - s_.begin(i));
+      for (int k = 0; k < nc; ++k) {
+        if (static_cast<std::size_t>(s_.mesh.elementNodes(e)[k]) == i) continue;
+        const Vec2 c = cornerOnFace(e, k, face, surf, uv0);
+        lo = lo.cwiseMin(c);
+        hi = hi.cwiseMax(c);
+      }
+    }
+    if (!lo.allFinite() || !hi.allFinite() || (valid >= 0 && validAt < 0)) return 0;
+    const double orient = static_cast<double>(
+        s_.mesh.faceOrientation[static_cast<std::size_t>(face)] * surf.normalSign());
+    auto zero = [](std::size_t) { return Vec3::Zero().eval(); };
+    const Vec3 n0 = s_.nodeNormal[i];
+    const LocalEval cur = evalLocal(
+        i, s_.xyz[i], [&](std::size_t) { return n0; }, zero, false, nullptr, nullptr, nullptr);
+    // Evaluated as a trial (against a bound no trial reaches), evalLocal keeps each element's
+    // η at δ = 0 and det S in the worker's scratch.
+    LocalEval any;
+    any.f = kInf;
+    any.tangled = std::numeric_limits<int>::max();
+    const bool track = s_.trackCache;
+    s_.trackCache = true;
+    int bestTangled = valid >= 0 ? std::numeric_limits<int>::max() : cur.tangled;
+    double bestF = kInf;
+    Vec2 bestUV = uv0;
+    for (int a = 0; a < kSampleGrid; ++a)
+      for (int b = 0; b < kSampleGrid; ++b) {
+        const Vec2 r((a + 0.5) / kSampleGrid, (b + 0.5) / kSampleGrid);
+        const Vec2 uvT = surf.wrap(lo + (hi - lo).cwiseProduct(r));
+        if (!uvT.allFinite() || !surf.containsNearBoundary(uvT.x(), uvT.y())) continue;
+        const SurfaceD1 dT = surf.d1(uvT.x(), uvT.y());
+        if (isDegenerate(dT)) continue;
+        const Vec3 cr = dT.du.cross(dT.dv);
+        const Vec3 nT = (orient / cr.norm()) * cr;
+        const LocalEval tr = valid >= 0 ? evalLocal(
+                                              i, dT.p, [&](std::size_t) { return nT; }, zero, false,
+                                              &any, nullptr, nullptr)
+                                        : evalLocal(
+                                              i, dT.p, [&](std::size_t) { return nT; }, zero, false,
+                                              nullptr, nullptr, nullptr);
+        if (!tr.finite) continue;
+        const std::size_t v = static_cast<std::size_t>(std::max(validAt, 0));
+        if (valid >= 0 ? (w_.sig[v] <= 0.0 || !std::isfinite(w_.eta0[v]))
+                       : tr.tangled >= cur.tangled)
+          continue;  // `valid` still tangled, or no progress
+        if (tr.tangled < bestTangled || (tr.tangled == bestTangled && tr.f < bestF)) {
+          bestTangled = tr.tangled;
+          bestF = tr.f;
+          bestUV = uvT;
+        }
+      }
+    s_.trackCache = track;
+    if (valid >= 0) {
+      if (bestTangled == std::numeric_limits<int>::max()) return 0;
+      *target = bestUV;
+      return 1;
+    }
+    if (bestTangled >= cur.tangled || !placeAll({i}, {bestUV}, face, surf)) return 0;
+    return static_cast<std::size_t>(cur.tangled - bestTangled);
   }
 
   /// Parametric centroid, on face `face` next to uv0, of the corners of Face node i's elements
