@@ -65,3 +65,29 @@ TEST(CadQuadUntangle, TriangleAcrossAThinCurvedFaceIsUntangledBySampling) {
   EXPECT_LE(r.after.tangled, 8u);
   EXPECT_LT(r.sweeps, 50);
 }
+
+// A face of the housing in Gmsh's quads by simple recombination (Frontal-Delaunay, diagonal /
+// 21): two quads each have a corner on the one node of a CAD edge between its two vertices, a
+// 180° corner (det S = 0 up to rounding). Sliding that node along its edge keeps the corner a
+// triangle of three points of the edge's curve: no motion repairs it. It is held like a corner
+// between fixed nodes, instead of keeping the run in untangling sweeps until it gives up and
+// being reported as movable.
+TEST(CadQuadUntangle, QuadCornerOnOneCadEdgeIsHeldWhenSliding) {
+  const MeshInput in = readMixedMesh("occt_housing_bottom_simple_quads.txt");
+  auto shape = load("occt_housing_bottom.brep");
+  BridgeOptions bo;
+  bo.boundary = "slide";
+  CadMesh slide(shape, in, bo);
+  ASSERT_GT(slide.report().slidingNodes, 0u);
+  const OptimizeResult rs = optimizeMesh(slide.mesh(), OptimizeOptions{});
+  EXPECT_EQ(rs.before.tangled, 2u);
+  EXPECT_EQ(rs.after.tangled, 2u);
+  EXPECT_TRUE(rs.tangledMovable.empty()) << rs.tangledMovable.size();
+  EXPECT_EQ(rs.tangledUnmovable.size(), 2u);
+  EXPECT_LT(rs.sweeps, 10);
+  // As good as with the boundary fixed (the same two quads held there).
+  CadMesh fixed(shape, in);
+  const OptimizeResult rf = optimizeMesh(fixed.mesh(), OptimizeOptions{});
+  EXPECT_EQ(rf.tangledUnmovable.size(), 2u);
+  EXPECT_GE(rs.after.mean, rf.after.mean - 1e-6);
+}

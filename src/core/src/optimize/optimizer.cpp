@@ -1991,9 +1991,34 @@ bool foldHeld(const SurfaceMesh& m, const std::vector<Vec3>& xyz, std::size_t e,
     return true;
   };
   if (type == ElementType::Quad4) {
+    // A corner whose three nodes lie on one CAD edge (sliding or fixed on it, or on a CAD
+    // vertex at its end) stays a triangle of three points of the edge's curve: its plane turns
+    // with the curve's geodesic curvature, not with the nodes' motion (a corner of 180° on an
+    // edge straight in (u,v), or bent the wrong way: Gmsh's simple recombination leaves such
+    // quads along CAD edges).
+    auto onEdge = [&](int k, std::int32_t edge, double tol) {
+      const std::size_t j = static_cast<std::size_t>(nd[k]);
+      if (m.nodeKind[j] == NodeKind::Face) return false;
+      if (m.nodeEdge[j] == edge) return true;
+      if (m.nodeKind[j] != NodeKind::Fixed || m.nodeEdge[j] >= 0) return false;
+      const Curve& c = *m.curves[static_cast<std::size_t>(edge)];
+      return (c.value(c.tmin()) - at(k)).norm() <= tol || (c.value(c.tmax()) - at(k)).norm() <= tol;
+    };
+    auto alongEdge = [&](int k, int k1, int k2) {
+      if (m.nodeEdge.empty() || m.curves.empty()) return false;
+      std::int32_t edge = -1;
+      for (int q : {k, k1, k2}) {
+        const std::size_t j = static_cast<std::size_t>(nd[q]);
+        if (m.nodeKind[j] == NodeKind::Edge) edge = m.nodeEdge[j];
+      }
+      if (edge < 0 || !m.curves[static_cast<std::size_t>(edge)]) return false;
+      const double tol = 1e-3 * std::sqrt(std::max((at(k1) - at(k)).squaredNorm(),
+                                                   (at(k2) - at(k)).squaredNorm()));
+      return onEdge(k, edge, tol) && onEdge(k1, edge, tol) && onEdge(k2, edge, tol);
+    };
     for (int k = 0; k < 4; ++k) {
       const int k1 = (k + 1) % 4, k2 = (k + 3) % 4;
-      if (movable(k) || movable(k1) || movable(k2)) continue;
+      if ((movable(k) || movable(k1) || movable(k2)) && !alongEdge(k, k1, k2)) continue;
       Jacobian32 J;
       J.col(0) = at(k1) - at(k);
       J.col(1) = at(k2) - at(k);
