@@ -34,10 +34,14 @@
 // surface can turn over; an element that stays stuck is untangled jointly again only after a
 // backoff of 1, 2, 4, then deltaStallSweeps sweeps, or when ε changes level, and its
 // harmonic layout alone is retried after the same backoff — see
-// OptimizeResult::patchUntanglings). Tangled elements without a movable node cannot change:
+// OptimizeResult::patchUntanglings); last, a Face node of a stuck element tries the points of
+// a grid over the (u,v) box of its neighbours, alone, then (with the joint untangling) at the
+// point where the element is valid with the other Face nodes of its elements untangled
+// jointly around it. Tangled elements without a movable node cannot change:
 // they do not keep δ > 0 and are reported (OptimizeResult::warnings). The same holds for an
 // element that folds where only nodes that may not move act (a tangled corner triangle of a
-// quadrilateral on three such nodes; a high-order triangle tangled at a node or quadrature
+// quadrilateral on three such nodes, or on three nodes of one CAD edge — sliding along it or
+// at its vertices: the corner stays a triangle of the edge's curve; a high-order triangle tangled at a node or quadrature
 // point where the shape functions of its movable nodes have no gradient, e.g. at a CAD vertex
 // between two element edges on fixed CAD edges): it is held from the start (while other
 // elements are tangled it still sets δ and takes part in the escapes, so the run is the same
