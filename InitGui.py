@@ -49,14 +49,22 @@ class _SurfMeshViewObserver:
     SurfMesh is imported only for documents that have such meshes."""
 
     def __init__(self):
-        self._pending = set()
+        self._pending = {}  # document name -> what its coming update does besides the scale
 
     def slotCreatedDocument(self, doc):
-        self._later(doc.Name, 0, opened=True)
+        self._later(doc.Name, "opened")
 
     def slotDeletedDocument(self, doc):
         if "SurfMesh.gui.legend" in sys.modules:
             sys.modules["SurfMesh.gui.legend"]._nodes.pop(doc.Name, None)
+        if "SurfMesh.app.document" in sys.modules:
+            sys.modules["SurfMesh.app.document"]._FEM_COLORED.pop(doc.Name, None)
+
+    def slotUndoDocument(self, doc):
+        self._later(doc.Name, "undone")
+
+    def slotRedoDocument(self, doc):
+        self._later(doc.Name, "undone")
 
     def slotChangedObject(self, obj, prop):
         if prop in ("SurfMeshColors", "Visibility"):
@@ -72,36 +80,47 @@ class _SurfMeshViewObserver:
     def _touched(self, obj, colored=False):
         try:
             if colored or "SurfMeshColors" in obj.PropertiesList:
-                self._later(obj.Document.Name, 0)
+                self._later(obj.Document.Name, None)
         except Exception:  # an object on its way out: nothing to show
             pass
 
-    def _later(self, name, tries, opened=False):
+    def _later(self, name, what):
+        """One update per document for a burst of changes, after FreeCAD has finished them
+        ("opened": the FEM views get their stored colors once the document is restored;
+        "undone": the FEM views follow the document after an undo or a redo)."""
         from PySide import QtCore
 
-        if tries == 0 and not opened:
-            if name in self._pending:  # one update for a burst of changes
-                return
-            self._pending.add(name)
-        QtCore.QTimer.singleShot(0 if tries == 0 else 200,
-                                 lambda: self._update(name, tries, opened))
+        first = name not in self._pending
+        whats = self._pending.setdefault(name, set())
+        if what:
+            whats.add(what)
+        if first:
+            QtCore.QTimer.singleShot(0, lambda: self._update(name, 0))
 
-    def _update(self, name, tries, opened):
+    def _update(self, name, tries):
         import FreeCAD
+        from PySide import QtCore
 
-        self._pending.discard(name)
         doc = FreeCAD.listDocuments().get(name)
         if doc is None:
+            self._pending.pop(name, None)
             return
         if getattr(doc, "Restoring", False):  # still being read
             if tries < 3000:
-                self._later(name, tries + 1, opened)
+                QtCore.QTimer.singleShot(200, lambda: self._update(name, tries + 1))
+            else:
+                self._pending.pop(name, None)
             return
+        whats = self._pending.pop(name, set())
+        opened = "opened" in whats
+        undone = "undone" in whats and "SurfMesh.app.document" in sys.modules
         objs = [o for o in doc.Objects if "SurfMeshColors" in o.PropertiesList]
-        if not objs and "SurfMesh.gui.legend" not in sys.modules:
+        if not objs and not undone and "SurfMesh.gui.legend" not in sys.modules:
             return
         try:
-            if opened:
+            if undone:
+                sys.modules["SurfMesh.app.document"].sync_view_colors(doc)
+            elif opened:
                 from SurfMesh.app.document import show_stored_colors
 
                 for obj in objs:

@@ -1,11 +1,14 @@
 // SurfMesh benchmark helper for the comparison with Gmsh (bench/gmsh_compare.py): reads a
-// shape and a triangle mesh dump, recovers the mesh on the shape (CadMesh) and either
-// optimizes it or only measures it. The same measuring code is applied to every tool's output.
+// shape and a mesh dump (triangles, or triangles and quadrilaterals), recovers the mesh on the
+// shape (CadMesh) and either optimizes it or only measures it. The same measuring code is applied
+// to every tool's output.
 //
 //   bench_cad measure  SHAPE MESH.bin
 //   bench_cad optimize SHAPE MESH.bin OUT.bin THREADS
 //
-// MESH.bin: int64 N, int64 E, N×3 float64 node positions, E×3 int32 0-based triangles.
+// MESH.bin: int64 N, int64 E, N×3 float64 node positions, E×3 int32 0-based triangles; or,
+// when E is written negative, |E|×4 int32 0-based elements: quadrilaterals, and triangles with
+// a fourth id of −1 (a recombined mesh; its elements are taken as they are).
 // Pairs of duplicate triangles (the same three corners) are left out of the recovery, the
 // measure and the optimization, as SurfMesh.optimize leaves them out ("duplicates_left_out").
 // OUT.bin: the same layout with the optimized positions. Prints one JSON object (optimize: also
@@ -41,6 +44,7 @@ namespace {
 struct Dump {
   std::vector<double> xyz;
   std::vector<std::int32_t> tris;
+  bool mixed = false;  // tris holds 4 ids per element (−1 last: a triangle)
 };
 
 Dump readDump(const std::string& path) {
@@ -50,8 +54,9 @@ Dump readDump(const std::string& path) {
   in.read(reinterpret_cast<char*>(&n), 8);
   in.read(reinterpret_cast<char*>(&e), 8);
   Dump d;
+  d.mixed = e < 0;
   d.xyz.resize(static_cast<std::size_t>(3 * n));
-  d.tris.resize(static_cast<std::size_t>(3 * e));
+  d.tris.resize(static_cast<std::size_t>(d.mixed ? -4 * e : 3 * e));
   in.read(reinterpret_cast<char*>(d.xyz.data()), static_cast<std::streamsize>(8 * d.xyz.size()));
   in.read(reinterpret_cast<char*>(d.tris.data()), static_cast<std::streamsize>(4 * d.tris.size()));
   if (!in) throw std::runtime_error("truncated " + path);
@@ -61,7 +66,8 @@ Dump readDump(const std::string& path) {
 void writeDump(const std::string& path, const SurfaceMesh& m, const Dump& d) {
   std::ofstream out(path, std::ios::binary);
   const std::int64_t n = static_cast<std::int64_t>(m.nodeCount());
-  const std::int64_t e = static_cast<std::int64_t>(d.tris.size() / 3);
+  const std::int64_t e = d.mixed ? -static_cast<std::int64_t>(d.tris.size() / 4)
+                                 : static_cast<std::int64_t>(d.tris.size() / 3);
   out.write(reinterpret_cast<const char*>(&n), 8);
   out.write(reinterpret_cast<const char*>(&e), 8);
   for (const Vec3& p : m.xyz) out.write(reinterpret_cast<const char*>(p.data()), 24);
@@ -75,6 +81,17 @@ void writeDump(const std::string& path, const SurfaceMesh& m, const Dump& d) {
 /// receives how many triangles were left out. The same rule for every tool's mesh, so that all
 /// are measured on the same triangles.
 MeshInput inputWithoutDuplicates(const Dump& d, std::size_t* leftOut) {
+  *leftOut = 0;
+  if (d.mixed) {  // a recombined mesh: its elements as they are
+    MeshInput in = triangleMeshInput(d.xyz, {});
+    for (std::size_t e = 0; 4 * e < d.tris.size(); ++e) {
+      const bool tri = d.tris[4 * e + 3] < 0;
+      in.types.push_back(tri ? ElementType::Tri3 : ElementType::Quad4);
+      in.conn.insert(in.conn.end(), d.tris.begin() + static_cast<std::ptrdiff_t>(4 * e),
+                     d.tris.begin() + static_cast<std::ptrdiff_t>(4 * e + (tri ? 3 : 4)));
+    }
+    return in;
+  }
   const std::size_t E = d.tris.size() / 3;
   std::vector<std::array<std::int32_t, 4>> keys(E);  // sorted corners, triangle index
   for (std::size_t e = 0; e < E; ++e) {
@@ -190,16 +207,19 @@ int main(int argc, char** argv) {
     const double meanSweep =
         stamps.size() >= 2 ? (stamps.back() - stamps.front()) / (stamps.size() - 1) : sweep1;
     writeDump(argv[4], m, d);
+    std::string movableIds;  // the tangled elements left with a movable node
+    for (std::int32_t e : r.tangledMovable)
+      movableIds += (movableIds.empty() ? "" : ", ") + std::to_string(e);
     std::printf(
         "{\"seconds\": %.4f, \"sweeps\": %d, \"reason\": \"%s\", \"threads\": %d, "
         "\"bridge_s\": %.3f, \"shape_s\": %.3f, \"min\": %.6f, \"mean\": %.6f, "
         "\"tangled\": %zu, \"tangled_unmovable\": %zu, \"before_tangled\": %zu, "
         "\"peak_mb\": %.1f, "
         "\"floor_s\": %.6f, \"value_floor_s\": %.6f, \"sweep1_s\": %.6f, "
-        "\"mean_sweep_s\": %.6f}\n",
+        "\"mean_sweep_s\": %.6f, \"tangled_movable_ids\": [%s]}\n",
         r.seconds, r.sweeps, stopReasonName(r.reason), r.threadsUsed, tBridge, tShape, r.after.min,
         r.after.mean, r.after.tangled, r.tangledUnmovable.size(), r.before.tangled,
-        peakRssBytes() / 1e6, floors.d1, floors.value, sweep1, meanSweep);
+        peakRssBytes() / 1e6, floors.d1, floors.value, sweep1, meanSweep, movableIds.c_str());
   } catch (const std::exception& ex) {
     std::printf("{\"error\": \"%s\"}\n", ex.what());
     return 1;

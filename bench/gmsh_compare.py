@@ -93,15 +93,16 @@ def tangled_count(tris_by_face):
     return total
 
 
-def perturb(target, amp, seed, max_rounds=60, fraction=0.02):
+def perturb(target, amp, seed, max_rounds=60, fraction=0.02, count=None):
     """Moves random interior nodes in (u,v) by `amp` local sizes until ≥ target triangles are
-    tangled (nodes stay inside their trimmed face and exactly on its surface)."""
+    tangled (nodes stay inside their trimmed face and exactly on its surface). `count`, when
+    given, counts the tangled elements instead (a mesh of other elements than triangles)."""
     rng = random.Random(seed)
     fn = face_nodes()
     tris_by_face = {}
     for _, tag in gmsh.model.getEntities(2):
         et, _, en = gmsh.model.mesh.getElements(2, tag)
-        if len(et):
+        if len(et) and count is None:
             tris_by_face[tag] = np.array(en[0]).reshape(-1, 3)
     candidates = [(tag, k) for tag, (nt, _) in fn.items() for k in range(len(nt))]
     rounds = 0
@@ -130,7 +131,7 @@ def perturb(target, amp, seed, max_rounds=60, fraction=0.02):
                 x = gmsh.model.getValue(2, tag, new[j].tolist())
                 gmsh.model.mesh.setNode(int(nt[k]), list(x), new[j].tolist())
                 par[k] = new[j]
-        tangled = tangled_count(tris_by_face)
+        tangled = count() if count else tangled_count(tris_by_face)
     return tangled
 
 

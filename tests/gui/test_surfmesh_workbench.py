@@ -302,6 +302,29 @@ try:
     view.saveImage(shot3, 800, 600, "White")
     frac_green3 = shares(pixels(shot3))[0]
     check(frac_green3 < 0.5 * frac_green2, f"view no longer green ({frac_green3:.3f})")
+    # Clearing is an undo step: undo shows the colors again (FreeCAD restores the properties
+    # but not a FEM view's element colors), redo clears them again.
+    check(doc.UndoNames[0] == "SurfMesh clear colors",
+          f"clearing is an undo step ({doc.UndoNames[:2]})")
+
+    def settled_shot(name):
+        for _ in range(3):  # the view follows the document on the next event loop turns
+            FreeCADGui.updateGui()
+        path = os.path.join(out, name)
+        view.saveImage(path, 800, 600, "White")
+        return shares(pixels(path))[0]
+
+    FreeCADGui.Selection.clearSelection()
+    doc.undo()
+    green_undone = settled_shot("gui_clear_undone.png")
+    check("SurfMeshColors" in new.PropertiesList and green_undone > 0.8 * frac_green2,
+          f"undo of the clearing shows the colors again ({green_undone:.3f}, before "
+          f"{frac_green2:.3f})")
+    doc.redo()
+    green_redone = settled_shot("gui_clear_redone.png")
+    check("SurfMeshColors" not in new.PropertiesList and green_redone < 0.5 * frac_green2,
+          f"redo clears them again ({green_redone:.3f})")
+    FreeCADGui.Selection.addSelection(new)
 
     FreeCADGui.Selection.clearSelection()
     FreeCADGui.Selection.addSelection(mesh)
@@ -331,6 +354,17 @@ try:
     frac4, frac4y, _ = shares(pixels(shot4))
     check(frac4 + frac4y > 0.5, f"Mesh screenshot shows quality colors ({frac4:.3f}, "
                                 f"{frac4y:.3f})")
+    # Undo of the measure takes its colors away with its properties (a FEM view's colors too,
+    # above: undoing the clearing); redo brings them back.
+    FreeCADGui.Selection.clearSelection()
+    doc.undo()
+    frac4u = settled_shot("gui_mesh_undone.png")
+    check("SurfMeshColors" not in m.PropertiesList and m.ViewObject.Coloring is False
+          and frac4u < 0.2 * frac4, f"undo of Measure clears the Mesh colors ({frac4u:.3f})")
+    doc.redo()
+    frac4r = settled_shot("gui_mesh_redone.png")
+    check("SurfMeshColors" in m.PropertiesList and abs(frac4r - frac4) < 0.05,
+          f"redo shows them again ({frac4r:.3f} vs {frac4:.3f})")
 
     check(m.ViewObject.Lighting == "One side", "untangled Mesh keeps one-sided lighting")
     # A Mesh view leaves back faces unlit: colors marking a tangled facet light both sides,

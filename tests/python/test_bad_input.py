@@ -366,6 +366,43 @@ class BadInputApi(unittest.TestCase):
         self.expect_error(arrays(nodes, elems), "mixes element orders", "tri6")
         self.expect_error(make_fem(nodes, elems), "mixes element orders", "tri6")
 
+    def test_scrambled_tri6_node_order_is_named(self):
+        # Every triangle of the box grid becomes a tri6 (shared mid-side nodes, FreeCAD's and
+        # Gmsh's order: corners, then sides 1-2, 2-3, 3-1). Two elements then list their
+        # mid-side nodes first: each such "side node" is a corner, a whole side away from the
+        # chord between two mid-side nodes, which no curved element comes near (reference:
+        # the construction; a half circle's middle lies at half its chord).
+        nodes = list(map(list, self.nodes))
+        mid = {}
+        elems = []
+        for t in self.tris:
+            t = [int(k) for k in t]
+            sides = []
+            for p, q in ((t[0], t[1]), (t[1], t[2]), (t[2], t[0])):
+                key = (min(p, q), max(p, q))
+                if key not in mid:
+                    nodes.append(list(0.5 * (self.nodes[p] + self.nodes[q])))
+                    mid[key] = len(nodes) - 1
+                sides.append(mid[key])
+            elems.append(t + sides)
+
+        def astray(warnings):
+            return [w for w in warnings if "side node farther from its side" in w]
+
+        for make, id0 in ((lambda n, e: arrays(n, e), 0), (make_fem, FEM_ELEM_ID0)):
+            with self.subTest(input="arrays" if id0 == 0 else "FemMesh"):
+                rep = SurfMesh.measure(make(nodes, elems), self.shape)
+                self.assertEqual(astray(rep.bridge["warnings"]), [], "the right order")
+                self.assertEqual(rep.stats["tangled"], 0)
+                scrambled = [list(e) for e in elems]
+                for e in (5, 9):
+                    scrambled[e] = elems[e][3:] + elems[e][:3]
+                rep = SurfMesh.measure(make(nodes, scrambled), self.shape)
+                named = astray(rep.bridge["warnings"])
+                self.assertEqual(len(named), 1, rep.bridge["warnings"])
+                self.assertIn("2 high-order element(s)", named[0])
+                self.assertIn(f"ids {id0 + 5}, {id0 + 9})", named[0])
+
     def test_nodes_off_the_shape(self):
         i = interior_node(self.nodes)
         nodes = self.nodes.copy()

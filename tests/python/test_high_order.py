@@ -114,7 +114,8 @@ class HighOrderGmshFiles(unittest.TestCase):
         Part.makeTorus(R, r).exportBrep(cls.brep)
         gmsh = fileio._gmsh()
         cls.files = {}
-        for name, order, quads in (("tri10", 3, False), ("tri21", 5, False), ("quad4", 1, True)):
+        for name, order, quads in (("tri6", 2, False), ("tri10", 3, False), ("tri21", 5, False),
+                                   ("quad4", 1, True)):
             gmsh.clear()
             gmsh.model.occ.importShapes(cls.brep)
             gmsh.model.occ.synchronize()
@@ -174,6 +175,31 @@ class HighOrderGmshFiles(unittest.TestCase):
 
     def test_tri10(self):
         self.run_case("tri10")
+
+    def test_tri6_written_as_z88_in_double_precision(self):
+        # FreeCAD's Z88 writer keeps 6 decimals (5e-7 off the torus); the written nodes lie on
+        # it as the .msh output's do (reference: the torus's implicit equation).
+        from SurfMesh.app import fileio
+
+        out = os.path.join(self.dir, "out_tri6.z88")
+        code, so, se = run_cli("optimize", self.brep, self.files["tri6"], "-o", out)
+        self.assertEqual(code, 0, se)
+        back = fileio.read_mesh(out).data
+        src = fileio.read_mesh(self.files["tri6"]).data
+        self.assertEqual(back.element_count, src.element_count)
+        self.assertEqual(len(back.nodes), len(src.nodes))
+        self.assertLess(T.torus_distance(back.nodes, R, r).max(), 1e-9)
+        moved = np.abs(back.nodes - src.nodes).max(axis=1) > 1e-6
+        self.assertGreater(np.count_nonzero(moved), len(src.nodes) // 10)
+
+    def test_bdf_output_is_refused_before_the_run(self):
+        # FreeCAD 0.20 reads Nastran .bdf meshes but cannot write them: said before optimizing.
+        out = os.path.join(self.dir, "out_tri6.bdf")
+        code, so, se = run_cli("optimize", self.brep, self.files["tri6"], "-o", out)
+        self.assertEqual(code, 2, se)
+        self.assertIn("cannot write them", se)
+        self.assertNotIn("sweep", so + se)
+        self.assertFalse(os.path.exists(out))
 
     def test_tri21(self):
         self.run_case("tri21")

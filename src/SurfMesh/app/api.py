@@ -423,6 +423,17 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, duplicates="glu
                 w = _UNUSED_NODES.sub(f"{unused} nodes belong", w, count=1)
             warnings.append(w)
         report["warnings"] = warnings + [note]
+    astray = _side_nodes_astray(data)
+    if astray.any():
+        n = int(astray.sum())
+        ids = data.element_ids[astray]
+        shown = ", ".join(str(int(i)) for i in ids[:10]) + (" …" if n > 10 else "")
+        report = handle.report
+        report["warnings"] = list(report.get("warnings", [])) + [
+            f"{n} high-order element(s) have a side node farther from its side than the side is "
+            f"long (ids {shown}): is the node order corners first, then the side nodes of "
+            "sides 1-2, 2-3, 3-1?"
+        ]
     if timings is not None:
         timings["read"] = t_read - t0
         timings["recovery"] = time.perf_counter() - t_read
@@ -436,6 +447,37 @@ _ID_LIST = r"(\d+(?:(?:, | and | )\d+(?!\d|\.\d))*)"
 _NODE_REF = re.compile(r"\b(nodes?|row) " + _ID_LIST)
 _ELEMENT_REF = re.compile(r"\b(elements?) " + _ID_LIST)
 _FACE_INDEX = re.compile(r"\bon face (\d+)\b")
+
+
+#: A side node farther from the segment between its side's corners than this many times the
+#: side's length: no curved element a mesher makes (a half circle's middle lies at 0.5).
+_SIDE_NODE_REACH = 1.0
+
+
+def _side_nodes_astray(data):
+    """Bool mask of the high-order triangles with a side node farther from its side's chord
+    than _SIDE_NODE_REACH × the chord's length: the mark of a node list in another order than
+    corners first, then the side nodes of sides 1-2, 2-3, 3-1 (Gmsh's and FreeCAD's)."""
+    out = np.zeros(data.element_count, dtype=bool)
+    sizes = np.diff(data.offsets)
+    for name, order in (("tri6", 2), ("tri10", 3), ("tri15", 4), ("tri21", 5)):
+        sel = np.nonzero(data.types == conversion.ELEMENT_TYPES[name])[0]
+        if sel.size == 0:
+            continue
+        k = int(sizes[sel[0]])
+        idx = data.offsets[sel][:, None] + np.arange(k)[None, :]
+        xyz = data.nodes[data.conn[idx]]  # (n, k, 3)
+        for side in range(3):
+            a, b = xyz[:, side], xyz[:, (side + 1) % 3]
+            ab = b - a
+            length2 = np.einsum("ij,ij->i", ab, ab)
+            for j in range(order - 1):
+                x = xyz[:, 3 + side * (order - 1) + j]
+                t = np.einsum("ij,ij->i", x - a, ab) / np.where(length2 > 0, length2, 1.0)
+                foot = a + np.clip(t, 0.0, 1.0)[:, None] * ab
+                d2 = np.einsum("ij,ij->i", x - foot, x - foot)
+                out[sel] |= d2 > _SIDE_NODE_REACH**2 * length2
+    return out
 
 
 def _name_by_ids(message, data):

@@ -163,6 +163,7 @@ def apply_colors(obj, report=None):
         vo.Coloring = True
         return rgb
     _color_fem_view(vo, data, rgb, quality, tangled, skipped)
+    _fem_view_colored(obj, True)
     return rgb
 
 
@@ -198,7 +199,46 @@ def show_stored_colors(obj):
         return False
     _color_fem_view(vo, data, coloring.quality_rgb(quality, tangled, skipped), quality,
                     tangled, skipped)
+    _fem_view_colored(obj, True)
     return True
+
+
+#: FEM mesh objects whose view shows SurfMesh's colors, by document name. FreeCAD 0.20 cannot
+#: read a FEM view's ElementColor / NodeColor back, and undo does not restore them: this is
+#: how sync_view_colors knows which views to clear.
+_FEM_COLORED = {}
+
+
+def _fem_view_colored(obj, colored):
+    names = _FEM_COLORED.setdefault(obj.Document.Name, set())
+    if colored:
+        names.add(obj.Name)
+    else:
+        names.discard(obj.Name)
+
+
+def sync_view_colors(doc):
+    """Makes the FEM views of ``doc`` show what the document holds, after an undo or a redo:
+    FreeCAD undoes SurfMesh's properties (and the views' own properties: a Mesh's Coloring,
+    the selection style) but not a FEM view's element or node colors. A FEM mesh with
+    SurfMeshColors shows its stored colors again; one SurfMesh colored that has lost them
+    shows its own color again. Changes no property of the document. Returns the objects whose
+    view changed."""
+    changed = []
+    colored = _FEM_COLORED.setdefault(doc.Name, set())
+    for obj in doc.Objects:
+        if "FemMesh" not in obj.PropertiesList or getattr(obj, "ViewObject", None) is None:
+            continue
+        if "SurfMeshColors" in obj.PropertiesList:
+            if show_stored_colors(obj):
+                changed.append(obj)
+        elif obj.Name in colored:
+            obj.ViewObject.ElementColor = {}
+            obj.ViewObject.resetNodeColor()
+            colored.discard(obj.Name)
+            changed.append(obj)
+    colored.intersection_update(o.Name for o in doc.Objects)
+    return changed
 
 
 _VIEW_SAVED = "SurfMeshViewSaved"
@@ -254,8 +294,20 @@ def _show_colors_in_view(obj, vo, kind, tangled):
 
 
 def clear_colors(obj):
-    """Removes the quality colors from ``obj`` (the stored stats are kept)."""
+    """Removes the quality colors from ``obj`` (the stored stats are kept), in an undo step of
+    its own."""
     kind = _mesh_kind(obj)
+    doc = obj.Document
+    doc.openTransaction("SurfMesh clear colors")
+    try:
+        _clear_colors(obj, kind)
+    except Exception:
+        doc.abortTransaction()
+        raise
+    doc.commitTransaction()
+
+
+def _clear_colors(obj, kind):
     if "SurfMeshColors" in obj.PropertiesList:
         obj.removeProperty("SurfMeshColors")
     vo = getattr(obj, "ViewObject", None)
@@ -267,6 +319,7 @@ def clear_colors(obj):
     else:
         vo.ElementColor = {}
         vo.resetNodeColor()
+        _fem_view_colored(obj, False)
 
 
 # ---- make functions --------------------------------------------------------------------------

@@ -2,8 +2,9 @@
 
 * shapes: STEP / IGES / BREP through FreeCAD's Part; FCStd through FreeCAD documents;
 * meshes: Gmsh .msh (v2 and v4) through Gmsh's own API (node and element tags, entities and
-  physical groups are kept on write-back); .unv / .inp / .vtk / .vtu / .med / .z88 / .dat /
-  .bdf through FreeCAD's FEM readers; .stl / .obj / .ply / .off / .ast / .bms through FreeCAD's
+  physical groups are kept on write-back); .unv / .inp / .vtk / .vtu / .med / .z88 through
+  FreeCAD's FEM readers and writers, Nastran .bdf read only and .dat written only (FreeCAD 0.20
+  has no writer, resp. no reader, for them); .stl / .obj / .ply / .off / .ast / .bms through FreeCAD's
   Mesh; anything else meshio reads, through meshio.
 
 Headless: never imports FreeCADGui.
@@ -21,6 +22,10 @@ from SurfMesh.app import conversion
 SHAPE_EXTS = {".step", ".stp", ".iges", ".igs", ".brep", ".brp", ".rle", ".fcstd"}
 GMSH_EXTS = {".msh"}
 FEM_EXTS = {".unv", ".inp", ".vtk", ".vtu", ".med", ".z88", ".dat", ".bdf"}
+# What FreeCAD 0.20's FEM module cannot do with some of them.
+_FEM_NO_READER = {".dat"}
+_FEM_NO_WRITER = {".bdf"}
+_FEM_WRITABLE = sorted(FEM_EXTS - _FEM_NO_WRITER)
 # Formats written through meshio (double precision) rather than FreeCAD's FEM writer.
 _DOUBLE_EXTS = {".vtk", ".vtu"}
 MESH_EXTS = {".stl", ".obj", ".ply", ".off", ".ast", ".bms"}
@@ -133,6 +138,9 @@ def read_mesh(path, object_name=None) -> MeshFile:
     ext = _ext(path)
     if ext in GMSH_EXTS:
         return _read_gmsh(path)
+    if ext in _FEM_NO_READER:
+        raise ValueError(f"cannot read {path}: FreeCAD 0.20 writes {ext} meshes but cannot read "
+                         "them; give the mesh as .msh, .unv, .inp, .med, .vtk or .bdf")
     if ext in FEM_EXTS:
         import Fem
 
@@ -362,6 +370,12 @@ def _read_meshio(path) -> MeshFile:
 # ---- writing ---------------------------------------------------------------------------------
 
 
+def _check_writer(out, ext, what="output mesh"):
+    if ext in _FEM_NO_WRITER:
+        raise ValueError(f"cannot write the {what} {out}: FreeCAD 0.20 reads {ext} meshes but "
+                         f"cannot write them; write {', '.join(_FEM_WRITABLE)} or .msh")
+
+
 def check_output(out, src: MeshFile = None, what="output mesh"):
     """Raises ValueError when ``out`` cannot be written: its folder is missing or not
     writable, or (a mesh, with ``src``) its extension names no known format or one that cannot
@@ -376,6 +390,7 @@ def check_output(out, src: MeshFile = None, what="output mesh"):
     if src is None:
         return
     ext = _ext(out)
+    _check_writer(out, ext, what)
     if ext in GMSH_EXTS | FEM_EXTS | MESH_EXTS:
         _check_format_holds(src.data, ext)
         return
@@ -410,6 +425,7 @@ def write_mesh(out, src: MeshFile, new_nodes, msh_version=None):
     new_nodes = np.asarray(new_nodes, dtype=np.float64)
     ext = _ext(out)
     data = src.data
+    _check_writer(out, ext)
     _check_format_holds(data, ext)
     if ext in GMSH_EXTS:
         version = msh_version or (src.msh_version if src.fmt == "gmsh" else 4.1)
@@ -427,6 +443,8 @@ def write_mesh(out, src: MeshFile, new_nodes, msh_version=None):
             fem.write(out)
         except Exception as exc:
             raise ValueError(f"cannot write {out}: {exc}") from exc
+        if ext == ".z88" and os.path.exists(out):
+            _z88_full_precision(out, data.node_ids, new_nodes)
     elif ext in MESH_EXTS:
         if src.fmt == "mesh":
             mesh = conversion.rebuild(data, new_nodes)
@@ -441,6 +459,21 @@ def write_mesh(out, src: MeshFile, new_nodes, msh_version=None):
     if not os.path.exists(out):
         raise ValueError(f"nothing was written to {out}")
     return out
+
+
+def _z88_full_precision(path, node_ids, nodes):
+    """FreeCAD's Z88 writer keeps 6 decimals (5e-7 off the surface whatever the part's size):
+    its node lines ("id dof x y z", after the header line) get the nodes in double precision."""
+    with open(path) as f:
+        lines = f.read().split("\n")
+    at = {int(i): k for k, i in enumerate(node_ids)}
+    count = int(lines[0].split()[1])
+    for n in range(1, count + 1):
+        fields = lines[n].split()
+        x, y, z = nodes[at[int(fields[0])]]
+        lines[n] = f"{fields[0]} {fields[1]} {float(x)!r} {float(y)!r} {float(z)!r}"
+    with open(path, "w") as f:
+        f.write("\n".join(lines))
 
 
 def _write_gmsh(out, src, new_nodes, version):

@@ -7,7 +7,7 @@
 
 Shapes: STEP, IGES, BREP, FCStd (--shape-object NAME when it holds several).
 Meshes: Gmsh .msh v2/v4 (ids, entities and groups kept), .unv/.inp/.vtk/.vtu/.med/.z88 (FreeCAD
-FEM), .stl/.obj/.ply/.off (FreeCAD Mesh; float32), FCStd (--mesh-object NAME), other meshio
+FEM; Nastran .bdf read only, .dat written only), .stl/.obj/.ply/.off (FreeCAD Mesh; float32), FCStd (--mesh-object NAME), other meshio
 formats. The output format follows the -o extension (.msh: --msh-version 2 or 4, default: the
 input's). The JSON report holds the stats before/after, sweeps, seconds and how the nodes were
 put on the shape.

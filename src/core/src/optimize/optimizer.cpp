@@ -1040,6 +1040,54 @@ class NodeUpdater {
           restore(patch, uvSave, xyzSave, nSave);
         }
       }
+      // Last: each Face node of the element alone, at the best point of a grid over its
+      // neighbours (sampleNeighbourhood).
+      for (int k = 0; k < s_.mesh.elementSize(e) && !kept; ++k) {
+        const std::size_t j = static_cast<std::size_t>(nd[k]);
+        if (!movableHere(j)) continue;
+        const std::size_t g = sampleNeighbourhood(j, face, surf);
+        if (g > 0) {
+          kept = true;
+          gained += g;
+        }
+      }
+      // Then, with the joint untangling allowed: a Face node of the element where the element
+      // is valid (sampleNeighbourhood), the other Face nodes of its elements untangled around
+      // it (relaxPatch), kept when fewer elements around them all are tangled.
+      for (int k = 0; k < s_.mesh.elementSize(e) && !kept && relaxHere; ++k) {
+        const std::size_t j = static_cast<std::size_t>(nd[k]);
+        Vec2 target;
+        if (!movableHere(j) || relaxTries_ >= kMaxRelaxPatches ||
+            !sampleNeighbourhood(j, face, surf, static_cast<std::int64_t>(e), &target))
+          continue;
+        patch.clear();
+        for (std::int64_t p = s_.begin(j); p < s_.end(j); ++p) {
+          const std::size_t f = static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
+          const std::int32_t* fn = s_.mesh.elementNodes(f);
+          for (int q = 0; q < s_.mesh.elementSize(f); ++q) {
+            const std::size_t o = static_cast<std::size_t>(fn[q]);
+            if (o != j && movableHere(o) && !inPatch(o)) patch.push_back(o);
+          }
+        }
+        if (patch.empty() || patch.size() > kMaxRelaxPatchNodes) continue;
+        patch.push_back(j);
+        elementsAround(patch, &elems);
+        auto countTangled = [&]() { return tangledAmong(elems); };
+        const std::size_t t0 = countTangled();
+        save(patch, &uvSave, &xyzSave, &nSave);
+        patch.pop_back();  // j stays at the target
+        ++relaxTries_;
+        relaxed = true;
+        const std::size_t t1 =
+            placeAll({j}, {target}, face, surf) ? relaxPatch(patch, countTangled, t0) : t0;
+        patch.push_back(j);
+        if (t1 < t0) {
+          kept = true;
+          gained += t0 - t1;
+        } else {
+          restore(patch, uvSave, xyzSave, nSave);
+        }
+      }
       if (kept && backoff != s_.relaxBackoff.end()) s_.relaxBackoff.erase(backoff);
       if (kept && hBackoff != s_.harmonicBackoff.end()) s_.harmonicBackoff.erase(hBackoff);
       if (!kept && !relaxed) s_.harmonicBackoff[e].failed(sweep, s_.opt.deltaStallSweeps);
@@ -1900,6 +1948,89 @@ class NodeUpdater {
     return surf.unwrapNear(uvj, near);
   }
 
+  /// Escape of last resort for a tangled element that the Newton steps, the kernel centre, the
+  /// neighbours' centroid and the patch untanglings leave: Face node i (of `face`) tries the
+  /// centres of a kSampleGrid² grid over the parametric box of its elements' other corners.
+  /// Without `valid`: moves to the one leaving the fewest elements of its submesh tangled (then
+  /// the lowest f̂), when that is fewer than at its position — strict progress, like every
+  /// escape; returns the number of elements untangled. On a thin, strongly curved face a
+  /// triangle can stand across the surface with its free node far along the face from the
+  /// others (the bottle's thread): the valid positions, nearer to them, lie beyond a barrier of
+  /// f̂ that no local step crosses, and off the kernel (the triangle is wound right in (u,v)).
+  /// With `valid` (an element of i's): sets *target to the point where that element is valid
+  /// and the fewest elements of the submesh are tangled (then the lowest f̂), without moving i;
+  /// returns 1 when there is one.
+  std::size_t sampleNeighbourhood(std::size_t i, int face, const Surface& surf,
+                                  std::int64_t valid = -1, Vec2* target = nullptr) {
+    static constexpr int kSampleGrid = 16;
+    const Vec2 uv0 = s_.uv[i];
+    Vec2 lo = uv0, hi = uv0;
+    int validAt = -1;  // valid's index in i's incidence
+    for (std::int64_t p = s_.begin(i); p < s_.end(i); ++p) {
+      const std::size_t e = static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
+      const int nc = cornerCount(s_.mesh.elemType[e]);
+      if (s_.inc.local[static_cast<std::size_t>(p)] >= nc) return 0;  // a high-order side node
+      if (static_cast<std::int64_t>(e) == valid) validAt = static_cast<int>(p - s_.begin(i));
+      for (int k = 0; k < nc; ++k) {
+        if (static_cast<std::size_t>(s_.mesh.elementNodes(e)[k]) == i) continue;
+        const Vec2 c = cornerOnFace(e, k, face, surf, uv0);
+        lo = lo.cwiseMin(c);
+        hi = hi.cwiseMax(c);
+      }
+    }
+    if (!lo.allFinite() || !hi.allFinite() || (valid >= 0 && validAt < 0)) return 0;
+    const double orient = static_cast<double>(
+        s_.mesh.faceOrientation[static_cast<std::size_t>(face)] * surf.normalSign());
+    auto zero = [](std::size_t) { return Vec3::Zero().eval(); };
+    const Vec3 n0 = s_.nodeNormal[i];
+    const LocalEval cur = evalLocal(
+        i, s_.xyz[i], [&](std::size_t) { return n0; }, zero, false, nullptr, nullptr, nullptr);
+    // Evaluated as a trial (against a bound no trial reaches), evalLocal keeps each element's
+    // η at δ = 0 and det S in the worker's scratch.
+    LocalEval any;
+    any.f = kInf;
+    any.tangled = std::numeric_limits<int>::max();
+    const bool track = s_.trackCache;
+    s_.trackCache = true;
+    int bestTangled = valid >= 0 ? std::numeric_limits<int>::max() : cur.tangled;
+    double bestF = kInf;
+    Vec2 bestUV = uv0;
+    for (int a = 0; a < kSampleGrid; ++a)
+      for (int b = 0; b < kSampleGrid; ++b) {
+        const Vec2 r((a + 0.5) / kSampleGrid, (b + 0.5) / kSampleGrid);
+        const Vec2 uvT = surf.wrap(lo + (hi - lo).cwiseProduct(r));
+        if (!uvT.allFinite() || !surf.containsNearBoundary(uvT.x(), uvT.y())) continue;
+        const SurfaceD1 dT = surf.d1(uvT.x(), uvT.y());
+        if (isDegenerate(dT)) continue;
+        const Vec3 cr = dT.du.cross(dT.dv);
+        const Vec3 nT = (orient / cr.norm()) * cr;
+        const LocalEval tr = valid >= 0 ? evalLocal(
+                                              i, dT.p, [&](std::size_t) { return nT; }, zero, false,
+                                              &any, nullptr, nullptr)
+                                        : evalLocal(
+                                              i, dT.p, [&](std::size_t) { return nT; }, zero, false,
+                                              nullptr, nullptr, nullptr);
+        if (!tr.finite) continue;
+        const std::size_t v = static_cast<std::size_t>(std::max(validAt, 0));
+        if (valid >= 0 ? (w_.sig[v] <= 0.0 || !std::isfinite(w_.eta0[v]))
+                       : tr.tangled >= cur.tangled)
+          continue;  // `valid` still tangled, or no progress
+        if (tr.tangled < bestTangled || (tr.tangled == bestTangled && tr.f < bestF)) {
+          bestTangled = tr.tangled;
+          bestF = tr.f;
+          bestUV = uvT;
+        }
+      }
+    s_.trackCache = track;
+    if (valid >= 0) {
+      if (bestTangled == std::numeric_limits<int>::max()) return 0;
+      *target = bestUV;
+      return 1;
+    }
+    if (bestTangled >= cur.tangled || !placeAll({i}, {bestUV}, face, surf)) return 0;
+    return static_cast<std::size_t>(cur.tangled - bestTangled);
+  }
+
   /// Parametric centroid, on face `face` next to uv0, of the corners of Face node i's elements
   /// other than i (a Laplacian target, as Gmsh's Laplace2D).
   bool neighbourCentroid(std::size_t i, int face, const Surface& surf, const Vec2& uv0, Vec2* c) {
@@ -2067,9 +2198,34 @@ bool foldHeld(const SurfaceMesh& m, const std::vector<Vec3>& xyz, std::size_t e,
     return true;
   };
   if (type == ElementType::Quad4) {
+    // A corner whose three nodes lie on one CAD edge (sliding or fixed on it, or on a CAD
+    // vertex at its end) stays a triangle of three points of the edge's curve: its plane turns
+    // with the curve's geodesic curvature, not with the nodes' motion (a corner of 180° on an
+    // edge straight in (u,v), or bent the wrong way: Gmsh's simple recombination leaves such
+    // quads along CAD edges).
+    auto onEdge = [&](int k, std::int32_t edge, double tol) {
+      const std::size_t j = static_cast<std::size_t>(nd[k]);
+      if (m.nodeKind[j] == NodeKind::Face) return false;
+      if (m.nodeEdge[j] == edge) return true;
+      if (m.nodeKind[j] != NodeKind::Fixed || m.nodeEdge[j] >= 0) return false;
+      const Curve& c = *m.curves[static_cast<std::size_t>(edge)];
+      return (c.value(c.tmin()) - at(k)).norm() <= tol || (c.value(c.tmax()) - at(k)).norm() <= tol;
+    };
+    auto alongEdge = [&](int k, int k1, int k2) {
+      if (m.nodeEdge.empty() || m.curves.empty()) return false;
+      std::int32_t edge = -1;
+      for (int q : {k, k1, k2}) {
+        const std::size_t j = static_cast<std::size_t>(nd[q]);
+        if (m.nodeKind[j] == NodeKind::Edge) edge = m.nodeEdge[j];
+      }
+      if (edge < 0 || !m.curves[static_cast<std::size_t>(edge)]) return false;
+      const double tol = 1e-3 * std::sqrt(std::max((at(k1) - at(k)).squaredNorm(),
+                                                   (at(k2) - at(k)).squaredNorm()));
+      return onEdge(k, edge, tol) && onEdge(k1, edge, tol) && onEdge(k2, edge, tol);
+    };
     for (int k = 0; k < 4; ++k) {
       const int k1 = (k + 1) % 4, k2 = (k + 3) % 4;
-      if (movable(k) || movable(k1) || movable(k2)) continue;
+      if ((movable(k) || movable(k1) || movable(k2)) && !alongEdge(k, k1, k2)) continue;
       Jacobian32 J;
       J.col(0) = at(k1) - at(k);
       J.col(1) = at(k2) - at(k);

@@ -38,19 +38,23 @@
 // signed ones so that thin elements standing across a curved surface can turn over; an element that
 // stays stuck is untangled jointly again only after a backoff of 1, 2, 4, then deltaStallSweeps
 // sweeps, or when ε changes level, and its harmonic layout alone is retried after the same backoff
-// — see OptimizeResult::patchUntanglings). Tangled elements without a movable node cannot change:
+// — see OptimizeResult::patchUntanglings); last, a Face node of a stuck element tries the points of
+// a grid over the (u,v) box of its neighbours, alone, then (with the joint untangling) at the
+// point where the element is valid with the other Face nodes of its elements untangled
+// jointly around it. Tangled elements without a movable node cannot change:
 // they do not keep δ > 0 and are reported (OptimizeResult::warnings). The same holds for an
 // element that folds where only nodes that may not move act (a tangled corner triangle of a
-// quadrilateral on three such nodes; a high-order triangle tangled at a node or quadrature
-// point where the shape functions of its movable nodes have no gradient, e.g. at a CAD vertex
-// between two element edges on fixed CAD edges; when no corner may move, the element's normal
-// cannot change, and such a fold counts whatever the surface's normals at its corners say): it
-// is held from the start (while other elements are tangled it still sets δ and takes part in
-// the escapes, so the run is the same until no other element is tangled; then it smooths with
-// δ = 0). Neither do, after
-// 6 × deltaStallSweeps sweeps without fewer tangled elements than ever before (each level of
-// ε tried twice), the elements still tangled: their nodes are held from then on,
-// the rest of the mesh is smoothed with δ = 0, and they are reported in tangledMovable.
+// quadrilateral on three such nodes, or on three nodes of one CAD edge — sliding along it or
+// at its vertices: the corner stays a triangle of the edge's curve; a high-order triangle tangled
+// at a node or quadrature point where the shape functions of its movable nodes have no gradient,
+// e.g. at a CAD vertex between two element edges on fixed CAD edges; when no corner may move, the
+// element's normal cannot change, and such a fold counts whatever the surface's normals at its
+// corners say): it is held from the start (while other elements are tangled it still sets δ and
+// takes part in the escapes, so the run is the same until no other element is tangled; then it
+// smooths with δ = 0). Neither do, after 6 × deltaStallSweeps sweeps without fewer tangled elements
+// than ever before (each level of ε tried twice), the elements still tangled: their nodes are held
+// from then on, the rest of the mesh is smoothed with δ = 0, and they are reported in
+// tangledMovable.
 //
 // Triangles standing across the surface (standsAcross): a linear triangle is measured in its
 // own plane, oriented by the sum of its corner normals, so one whose plane cuts through a thin
