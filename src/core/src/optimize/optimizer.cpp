@@ -894,6 +894,21 @@ class NodeUpdater {
       auto movableHere = [&](std::size_t j) {
         return s_.mesh.nodeKind[j] == NodeKind::Face && s_.mesh.nodeFace[j] == face;
       };
+      // Adds to `nodes` the Face nodes of this face of the elements around them (one ring).
+      auto growRing = [&](std::vector<std::size_t>& nodes) {
+        const std::size_t n0 = nodes.size();
+        for (std::size_t q = 0; q < n0; ++q)
+          for (std::int64_t p = s_.begin(nodes[q]); p < s_.end(nodes[q]); ++p) {
+            const std::size_t f =
+                static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
+            const std::int32_t* fn = s_.mesh.elementNodes(f);
+            for (int k = 0; k < s_.mesh.elementSize(f); ++k) {
+              const std::size_t j = static_cast<std::size_t>(fn[k]);
+              if (movableHere(j) && std::find(nodes.begin(), nodes.end(), j) == nodes.end())
+                nodes.push_back(j);
+            }
+          }
+      };
       patch.clear();
       const std::int32_t* nd = s_.mesh.elementNodes(e);
       for (int k = 0; k < s_.mesh.elementSize(e); ++k) {
@@ -916,17 +931,7 @@ class NodeUpdater {
         std::size_t g = widenElement(e, patch, face, surf);
         if (g == 0) {
           std::vector<std::size_t> wider = patch;
-          for (std::size_t q = 0; q < patch.size(); ++q)
-            for (std::int64_t p = s_.begin(patch[q]); p < s_.end(patch[q]); ++p) {
-              const std::size_t f =
-                  static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
-              const std::int32_t* fn = s_.mesh.elementNodes(f);
-              for (int k = 0; k < s_.mesh.elementSize(f); ++k) {
-                const std::size_t j = static_cast<std::size_t>(fn[k]);
-                if (movableHere(j) && std::find(wider.begin(), wider.end(), j) == wider.end())
-                  wider.push_back(j);
-              }
-            }
+          growRing(wider);
           if (wider.size() > patch.size() && wider.size() <= kMaxWidenNodes)
             g = widenElement(e, wider, face, surf);
         }
@@ -941,16 +946,7 @@ class NodeUpdater {
       for (int ring = 0; ring <= 3 && !kept; ++ring) {
         if (ring > 0) {  // grow by one ring of Face nodes of this face
           const std::size_t n0 = patch.size();
-          for (std::size_t q = 0; q < n0; ++q)
-            for (std::int64_t p = s_.begin(patch[q]); p < s_.end(patch[q]); ++p) {
-              const std::size_t f =
-                  static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
-              const std::int32_t* fn = s_.mesh.elementNodes(f);
-              for (int k = 0; k < s_.mesh.elementSize(f); ++k) {
-                const std::size_t j = static_cast<std::size_t>(fn[k]);
-                if (movableHere(j) && !inPatch(j)) patch.push_back(j);
-              }
-            }
+          growRing(patch);
           if (patch.size() == n0 || patch.size() > 256) break;
         }
         elementsAround(patch, &elems);
