@@ -35,12 +35,17 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 SHARED = os.path.normpath(os.path.join(HERE, "..", "..", "shared", "data", "cad"))
 
 
-def mesh_arrays():
-    """All nodes (tags → 0-based) and the triangles of the current model."""
+def sorted_nodes():
+    """All nodes of the current model: their tags, sorted, and their coordinates (N, 3) in
+    that order (a node's 0-based index is its tag's place, np.searchsorted)."""
     tags, coord, _ = gmsh.model.mesh.getNodes()
     order = np.argsort(tags)
-    tags = tags[order]
-    xyz = coord.reshape(-1, 3)[order]
+    return tags[order], coord.reshape(-1, 3)[order]
+
+
+def mesh_arrays():
+    """All nodes (tags → 0-based) and the triangles of the current model."""
+    tags, xyz = sorted_nodes()
     etypes, _, enodes = gmsh.model.mesh.getElements(2)
     tris = []
     for t, nodes in zip(etypes, enodes):
@@ -53,8 +58,11 @@ def mesh_arrays():
 
 
 def write_dump(path, xyz, tris):
+    """bench_cad's binary mesh: node and element counts, coordinates, connectivity. Rows of 4
+    (quads, and triangles with −1 last) are marked by a negative element count."""
+    count = tris.shape[0] if tris.shape[1] == 3 else -tris.shape[0]
     with open(path, "wb") as f:
-        np.array([xyz.shape[0], tris.shape[0]], dtype=np.int64).tofile(f)
+        np.array([xyz.shape[0], count], dtype=np.int64).tofile(f)
         np.ascontiguousarray(xyz, dtype=np.float64).tofile(f)
         np.ascontiguousarray(tris, dtype=np.int32).tofile(f)
 
@@ -70,9 +78,11 @@ def face_nodes():
     return out
 
 
-def tangled_count(tris_by_face):
+def tangled_count(tris_by_face, owners_by_face=None):
     """Triangles wound against the majority of their surface (per surface): the triangle's
-    normal against the sum of the surface normals at its corners."""
+    normal against the sum of the surface normals at its corners. With `owners_by_face` (per
+    surface, the element each triangle belongs to: the corner triangles of quads), the
+    elements with such a triangle."""
     tags, coord, _ = gmsh.model.mesh.getNodes()
     pos = np.zeros((int(tags.max()) + 1, 3))
     pos[tags] = coord.reshape(-1, 3)
@@ -89,7 +99,10 @@ def tangled_count(tris_by_face):
         n = nrm[tri].sum(axis=1)
         s = np.sign(np.einsum("ij,ij->i", c, n))
         major = 1.0 if (s > 0).sum() >= (s < 0).sum() else -1.0
-        total += int((s != major).sum())
+        if owners_by_face is None:
+            total += int((s != major).sum())
+        else:
+            total += len(np.unique(owners_by_face[tag][s != major]))
     return total
 
 

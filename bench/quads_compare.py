@@ -33,10 +33,7 @@ DEFAULT_PARTS = "gmsh_solid56.step,occt_housing_bottom.brep,occt_bottle.brep,occ
 def mixed_arrays():
     """All nodes (tags → 0-based) and the elements of the current model as rows of 4 ids
     (−1 last for a triangle)."""
-    tags, coord, _ = gmsh.model.mesh.getNodes()
-    order = np.argsort(tags)
-    tags = tags[order]
-    xyz = coord.reshape(-1, 3)[order]
+    tags, xyz = gc.sorted_nodes()
     etypes, _, enodes = gmsh.model.mesh.getElements(2)
     rows = []
     for t, nodes in zip(etypes, enodes):
@@ -48,13 +45,6 @@ def mixed_arrays():
         else:
             raise RuntimeError(f"element type {t}: only linear triangles and quads")
     return tags, xyz, np.concatenate(rows).astype(np.int32)
-
-
-def write_mixed(path, xyz, elems):
-    with open(path, "wb") as f:
-        np.array([xyz.shape[0], -elems.shape[0]], dtype=np.int64).tofile(f)
-        np.ascontiguousarray(xyz, dtype=np.float64).tofile(f)
-        np.ascontiguousarray(elems, dtype=np.int32).tofile(f)
 
 
 def corner_triangles(types, nodes):
@@ -83,27 +73,12 @@ def tangled_elements():
     """Elements (triangles, quads) with a corner triangle wound against the majority of its
     surface's corner triangles (the normal against the sum of the surface normals at its
     corners), as gmsh_compare.tangled_count counts triangles."""
-    tags, coord, _ = gmsh.model.mesh.getNodes()
-    pos = np.zeros((int(tags.max()) + 1, 3))
-    pos[tags] = coord.reshape(-1, 3)
-    nrm = np.zeros_like(pos)
-    total = 0
+    tris, owners = {}, {}
     for _, tag in gmsh.model.getEntities(2):
         et, _, en = gmsh.model.mesh.getElements(2, tag)
-        if not len(et):
-            continue
-        tri, owner = corner_triangles(et, [np.array(x) for x in en])
-        nt, _, par = gmsh.model.mesh.getNodes(2, tag, includeBoundary=True,
-                                              returnParametricCoord=True)
-        if len(par) != 2 * len(nt):
-            continue
-        nrm[nt] = np.array(gmsh.model.getNormal(tag, list(par))).reshape(-1, 3)
-        p = pos[tri]
-        c = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-        s = np.sign(np.einsum("ij,ij->i", c, nrm[tri].sum(axis=1)))
-        major = 1.0 if (s > 0).sum() >= (s < 0).sum() else -1.0
-        total += len(np.unique(owner[s != major]))
-    return total
+        if len(et):
+            tris[tag], owners[tag] = corner_triangles(et, [np.array(x) for x in en])
+    return gc.tangled_count(tris, owners)
 
 
 def mesh_part(path, algo, recombine, div):
@@ -131,7 +106,7 @@ def run(a, path, algo, recombine, amp, seed, wdir):
     gmsh.write(brep)
     _, xyz, elems = mixed_arrays()
     inp = os.path.join(wdir, "in.bin")
-    write_mixed(inp, xyz, elems)
+    gc.write_dump(inp, xyz, elems)
     quads = int((elems[:, 3] >= 0).sum())
     m_in = gc.run_bench_cad(a.bench_dir, "measure", brep, inp)
     gc.restore(snap)
@@ -140,7 +115,7 @@ def run(a, path, algo, recombine, amp, seed, wdir):
     t_lap = time.perf_counter() - t0
     _, xyz_l, _ = mixed_arrays()
     out = os.path.join(wdir, "laplace.bin")
-    write_mixed(out, xyz_l, elems)
+    gc.write_dump(out, xyz_l, elems)
     m_lap = gc.run_bench_cad(a.bench_dir, "measure", brep, out)
     res = {}
     for boundary in a.boundary.split(","):
