@@ -1056,17 +1056,10 @@ class NodeUpdater {
         if (!movableHere(j) || relaxTries_ >= kMaxRelaxPatches ||
             !sampleNeighbourhood(j, face, surf, static_cast<std::int64_t>(e), &target))
           continue;
-        patch.clear();
-        for (std::int64_t p = s_.begin(j); p < s_.end(j); ++p) {
-          const std::size_t f = static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
-          const std::int32_t* fn = s_.mesh.elementNodes(f);
-          for (int q = 0; q < s_.mesh.elementSize(f); ++q) {
-            const std::size_t o = static_cast<std::size_t>(fn[q]);
-            if (o != j && movableHere(o) && !inPatch(o)) patch.push_back(o);
-          }
-        }
-        if (patch.empty() || patch.size() > kMaxRelaxPatchNodes) continue;
-        patch.push_back(j);
+        patch.assign(1, j);
+        growRing(patch);
+        if (patch.size() == 1 || patch.size() - 1 > kMaxRelaxPatchNodes) continue;
+        std::rotate(patch.begin(), patch.begin() + 1, patch.end());  // j last
         elementsAround(patch, &elems);
         auto countTangled = [&]() { return tangledAmong(elems); };
         const std::size_t t0 = countTangled();
