@@ -337,6 +337,57 @@ class GmshSideNodesOffTheirFace(unittest.TestCase):
         self.assertEqual(res.tangled_movable, [])
         self.assertEqual(len(res.tangled_unmovable), res.after.stats["tangled"])
 
+    def test_faces_and_classes_follow_gmsh_whatever_the_hints(self):
+        # Reference: Gmsh's own classification in the .msh (each element's surface, each
+        # node's entity). A side node Gmsh put on a CAD edge across a corner of its face (the
+        # nearest point of the face to the side's midpoint) lies inside that face's mesh: the
+        # tolerance hints of a file read by the command line used to hold it on the edge, and
+        # the propeller's second-order mesh ended with 16 tangled elements (4 with a movable
+        # node) instead of none. An element with a side node off its face (nearer to another
+        # face) goes on the face its corners share, as in Gmsh.
+        from SurfMesh.app import api, fileio
+
+        for name in ("occt_propeller.brep", "occt_housing_bottom.brep"):
+            shape, _, data, msh = self.gmsh_order2(name)
+            gmsh = fileio._gmsh()
+            gmsh.clear()
+            gmsh.open(msh)
+            node_dim, elem_surface = {}, {}
+            for dim, tag in gmsh.model.getEntities():
+                tags = gmsh.model.mesh.getNodes(dim, tag, includeBoundary=False)[0]
+                node_dim.update({int(t): dim for t in tags})
+            for _, tag in gmsh.model.getEntities(2):
+                for tags in gmsh.model.mesh.getElements(2, tag)[1]:
+                    elem_surface.update({int(t): tag for t in tags})
+            gmsh.clear()
+            classes = {}
+            for hints in ("tolerance", "none"):
+                d, h = api.prepare(data, shape, hints=hints)
+                work = d if d.kept is None else d.subset(d.kept)
+                faces = np.asarray(h.element_faces())
+                surfaces = np.array([elem_surface[int(t)] for t in work.element_ids])
+                for s in np.unique(surfaces):
+                    on = np.unique(faces[surfaces == s])
+                    self.assertEqual(len(on), 1, f"{name}, {hints}: Gmsh surface {s} on faces {on}")
+                cls = np.asarray(h.report["node_class"])
+                dims = np.array([node_dim.get(int(t), -1) for t in data.node_ids])
+                used = np.zeros(len(cls), dtype=bool)
+                used[np.unique(work.conn)] = True
+                on_surface = used & (dims == 2)
+                self.assertGreater(int(on_surface.sum()), 500)
+                # (0 vertex, 1 edge, 2 face; 3: a node the core places on no entity is fixed —
+                # the propeller has four side nodes each shared by four elements of two faces)
+                self.assertEqual(np.nonzero(on_surface & (cls <= 1))[0].tolist(), [],
+                                 f"{name}, {hints}: Gmsh's surface nodes on a CAD edge or vertex")
+                classes[hints] = cls
+            np.testing.assert_array_equal(classes["tolerance"], classes["none"], name)
+        # The command line's default for a file (tolerance hints) now untangles the propeller.
+        shape, _, data, _ = self.gmsh_order2("occt_propeller.brep")
+        res = SurfMesh.optimize(data, shape, boundary="fixed", hints="tolerance")
+        self.assertGreater(res.before.stats["tangled"], 40)
+        self.assertEqual(res.tangled_movable, [])
+        self.assertEqual(len(res.tangled_unmovable), res.after.stats["tangled"])
+
     def test_a_side_node_farther_than_its_element_is_refused(self):
         shape, diag, data, msh = self.gmsh_order2("occt_crankarm.brep")
         conn = data.conn.reshape(-1, 6)

@@ -12,6 +12,33 @@ import surfmesh_testing as T
 from SurfMesh.app import api, examples
 
 
+FACE = 2  # report["node_class"]: 0 vertex, 1 edge, 2 face
+
+
+def inside_one_face(data, handle):
+    """Bool per node: all its elements lie on one face and none of their corner sides through
+    it is used by one element only (the mesh's boundary)."""
+    work = data if data.kept is None else data.subset(data.kept)
+    faces = np.asarray(handle.element_faces())
+    n_nodes = len(work.nodes)
+    node_faces = [set() for _ in range(n_nodes)]
+    side_use = {}
+    for e in range(work.element_count):
+        nodes = [int(n) for n in work.element(e)]
+        for n in nodes:
+            node_faces[n].add(int(faces[e]))
+        nc, per = {3: (3, 0), 6: (3, 1), 10: (3, 2), 15: (3, 3), 21: (3, 4), 4: (4, 0)}[len(nodes)]
+        for k in range(nc):
+            a, b = nodes[k], nodes[(k + 1) % nc]
+            key = (min(a, b), max(a, b))
+            side_use.setdefault(key, []).append(nodes[nc + k * per: nc + (k + 1) * per])
+    boundary = np.zeros(n_nodes, dtype=bool)
+    for (a, b), uses in side_use.items():
+        if len(uses) == 1:
+            boundary[[a, b] + list(uses[0])] = True
+    return np.array([len(f) == 1 for f in node_faces]) & ~boundary
+
+
 class GmshCase(unittest.TestCase):
     def setUp(self):
         self.doc = FreeCAD.newDocument("SurfMeshGmshTest")
@@ -106,8 +133,20 @@ class GmshCase(unittest.TestCase):
             self.assertGreater(int((data.hint_edge >= 0).sum()), 0)
             d_fc, h_fc = api.prepare(data, part.Shape, hints="given")
             r_core, r_fc = h_core.report, h_fc.report
-            np.testing.assert_array_equal(r_core["node_class"], r_fc["node_class"], name)
-            np.testing.assert_array_equal(r_core["node_entity"], r_fc["node_entity"], name)
+            # Except for a node inside one face's mesh (all its elements on one face, no side
+            # of theirs through it on the mesh's boundary): FreeCAD's queries name an edge or a
+            # vertex whose tolerance holds it, the rule leaves it a face node.
+            inside = inside_one_face(d_core, h_core)
+            cls_core = np.asarray(r_core["node_class"])
+            cls_fc = np.asarray(r_fc["node_class"])
+            differ = np.nonzero(cls_core != cls_fc)[0]
+            self.assertTrue(np.all(inside[differ]), name)
+            self.assertTrue(np.all(cls_core[differ] == FACE), name)
+            self.assertTrue(np.all(cls_fc[differ] != FACE), name)
+            same = cls_core == cls_fc
+            np.testing.assert_array_equal(np.asarray(r_core["node_entity"])[same],
+                                          np.asarray(r_fc["node_entity"])[same], name)
+            self.assertGreater(int(same.sum()), 0.99 * len(same))
             self.assertEqual(r_core.get("skipped_elements", []), r_fc.get("skipped_elements", []))
             self.assertEqual(r_core["hints_rejected"], 0)
             # The same mesh as plain arrays (a FEM mesher's file read by the CLI): "tolerance"

@@ -1581,31 +1581,57 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
       // one, some to the other. The element goes on the face of its nodes' candidates
       // farthest from none of them by more than the tolerance (nearest in its worst node).
       // A high-order side or interior node may be as far as its reach (kHighOrderReach):
-      // outside its face's trimmed domain, it may be nearer to another face.
-      tmp.clear();
-      for (int k = 0; k < nn; ++k) {
+      // outside its face's trimmed domain, it may be nearer to another face. Such an element
+      // goes on a face its corners share when there is one: the corners are where the
+      // mesher put the element, a side node off its face is nearer to some other face
+      // (Gmsh's second-order triangle along a CAD edge of a propeller blade, with a side node
+      // across a concave boundary, went on the face beyond that edge and moved its edge
+      // nodes into it).
+      const int nc = cornerCount(input.types[e]);
+      auto candidates = [&](int upTo, std::vector<int>* out) {
+        out->clear();
+        for (int k = 0; k < upTo; ++k) {
+          const auto& f = nodeFaces[static_cast<std::size_t>(nd[k])];
+          out->insert(out->end(), f.begin(), f.end());
+        }
+        std::sort(out->begin(), out->end());
+        out->erase(std::unique(out->begin(), out->end()), out->end());
+      };
+      common = nodeFaces[static_cast<std::size_t>(nd[0])];
+      for (int k = 1; k < nc && !common.empty(); ++k) {
         const auto& f = nodeFaces[static_cast<std::size_t>(nd[k])];
-        tmp.insert(tmp.end(), f.begin(), f.end());
+        tmp.clear();
+        std::set_intersection(common.begin(), common.end(), f.begin(), f.end(),
+                              std::back_inserter(tmp));
+        common.swap(tmp);
       }
-      std::sort(tmp.begin(), tmp.end());
-      tmp.erase(std::unique(tmp.begin(), tmp.end()), tmp.end());
+      if (nc < nn && !common.empty())
+        tmp = common;
+      else
+        candidates(nn, &tmp);
       double bestWorst = kInf;
       bool bestWithinTol = false;
-      for (int f : tmp) {
-        double worst = 0.0;
-        bool ok = true, withinTol = true;
-        for (int k = 0; k < nn && ok; ++k) {
-          const std::size_t n = static_cast<std::size_t>(nd[k]);
-          const double bound = std::max(tol, reach[n]);
-          const double d = pr.faceDistance(f, input.nodes[n], bound).dist;
-          ok = d <= bound;
-          withinTol = withinTol && d <= tol;
-          worst = std::max(worst, d);
+      for (int pass = 0; pass < 2 && elemFace[e] < 0; ++pass) {
+        if (pass == 1) {  // no face the corners share holds the side nodes within reach
+          if (!(nc < nn && !common.empty())) break;
+          candidates(nn, &tmp);
         }
-        if (ok && worst < bestWorst) {
-          bestWorst = worst;
-          bestWithinTol = withinTol;
-          elemFace[e] = f;
+        for (int f : tmp) {
+          double worst = 0.0;
+          bool ok = true, withinTol = true;
+          for (int k = 0; k < nn && ok; ++k) {
+            const std::size_t n = static_cast<std::size_t>(nd[k]);
+            const double bound = std::max(tol, reach[n]);
+            const double d = pr.faceDistance(f, input.nodes[n], bound).dist;
+            ok = d <= bound;
+            withinTol = withinTol && d <= tol;
+            worst = std::max(worst, d);
+          }
+          if (ok && worst < bestWorst) {
+            bestWorst = worst;
+            bestWithinTol = withinTol;
+            elemFace[e] = f;
+          }
         }
       }
       offFace[e] = elemFace[e] >= 0 && bestWithinTol;
@@ -1752,11 +1778,15 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
       if (h.face == f) return &h;
     return nullptr;
   };
+  auto isPoleVertex = [&](int v) {
+    for (int e : S.vertexEdges(v))
+      if (S.isDegeneratedEdge(e)) return true;
+    return false;
+  };
   auto setVertex = [&](std::size_t n, int v) {
     report_.nodeClass[n] = NodeClass::Vertex;
     report_.nodeEntity[n] = v;
-    for (int e : S.vertexEdges(v))
-      if (S.isDegeneratedEdge(e)) isPole[n] = 1;
+    if (isPoleVertex(v)) isPole[n] = 1;
   };
   auto setFace = [&](std::size_t n, int f) {
     report_.nodeClass[n] = NodeClass::Face;
@@ -1801,11 +1831,23 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
       report_.nodeEntity[n] = best;
       continue;
     }
-    if (forced[n] == Forced::Vertex && includesAll(S.vertexFaces(forcedId[n]), F)) {
+    // A tolerance hint (not a given one) on a node inside one face's mesh — all its elements
+    // on that face, none with a side on the mesh's boundary — is not taken: the mesh has the
+    // node in the face's interior, where it moves. A mesher that curves an element across a
+    // corner of its face puts the side node at its nearest point of the face, on the CAD edge
+    // (Gmsh's second-order meshes), and a face narrower than its edges' tolerance has every
+    // node in that tolerance; held there, such elements could not be repaired. A pole stays
+    // a vertex: it is inside its face's mesh.
+    const bool givenHint = (!input.hintVertex.empty() && input.hintVertex[n] >= 0) ||
+                           (!input.hintEdge.empty() && input.hintEdge[n] >= 0) ||
+                           (!input.hintFace.empty() && input.hintFace[n] >= 0);
+    const bool insideOneFace = F.size() == 1 && !onMeshBoundary[n] && !givenHint;
+    if (forced[n] == Forced::Vertex && includesAll(S.vertexFaces(forcedId[n]), F) &&
+        !(insideOneFace && !isPoleVertex(forcedId[n]))) {
       setVertex(n, forcedId[n]);
       continue;
     }
-    if (forced[n] == Forced::Edge && includesAll(S.edgeFaces(forcedId[n]), F)) {
+    if (forced[n] == Forced::Edge && includesAll(S.edgeFaces(forcedId[n]), F) && !insideOneFace) {
       setEdge(n, forcedId[n], forcedT[n]);
       continue;
     }
