@@ -1692,7 +1692,19 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   std::vector<std::vector<int>> elemFacesOfNode(N);
   std::vector<double> hmin(N, kInf);
   std::vector<unsigned char> onMeshBoundary(N, 0);
+  std::vector<unsigned char> sideNode(N, 0);  // 1: a high-order node of some element, no corner
   {
+    for (std::size_t e = 0; e < E; ++e) {
+      const std::int32_t* nd = input.conn.data() + offsets[e];
+      const int nn = static_cast<int>(offsets[e + 1] - offsets[e]);
+      for (int k = cornerCount(input.types[e]); k < nn; ++k)
+        sideNode[static_cast<std::size_t>(nd[k])] = 1;
+    }
+    for (std::size_t e = 0; e < E; ++e) {
+      const std::int32_t* nd = input.conn.data() + offsets[e];
+      for (int k = 0; k < cornerCount(input.types[e]); ++k)
+        sideNode[static_cast<std::size_t>(nd[k])] = 0;
+    }
     // Mesh edges (corner to corner) counted through buckets by their smaller node: an edge
     // used by one element only is on the mesh's boundary.
     struct EdgeRef {
@@ -1831,23 +1843,25 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
       report_.nodeEntity[n] = best;
       continue;
     }
-    // A tolerance hint (not a given one) on a node inside one face's mesh — all its elements
-    // on that face, none with a side on the mesh's boundary — is not taken: the mesh has the
-    // node in the face's interior, where it moves. A mesher that curves an element across a
-    // corner of its face puts the side node at its nearest point of the face, on the CAD edge
-    // (Gmsh's second-order meshes), and a face narrower than its edges' tolerance has every
-    // node in that tolerance; held there, such elements could not be repaired. A pole stays
-    // a vertex: it is inside its face's mesh.
+    // A tolerance hint (not a given one) on a CAD edge is not taken for a high-order side node
+    // that lies on the edge but inside one face's mesh (all its elements on that face, none
+    // with a side on the mesh's boundary): a mesher that curves an element across a corner of
+    // its face puts the side node at its nearest point of the face, on the CAD edge (Gmsh's
+    // second-order meshes); held there, such elements could not be repaired. Corners and nodes
+    // merely within an edge's tolerance keep the rule (the nodes of a face narrower than its
+    // edges' tolerance, the bottle's thread, must stay where FreeCAD's queries put them).
     const bool givenHint = (!input.hintVertex.empty() && input.hintVertex[n] >= 0) ||
                            (!input.hintEdge.empty() && input.hintEdge[n] >= 0) ||
                            (!input.hintFace.empty() && input.hintFace[n] >= 0);
-    const bool insideOneFace = F.size() == 1 && !onMeshBoundary[n] && !givenHint;
-    if (forced[n] == Forced::Vertex && includesAll(S.vertexFaces(forcedId[n]), F) &&
-        !(insideOneFace && !isPoleVertex(forcedId[n]))) {
+    const bool sideOnEdgeInside = forced[n] == Forced::Edge && !givenHint && sideNode[n] &&
+                                  F.size() == 1 && !onMeshBoundary[n] && !hits[n].empty() &&
+                                  hits[n].front().dist <= 1e-6 * diag;
+    if (forced[n] == Forced::Vertex && includesAll(S.vertexFaces(forcedId[n]), F)) {
       setVertex(n, forcedId[n]);
       continue;
     }
-    if (forced[n] == Forced::Edge && includesAll(S.edgeFaces(forcedId[n]), F) && !insideOneFace) {
+    if (forced[n] == Forced::Edge && includesAll(S.edgeFaces(forcedId[n]), F) &&
+        !sideOnEdgeInside) {
       setEdge(n, forcedId[n], forcedT[n]);
       continue;
     }
