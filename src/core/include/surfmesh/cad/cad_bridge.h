@@ -111,10 +111,9 @@ struct BridgeOptions {
   /// instead of one distance query per node and entity: a node within a vertex's tolerance
   /// is hinted to the nearest such vertex; else a node closer than its tolerance to exactly
   /// one edge, to that edge. These hints are checked like given ones (and not counted in
-  /// hintsRejected when they do not check out), and are not taken for a node inside one
-  /// face's mesh (all its elements on that face, not on the mesh's boundary; poles excepted):
-  /// such a node is a face node (a side node a mesher put on a CAD edge across a corner of
-  /// its face, nodes of a face narrower than its edges' tolerance).
+  /// hintsRejected when they do not check out), except that a high-order side node lying on
+  /// a CAD edge inside one face's mesh (all its elements on that face, not on the mesh's
+  /// boundary) is a face node: a mesher put it there across a corner of its face.
   bool toleranceHints = false;
   /// Keep the per-node face search (step 1 of the recovery, the costly part) in the CadMesh,
   /// so that a CadMesh of the same nodes with other elements (e.g. some left out) can reuse
