@@ -1692,19 +1692,9 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   std::vector<std::vector<int>> elemFacesOfNode(N);
   std::vector<double> hmin(N, kInf);
   std::vector<unsigned char> onMeshBoundary(N, 0);
-  std::vector<unsigned char> sideNode(N, 0);  // 1: a high-order node of some element, no corner
+  // Per node: bit 0 a corner of some element, bit 1 a high-order node of some element.
+  std::vector<unsigned char> nodeRoles(N, 0);
   {
-    for (std::size_t e = 0; e < E; ++e) {
-      const std::int32_t* nd = input.conn.data() + offsets[e];
-      const int nn = static_cast<int>(offsets[e + 1] - offsets[e]);
-      for (int k = cornerCount(input.types[e]); k < nn; ++k)
-        sideNode[static_cast<std::size_t>(nd[k])] = 1;
-    }
-    for (std::size_t e = 0; e < E; ++e) {
-      const std::int32_t* nd = input.conn.data() + offsets[e];
-      for (int k = 0; k < cornerCount(input.types[e]); ++k)
-        sideNode[static_cast<std::size_t>(nd[k])] = 0;
-    }
     // Mesh edges (corner to corner) counted through buckets by their smaller node: an edge
     // used by one element only is on the mesh's boundary.
     struct EdgeRef {
@@ -1716,12 +1706,13 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
     for (std::size_t e = 0; e < E; ++e) {
       const std::int32_t* nd = input.conn.data() + offsets[e];
       const int nn = static_cast<int>(offsets[e + 1] - offsets[e]);
+      const ElementEdges ee = elementEdges(input.types[e]);
       for (int k = 0; k < nn; ++k) {
         // Each face once per node (consecutive elements mostly share their face).
         auto& l = elemFacesOfNode[static_cast<std::size_t>(nd[k])];
         if (l.empty() || l.back() != elemFace[e]) l.push_back(elemFace[e]);
+        nodeRoles[static_cast<std::size_t>(nd[k])] |= k < ee.corners ? 1u : 2u;
       }
-      const ElementEdges ee = elementEdges(input.types[e]);
       for (int k = 0; k < ee.corners; ++k) {
         const std::int32_t a = nd[k], b = nd[(k + 1) % ee.corners];
         ++start[static_cast<std::size_t>(std::min(a, b)) + 1];
@@ -1790,15 +1781,11 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
       if (h.face == f) return &h;
     return nullptr;
   };
-  auto isPoleVertex = [&](int v) {
-    for (int e : S.vertexEdges(v))
-      if (S.isDegeneratedEdge(e)) return true;
-    return false;
-  };
   auto setVertex = [&](std::size_t n, int v) {
     report_.nodeClass[n] = NodeClass::Vertex;
     report_.nodeEntity[n] = v;
-    if (isPoleVertex(v)) isPole[n] = 1;
+    for (int e : S.vertexEdges(v))
+      if (S.isDegeneratedEdge(e)) isPole[n] = 1;
   };
   auto setFace = [&](std::size_t n, int f) {
     report_.nodeClass[n] = NodeClass::Face;
@@ -1853,7 +1840,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
     const bool givenHint = (!input.hintVertex.empty() && input.hintVertex[n] >= 0) ||
                            (!input.hintEdge.empty() && input.hintEdge[n] >= 0) ||
                            (!input.hintFace.empty() && input.hintFace[n] >= 0);
-    const bool sideOnEdgeInside = forced[n] == Forced::Edge && !givenHint && sideNode[n] &&
+    const bool sideOnEdgeInside = forced[n] == Forced::Edge && !givenHint && nodeRoles[n] == 2u &&
                                   F.size() == 1 && !onMeshBoundary[n] && !hits[n].empty() &&
                                   hits[n].front().dist <= 1e-6 * diag;
     if (forced[n] == Forced::Vertex && includesAll(S.vertexFaces(forcedId[n]), F)) {
