@@ -797,6 +797,14 @@ std::string faceNames(const std::vector<int>& v) {
   return s.empty() ? "no face" : s;
 }
 
+/// Whether the caller gave node n a hint (a vertex, edge or face of its own; the tolerance
+/// rule's are not given ones).
+bool givenHint(const MeshInput& input, std::size_t n) {
+  return (!input.hintVertex.empty() && input.hintVertex[n] >= 0) ||
+         (!input.hintEdge.empty() && input.hintEdge[n] >= 0) ||
+         (!input.hintFace.empty() && input.hintFace[n] >= 0);
+}
+
 bool includesAll(const std::vector<int>& sortedSuper, const std::vector<int>& sortedSub) {
   return std::includes(sortedSuper.begin(), sortedSuper.end(), sortedSub.begin(), sortedSub.end());
 }
@@ -1403,7 +1411,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
         int hv = input.hintVertex.empty() ? -1 : input.hintVertex[n];
         int he = input.hintEdge.empty() ? -1 : input.hintEdge[n];
         const int hf = input.hintFace.empty() ? -1 : input.hintFace[n];
-        const bool given = hv >= 0 || he >= 0 || hf >= 0;
+        const bool given = givenHint(input, n);
         if (!given && options.toleranceHints)
           pr.toleranceHint(p, *vertexGrid, vertexTol, *edgeGrid, edgeTol, &hv, &he);
         // A hint is taken when the node lies on its entity (within `close`), or within the
@@ -1564,11 +1572,16 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   // the mesh's winding below); empty for the others.
   std::vector<std::vector<int>> doubtfulFaces(E);
   parallelFor(E, projectors, [&](std::size_t e, Projector& pr) {
-    thread_local std::vector<int> common, tmp;  // kept from element to element (no allocation)
+    // Kept from element to element (no allocation). cornerFaces: the faces every corner is
+    // near, for an element with side or interior nodes (empty otherwise).
+    thread_local std::vector<int> common, tmp, cornerFaces;
     const std::int32_t* nd = input.conn.data() + offsets[e];
     const int nn = static_cast<int>(offsets[e + 1] - offsets[e]);
+    const int nc = cornerCount(input.types[e]);
+    cornerFaces.clear();
     common = nodeFaces[static_cast<std::size_t>(nd[0])];
     for (int k = 1; k < nn && !common.empty(); ++k) {
+      if (k == nc) cornerFaces = common;
       const auto& f = nodeFaces[static_cast<std::size_t>(nd[k])];
       tmp.clear();
       std::set_intersection(common.begin(), common.end(), f.begin(), f.end(),
@@ -1587,36 +1600,10 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
       // (Gmsh's second-order triangle along a CAD edge of a propeller blade, with a side node
       // across a concave boundary, went on the face beyond that edge and moved its edge
       // nodes into it).
-      const int nc = cornerCount(input.types[e]);
-      auto candidates = [&](int upTo, std::vector<int>* out) {
-        out->clear();
-        for (int k = 0; k < upTo; ++k) {
-          const auto& f = nodeFaces[static_cast<std::size_t>(nd[k])];
-          out->insert(out->end(), f.begin(), f.end());
-        }
-        std::sort(out->begin(), out->end());
-        out->erase(std::unique(out->begin(), out->end()), out->end());
-      };
-      common = nodeFaces[static_cast<std::size_t>(nd[0])];
-      for (int k = 1; k < nc && !common.empty(); ++k) {
-        const auto& f = nodeFaces[static_cast<std::size_t>(nd[k])];
-        tmp.clear();
-        std::set_intersection(common.begin(), common.end(), f.begin(), f.end(),
-                              std::back_inserter(tmp));
-        common.swap(tmp);
-      }
-      if (nc < nn && !common.empty())
-        tmp = common;
-      else
-        candidates(nn, &tmp);
       double bestWorst = kInf;
       bool bestWithinTol = false;
-      for (int pass = 0; pass < 2 && elemFace[e] < 0; ++pass) {
-        if (pass == 1) {  // no face the corners share holds the side nodes within reach
-          if (!(nc < nn && !common.empty())) break;
-          candidates(nn, &tmp);
-        }
-        for (int f : tmp) {
+      auto pick = [&](const std::vector<int>& faces) {
+        for (int f : faces) {
           double worst = 0.0;
           bool ok = true, withinTol = true;
           for (int k = 0; k < nn && ok; ++k) {
@@ -1633,6 +1620,17 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
             elemFace[e] = f;
           }
         }
+      };
+      pick(cornerFaces);
+      if (elemFace[e] < 0) {  // no face the corners share holds the side nodes within reach
+        tmp.clear();
+        for (int k = 0; k < nn; ++k) {
+          const auto& f = nodeFaces[static_cast<std::size_t>(nd[k])];
+          tmp.insert(tmp.end(), f.begin(), f.end());
+        }
+        std::sort(tmp.begin(), tmp.end());
+        tmp.erase(std::unique(tmp.begin(), tmp.end()), tmp.end());
+        pick(tmp);
       }
       offFace[e] = elemFace[e] >= 0 && bestWithinTol;
       return;
@@ -1837,12 +1835,9 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
     // second-order meshes); held there, such elements could not be repaired. Corners and nodes
     // merely within an edge's tolerance keep the rule (the nodes of a face narrower than its
     // edges' tolerance, the bottle's thread, must stay where FreeCAD's queries put them).
-    const bool givenHint = (!input.hintVertex.empty() && input.hintVertex[n] >= 0) ||
-                           (!input.hintEdge.empty() && input.hintEdge[n] >= 0) ||
-                           (!input.hintFace.empty() && input.hintFace[n] >= 0);
-    const bool sideOnEdgeInside = forced[n] == Forced::Edge && !givenHint && nodeRoles[n] == 2u &&
-                                  F.size() == 1 && !onMeshBoundary[n] && !hits[n].empty() &&
-                                  hits[n].front().dist <= 1e-6 * diag;
+    const bool sideOnEdgeInside = forced[n] == Forced::Edge && !givenHint(input, n) &&
+                                  nodeRoles[n] == 2u && F.size() == 1 && !onMeshBoundary[n] &&
+                                  !hits[n].empty() && hits[n].front().dist <= 1e-6 * diag;
     if (forced[n] == Forced::Vertex && includesAll(S.vertexFaces(forcedId[n]), F)) {
       setVertex(n, forcedId[n]);
       continue;
