@@ -21,7 +21,10 @@ Options by environment (freecadcmd takes no script options): SURFMESH_PF_PARTS (
 files in SURFMESH_PF_CAD_DIR, default ../shared/data/cad), SURFMESH_PF_DIV (element size =
 diagonal / DIV, 25), SURFMESH_PF_ORDER (2nd or 1st), SURFMESH_PF_AMPS (0,0.3,0.6; 0: the mesher's mesh as it is),
 SURFMESH_PF_SEEDS (1,2), SURFMESH_PF_RECOMBINE (1: Gmsh's quadrilaterals, RecombineAll; with the
-1st order).
+1st order), SURFMESH_PF_MESH_DIR (a directory: each mesh is read from there when it holds one
+of the same part, size, order and recombination, else made and written there as .unv —
+FreeCAD's Gmsh does not always give the same mesh twice, so comparing two revisions needs the
+same file).
 """
 
 import argparse  # Namespace only
@@ -32,6 +35,7 @@ import time
 import numpy as np
 
 import FreeCAD
+import Fem
 import Part
 import SurfMesh
 from SurfMesh.app import api, conversion, examples
@@ -53,6 +57,7 @@ def main():
         recombine=env("SURFMESH_PF_RECOMBINE", "0") == "1",
         cad_dir=env("SURFMESH_PF_CAD_DIR",
                     os.path.join(HERE, "..", "..", "..", "shared", "data", "cad")),
+        mesh_dir=env("SURFMESH_PF_MESH_DIR", ""),
     )
     print("| part | mesh | amp | seed | Face nodes moved | tangled before → after (movable) "
           "| min q after | mean q after | sweeps | optimize s | max distance to the face "
@@ -66,9 +71,21 @@ def main():
         shape = part.Shape
         diag = shape.BoundBox.DiagonalLength
         t = time.perf_counter()
-        mesh = examples.make_gmsh_mesh(doc, part, diag / a.div, order=a.order,
-                                       recombine=a.recombine)
-        t_gmsh = time.perf_counter() - t
+        stored = ""
+        if a.mesh_dir:
+            stem = os.path.splitext(name)[0]
+            stored = os.path.join(a.mesh_dir, f"{stem}_div{a.div:g}_{a.order}"
+                                  f"{'_quads' if a.recombine else ''}.unv")
+        if stored and os.path.exists(stored):
+            mesh = Fem.read(stored)
+            t = None
+        else:
+            mesh = examples.make_gmsh_mesh(doc, part, diag / a.div, order=a.order,
+                                           recombine=a.recombine)
+            if stored:
+                os.makedirs(a.mesh_dir, exist_ok=True)
+                mesh.FemMesh.write(stored)
+        t_gmsh = -1.0 if t is None else time.perf_counter() - t
         data, handle = api.prepare(mesh, shape)
         w = data if data.kept is None else data.subset(data.kept)
         kinds = np.asarray(handle.node_kinds())
@@ -77,7 +94,8 @@ def main():
         size = local_sizes(data, w)
         kind = {(False, "1st"): "tria3", (False, "2nd"): "tria6", (True, "1st"): "quad4",
                 (True, "2nd"): "quad8"}[(a.recombine, a.order)]
-        label = f"{kind} diag/{a.div:g} ({w.element_count} el., Gmsh {t_gmsh:.0f} s)"
+        made = "read" if stored and t_gmsh < 0 else f"Gmsh {t_gmsh:.0f} s"
+        label = f"{kind} diag/{a.div:g} ({w.element_count} el., {made})"
         amps = [float(x) for x in a.amps.split(",")]
         runs = [(amp, seed) for amp in amps if amp > 0 for seed in a.seeds.split(",")]
         if 0.0 in amps:

@@ -538,6 +538,61 @@ class BadInputApi(unittest.TestCase):
         self.expect_error(arrays(self.nodes, tris[:-2] + [third]), "non-manifold",
                           call=("optimize",))
 
+    def test_misjoined_second_order_elements_at_a_degenerate_spot_left_out(self):
+        """Gmsh's second-order mesh of the bottle's thread where it ends: around collapsed
+        elements, curved elements joined through side nodes no conforming mesh shares (a side
+        node that is also a corner). They are left out with the collapsed elements, and every
+        element using such a node with them (none can be told apart as wrong); the same
+        element away from collapsed ones is not touched."""
+        plane = Part.makePlane(10, 10)
+        n = 4  # 4 × 4 squares, two second-order triangles each, side nodes at the midpoints
+        pts, index = [], {}
+
+        def node(x, y):
+            key = (round(x, 9), round(y, 9))
+            if key not in index:
+                index[key] = len(pts)
+                pts.append((x, y, 0.0))
+            return index[key]
+
+        h = 10.0 / n
+        tris = []
+        for i in range(n):
+            for j in range(n):
+                for a, b, c in (((i, j), (i + 1, j), (i + 1, j + 1)),
+                                ((i, j), (i + 1, j + 1), (i, j + 1))):
+                    cs = [node(x * h, y * h) for x, y in (a, b, c)]
+                    mids = [node((p[0] + q[0]) * h / 2, (p[1] + q[1]) * h / 2)
+                            for p, q in ((a, b), (b, c), (c, a))]
+                    tris.append(cs + mids)
+        E = len(tris)
+        centre = node(2 * h, 2 * h)
+        right = node(3 * h, 2 * h)  # a corner next to it
+        far1, far2 = len(pts), len(pts) + 1
+        pts += [(3.2 * h, 2.6 * h, 0.0), (2.6 * h, 2.9 * h, 0.0)]
+        extra = len(pts)
+        pts += [((3 * h + 2.6 * h) / 2, 2.45 * h, 0.0), (2.9 * h, 2.75 * h, 0.0),
+                (2.3 * h, 2.5 * h, 0.0), (2.2 * h, 2.3 * h, 0.0), (2.4 * h, 2.2 * h, 0.0)]
+        # Its side node on (right, far1) is `centre`, a corner of the grid's elements.
+        misjoined = [right, far1, far2, centre, extra, extra + 1]
+        collapsed = [centre, centre, far2, extra + 2, extra + 3, extra + 4]
+        nodes = np.array(pts)
+        res = SurfMesh.optimize(arrays(nodes, tris + [misjoined, collapsed]), plane)
+        left = set(res.bridge["skipped_elements"])
+        around = {e for e in range(E) if centre in tris[e][:3]}
+        self.assertEqual(len(around), 6)
+        self.assertEqual(left, {E, E + 1} | around)
+        warning = next(w for w in res.bridge["warnings"] if w.startswith("left out"))
+        self.assertIn("1 collapsed element", warning)
+        self.assertIn("7 high-order element(s) joined to those through side nodes", warning)
+        self.assertEqual(res.after.stats["elements"], E + 2 - len(left))
+        self.assertEqual(res.after.stats["tangled"], 0)
+        self.assertLess(np.abs(res.nodes[:, 2]).max(), 1e-12)  # on the plane
+        # Without the collapsed element nothing is left out (no degenerate spot).
+        rep = SurfMesh.measure(arrays(nodes, tris + [misjoined]), plane)
+        self.assertEqual(rep.stats["elements"], E + 1)
+        self.assertEqual(rep.bridge.get("skipped_elements", []), [])
+
     def test_volume_mesh_is_measured_but_not_moved(self):
         # Moving the surface nodes of a volume mesh would leave its interior nodes behind and
         # could invert the tetrahedra along the surface: optimize refuses, measure works.

@@ -214,8 +214,12 @@ def prepare(mesh, shape, boundary="fixed", tolerance=None, hints="auto", collaps
     through FreeCAD have them where nodes were merged, e.g. at the apex of a cone) and with
     flat tangled slivers whose nodes all lie on one CAD edge (Gmsh's "elements remain invalid"):
     "skip" leaves them, and pairs of elements on the same nodes (folded onto each other), out
-    of measuring and optimizing (reported in ``skipped`` and in the
-    bridge warnings; their nodes stay where they are); "error" raises ValueError naming the
+    of measuring and optimizing, with the elements of the mesher's degenerate spot around
+    collapsed ones: overlapping elements (more than two on one edge), elements wound against
+    their face's mesh, and high-order elements joined through side nodes no conforming mesh
+    shares (a side node that is also a corner, or on two different edges: Gmsh's second-order
+    mesh of the bottle's thread where it ends). They are reported in ``skipped`` and in the
+    bridge warnings; their nodes stay where they are. "error" raises ValueError naming the
     first collapsed element (flat boundary elements are then measured as tangled).
 
     duplicates: what to do with nodes used by elements at exactly the same position as another
@@ -303,15 +307,20 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, duplicates="glu
     data.kept = None
     data.flat = None
     crowded = np.zeros(data.element_count, dtype=bool)
+    misjoined = np.zeros(data.element_count, dtype=bool)
     if collapsed == "skip":
         bad = bad | dup
-        # Overlapping elements around the collapsed ones (a mesher's degenerate spot).
+        # Overlapping elements around the collapsed ones (a mesher's degenerate spot), joined
+        # through a corner edge or through side nodes.
         for _ in range(8):
-            more = data.crowded_edge_elements(bad | crowded) & ~crowded
-            if not more.any():
+            gone = bad | crowded | misjoined
+            more = data.crowded_edge_elements(gone) & ~gone
+            joined = data.misjoined_elements(gone) & ~gone & ~more
+            if not more.any() and not joined.any():
                 break
             crowded |= more
-        bad = bad | crowded
+            misjoined |= joined
+        bad = bad | crowded | misjoined
     if bad.any():
         ids = data.element_ids[bad]
         if collapsed == "error" or bad.all():
@@ -355,14 +364,19 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, duplicates="glu
     if bad.any():
         n_dup = int(dup.sum()) if collapsed == "skip" else 0
         n_crowded = int(crowded.sum())
-        if int(bad.sum()) - n_dup - n_crowded:
-            reasons.append(
-                f"{int(bad.sum()) - n_dup - n_crowded} collapsed element(s) (a repeated node)")
+        n_misjoined = int(misjoined.sum())
+        if int(bad.sum()) - n_dup - n_crowded - n_misjoined:
+            reasons.append(f"{int(bad.sum()) - n_dup - n_crowded - n_misjoined} collapsed "
+                           "element(s) (a repeated node)")
         if n_dup:
             reasons.append(f"{n_dup} element(s) with the same nodes as another one (folded pairs)")
         if n_crowded:
             reasons.append(f"{n_crowded} element(s) overlapping around those (more than two on "
                            "one edge)")
+        if n_misjoined:
+            reasons.append(f"{n_misjoined} high-order element(s) joined to those through side "
+                           "nodes no conforming mesh shares (a side node that is also a corner, "
+                           "or on two edges)")
     if collapsed == "skip":
         # Slivers whose nodes all lie on one CAD edge and its vertices (Gmsh leaves such
         # "invalid" elements along some edges): no node can leave the edge, so no optimizer can

@@ -181,6 +181,65 @@ class MeshData:
                 out[e[s0:s0 + n]] = True
         return out
 
+    def misjoined_elements(self, left_out):
+        """Bool mask of the high-order triangles not ``left_out`` (a bool mask) that share a
+        side or interior node with another element in a way no conforming mesh does (the node
+        also a corner, on two different corner edges, on one edge of more than two elements,
+        or inside two elements), when they touch a node of a left-out element: a mesher's
+        degenerate spot (Gmsh's second-order mesh of the bottle's thread, where the thread
+        ends) joins overlapping curved elements through their side nodes around its collapsed
+        ones. Elsewhere such elements are not touched."""
+        left_out = np.asarray(left_out, dtype=bool)
+        out = np.zeros(self.element_count, dtype=bool)
+        orders = {ELEMENT_TYPES[n]: p for n, p in (("tri6", 2), ("tri10", 3), ("tri15", 4),
+                                                   ("tri21", 5))}
+        high = np.isin(self.types, list(orders)) & ~left_out
+        if not left_out.any() or not high.any():
+            return out
+        # One row per use of a node by an element not left out: (node, a, b, element), with
+        # (a, b) the sorted corner pair of its edge; a = b = −1 for a corner, −2 − e for an
+        # interior node of element e (unique to it).
+        rows = []
+        sizes = np.diff(self.offsets)
+        for k in np.unique(sizes):
+            sel = np.nonzero((sizes == k) & ~left_out)[0]
+            if sel.size == 0:
+                continue
+            idx = self.offsets[sel][:, None] + np.arange(k)[None, :]
+            c = self.conn[idx]
+            code = int(self.types[sel[0]])
+            p = orders.get(code)
+            ones = np.ones(sel.size, dtype=np.int64)
+            for j in range(3 if p else k):  # the corners (every node of tri3 and quad4)
+                rows.append(np.stack([c[:, j], -ones, -ones, sel], axis=1))
+            if p is None:
+                continue
+            for edge in range(3):
+                a = np.minimum(c[:, edge], c[:, (edge + 1) % 3])
+                b = np.maximum(c[:, edge], c[:, (edge + 1) % 3])
+                for j in range(3 + edge * (p - 1), 3 + (edge + 1) * (p - 1)):
+                    rows.append(np.stack([c[:, j], a, b, sel], axis=1))
+            for j in range(3 * p, k):
+                inner = -2 - sel.astype(np.int64)
+                rows.append(np.stack([c[:, j], inner, inner, sel], axis=1))
+        r = np.concatenate(rows).astype(np.int64)
+        r = r[np.lexsort((r[:, 2], r[:, 1], r[:, 0]))]
+        node, key = r[:, 0], r[:, 1:3]
+        start = np.r_[0, np.nonzero(node[1:] != node[:-1])[0] + 1]
+        uses = np.diff(np.r_[start, node.size])
+        # Per node: distinct (a, b) keys among its uses, and whether it is a side node.
+        new_key = np.r_[True, (node[1:] != node[:-1]) | np.any(key[1:] != key[:-1], axis=1)]
+        keys = np.add.reduceat(new_key.astype(np.int64), start)
+        corner_use = np.add.reduceat((key[:, 0] == -1).astype(np.int64), start)
+        bad = (keys > 1) | ((corner_use == 0) & (uses > 2))
+        bad_nodes = np.zeros(self.node_count, dtype=bool)
+        bad_nodes[node[start[bad]]] = True
+        near = self.nodes_of(left_out)
+        starts = self.offsets[:-1]
+        touches_bad = np.logical_or.reduceat(bad_nodes[self.conn], starts)
+        touches_near = np.logical_or.reduceat(near[self.conn], starts)
+        return high & touches_bad & touches_near
+
     def nodes_of(self, elements):
         """Bool mask of the nodes used by the elements where ``elements`` (a bool mask) is
         True."""
