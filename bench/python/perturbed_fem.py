@@ -70,7 +70,6 @@ def main():
         doc.recompute()
         shape = part.Shape
         diag = shape.BoundBox.DiagonalLength
-        t = time.perf_counter()
         stored = ""
         if a.mesh_dir:
             stem = os.path.splitext(name)[0]
@@ -78,14 +77,15 @@ def main():
                                   f"{'_quads' if a.recombine else ''}.unv")
         if stored and os.path.exists(stored):
             mesh = Fem.read(stored)
-            t = None
+            made = "read"
         else:
+            t = time.perf_counter()
             mesh = examples.make_gmsh_mesh(doc, part, diag / a.div, order=a.order,
                                            recombine=a.recombine)
+            made = f"Gmsh {time.perf_counter() - t:.0f} s"
             if stored:
                 os.makedirs(a.mesh_dir, exist_ok=True)
                 mesh.FemMesh.write(stored)
-        t_gmsh = -1.0 if t is None else time.perf_counter() - t
         data, handle = api.prepare(mesh, shape)
         w = data if data.kept is None else data.subset(data.kept)
         kinds = np.asarray(handle.node_kinds())
@@ -94,7 +94,6 @@ def main():
         size = local_sizes(data, w)
         kind = {(False, "1st"): "tria3", (False, "2nd"): "tria6", (True, "1st"): "quad4",
                 (True, "2nd"): "quad8"}[(a.recombine, a.order)]
-        made = "read" if stored and t_gmsh < 0 else f"Gmsh {t_gmsh:.0f} s"
         label = f"{kind} diag/{a.div:g} ({w.element_count} el., {made})"
         amps = [float(x) for x in a.amps.split(",")]
         runs = [(amp, seed) for amp in amps if amp > 0 for seed in a.seeds.split(",")]
