@@ -11,7 +11,9 @@ scripts/install.sh; SURFMESH_CLI=path runs another script instead, e.g. one that
 of the package built from a branch) optimizes it; one Markdown row per run from its JSON report: elements,
 the side nodes the recovery put on their element's face (a side node that Gmsh placed off it,
 see README: meshes with any were refused before), tangled before → after (of those left: folded
-where no node may move / with a movable node), min and mean quality after, sweeps, the optimizer's seconds and why it stopped. Gmsh's curved
+where no node may move / with a movable node), min and mean quality after, elements standing
+across their surface before → after (a corner's tangent plane wound against the surface's
+normal there), sweeps, the optimizer's seconds and why it stopped. Gmsh's curved
 elements are often already folded at a CAD vertex, between two element sides on fixed CAD
 edges: no node motion repairs those. The parts are read from ../shared/data/cad, never copied
 into this repository.
@@ -62,9 +64,9 @@ def main():
     gmsh.initialize()
     gmsh.option.setNumber("General.Terminal", 0)
     print(f"| part | order | elements | side nodes placed | tangled (held / movable left) | min q "
-          f"| mean q | sweeps | optimize s ({a.threads} thread{'s' if a.threads > 1 else ''}) "
-          f"| stop |")
-    print("|---|---:|---:|---:|---|---:|---:|---:|---:|---|")
+          f"| mean q | standing across | sweeps "
+          f"| optimize s ({a.threads} thread{'s' if a.threads > 1 else ''}) | stop |")
+    print("|---|---:|---:|---:|---|---:|---:|---|---:|---:|---|")
     for part in a.parts.split(","):
         path = part if os.path.isabs(part) else os.path.join(SHARED, part)
         name = os.path.splitext(os.path.basename(path))[0]
@@ -80,7 +82,7 @@ def main():
                 capture_output=True, text=True)
             if run.returncode != 0 or not os.path.exists(report):
                 last = (run.stderr or run.stdout).strip().splitlines()[-1:] or ["?"]
-                print(f"| {name} | {order} | - | - | error: {last[0]} | | | | | |", flush=True)
+                print(f"| {name} | {order} | - | - | error: {last[0]} | | | | | | |", flush=True)
                 continue
             r = json.load(open(report))
             b, s = r["before"], r["after"]
@@ -88,7 +90,8 @@ def main():
             print(f"| {name} | {order} | {b['elements']} | {placed} "
                   f"| {b['tangled']} → {s['tangled']} "
                   f"({len(r['tangled_unmovable'])} / {len(r['tangled_movable'])}) "
-                  f"| {s['min']:.3f} | {s['mean']:.4f} | {r['sweeps']} | {r['seconds']:.2f} "
+                  f"| {s['min']:.3f} | {s['mean']:.4f} | {b.get('across', '-')} → {s.get('across', '-')} "
+                  f"| {r['sweeps']} | {r['seconds']:.2f} "
                   f"| {r['reason']} |", flush=True)
     gmsh.finalize()
 

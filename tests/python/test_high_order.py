@@ -337,6 +337,49 @@ class GmshSideNodesOffTheirFace(unittest.TestCase):
         self.assertEqual(res.tangled_movable, [])
         self.assertEqual(len(res.tangled_unmovable), res.after.stats["tangled"])
 
+    def test_no_second_order_element_is_turned_to_stand_across_its_surface(self):
+        # A curved element's tangent plane at each corner (the derivative of its quadratic map
+        # there, computed here from the nodes) should keep the side of the surface's normal at
+        # that corner (FreeCAD's Face.normalAt) that it had. The measure orients a curved
+        # element by the sum of its corner normals, so it can find an element valid and well
+        # shaped whose plane at one corner has turned against the surface: the element leaves
+        # the surface there. Gmsh's mesh has such elements; the run must not make new ones (it
+        # made 19 on this mesh before they were held).
+        shape, _, data, _ = self.gmsh_order2("occt_propeller.brep")
+        res = SurfMesh.optimize(data, shape, boundary="fixed")
+        faces = np.asarray(res.before.element_faces)
+        conn = data.conn.reshape(-1, 6)
+        # The measured elements (the report's order) as rows of the input.
+        index = {int(i): k for k, i in enumerate(data.element_ids)}
+        rows = np.asarray([index[int(i)] for i in res.before.element_ids])
+
+        def across(nodes):
+            out = np.zeros(len(rows), dtype=bool)
+            for r, e in enumerate(rows):
+                x = nodes[conn[e]]
+                # d/dξ and d/dη of the P2 map at corners 0, 1, 2 (Gmsh's node order).
+                jac = [(-3 * x[0] - x[1] + 4 * x[3], -3 * x[0] - x[2] + 4 * x[5]),
+                       (x[0] + 3 * x[1] - 4 * x[3], x[0] - x[2] - 4 * x[3] + 4 * x[4]),
+                       (x[0] - x[1] + 4 * x[4] - 4 * x[5], x[0] + 3 * x[2] - 4 * x[5])]
+                face = shape.Faces[int(faces[r])]
+                signs = set()
+                for k in range(3):
+                    p = FreeCAD.Vector(*map(float, x[k]))
+                    u, v = face.Surface.parameter(p)
+                    n = face.normalAt(u, v)
+                    c = np.cross(jac[k][0], jac[k][1])
+                    signs.add(float(np.dot(c, (n.x, n.y, n.z))) > 0.0)
+                out[r] = len(signs) > 1
+            return out
+
+        before, after = across(data.nodes), across(res.nodes)
+        print(f"\npropeller order 2: {int(before.sum())} standing across before, "
+              f"{int(after.sum())} after, {int((after & ~before).sum())} of those new")
+        self.assertGreater(int(before.sum()), 20)
+        self.assertEqual(np.nonzero(after & ~before)[0].tolist(), [])
+        self.assertLess(int(after.sum()), int(before.sum()))
+        self.assertEqual(res.tangled_movable, [])
+
     def test_faces_and_classes_follow_gmsh_whatever_the_hints(self):
         # Reference: Gmsh's own classification in the .msh (each element's surface, each
         # node's entity). A side node Gmsh put on a CAD edge across a corner of its face (the

@@ -253,7 +253,8 @@ inline double acrossArea(const Vec3& c, double cn, const Vec3* n, int* which, do
   return a;
 }
 
-/// faceCorners bit: the element is a linear triangle held from standing across (acrossArea).
+/// faceCorners bit: the element is held from standing across its surface (a linear triangle:
+/// acrossArea; a high-order one: see State's constructor).
 constexpr unsigned kAcrossGuard = 0x80u;
 
 /// Tangent basis of a Face node's (u,v) at its current position: derivatives are assembled
@@ -585,7 +586,7 @@ struct State {
         if (m.nodeKind[static_cast<std::size_t>(nd[k])] != NodeKind::Face) {
           const Vec3 nk = m.referenceNormal(m.elemFace[e], m.elementUV(e)[k]);
           fixedNormal[e] += nk;
-          if (m.elemType[e] == ElementType::Tri3) {
+          if (m.elemType[e] == ElementType::Tri3 || isHighOrderTriangle(m.elemType[e])) {
             if (cornerElems.empty() || cornerElems.back() != static_cast<std::int32_t>(e)) {
               cornerElems.push_back(static_cast<std::int32_t>(e));
               cornerN.resize(cornerN.size() + 3, Vec3::Zero());
@@ -627,6 +628,27 @@ struct State {
           (along ? !against && acrossArea(c, cn, corners, &which, &slope) == cn && which < 0
                  : against && (faceCorners[e] & 0x7u) != 0);
       if (cn > 0.0 && guard)
+        faceCorners[e] = static_cast<std::uint8_t>(faceCorners[e] | kAcrossGuard);
+    }
+    // High-order triangles whose tangent plane at every corner is wound along the surface's
+    // normal there are held so too: a move that turns the plane at a corner against the
+    // normal (the curved element then leaves the surface at that corner, standing across it,
+    // while the measure, which orients the element by the sum of its corner normals, can still
+    // find it valid and well shaped) counts as tangling it. Not held: those with a sliding node.
+    for (std::size_t e = 0; holdAcross && e < E; ++e) {
+      if (!isHighOrderTriangle(m.elemType[e])) continue;
+      const std::int32_t* nd = m.elementNodes(e);
+      const int cnt = m.elementSize(e);
+      Vec3 xs[kMaxElementNodes];
+      bool sliding = false;
+      for (int k = 0; k < cnt; ++k) {
+        xs[k] = xyz[static_cast<std::size_t>(nd[k])];
+        sliding = sliding || m.nodeKind[static_cast<std::size_t>(nd[k])] == NodeKind::Edge;
+      }
+      Vec3 corners[3];
+      for (int k = 0; k < 3; ++k) corners[k] = cornerNormal(e, k);
+      const CornerSides sides = cornerSides(m.elemType[e], xs, corners);
+      if (!sliding && sides.along && !sides.against)
         faceCorners[e] = static_cast<std::uint8_t>(faceCorners[e] | kAcrossGuard);
     }
     if (anyEdge) {
@@ -716,7 +738,9 @@ struct State {
   /// `pre`: for a high-order triangle, highOrderRest(e, local) when the other nodes have not
   /// moved since (a line search), or null.
   /// `corners`: a linear triangle's unit corner normals in the order (local, its next corner,
-  /// its previous corner), see acrossArea; ignored for other elements.
+  /// its previous corner), see acrossArea; a high-order triangle's held from standing across
+  /// (guarded) in its corners' order: the element counts as tangled (held) when its tangent
+  /// plane at a corner is wound against the normal there. Null: no hold.
   ElemOut evalElement(std::size_t e, int local, const Vec3& x, const Vec3& n, double delta,
                       bool wantEta0, Vec3* grad, Mat3* hess,
                       const HighOrderJacobians* pre = nullptr,
@@ -746,6 +770,20 @@ struct State {
     r.minSigma = ev.minSigma;
     r.tangled = ev.tangled;
     if (wantEta0) r.eta0 = (ev.tangled || !std::isfinite(eta0)) ? kInf : eta0;
+    if (corners && !ev.tangled && std::isfinite(ev.eta)) {
+      Vec3 xs[kMaxElementNodes];
+      const int cnt = mesh.elementSize(e);
+      for (int k = 0; k < cnt; ++k) xs[k] = (k == local) ? x : xyz[static_cast<std::size_t>(nd[k])];
+      if (cornerSides(mesh.elemType[e], xs, corners).against) {
+        // Held from standing across: the move tangles it (a node update rejects it), while
+        // its cached η and det S stay the paper's, as the quality report measures them. (Not
+        // `held`: a run left with tangled elements does not start again without the hold for
+        // it — the node updates only refuse moves, the whole-mesh values and the escapes do
+        // not see it.)
+        r.tangled = true;
+        if (delta == 0.0) r.eta = kInf;
+      }
+    }
     return r;
   }
 
@@ -762,7 +800,7 @@ struct State {
                               hessUV, relaxTangled, corners);
     }
     Mat3 H;
-    const ElemOut r = evalElement(e, local, x, n, delta, wantEta0, grad, &H, pre);
+    const ElemOut r = evalElement(e, local, x, n, delta, wantEta0, grad, &H, pre, corners);
     if (std::isfinite(r.eta)) {
       const Vec3 Hdu = H * T.du, Hdv = H * T.dv;
       *hessUV = Vec3(T.du.dot(Hdu), T.du.dot(Hdv), T.dv.dot(Hdv));
@@ -775,11 +813,23 @@ struct State {
     const Vec3 n = elementNormal(e, -1, Vec3::Zero(), Vec3::Zero());
     const std::int32_t* nd = mesh.elementNodes(e);
     Vec3 corners[3];
+    // (A high-order triangle is held by its node updates only: the whole-mesh values are the
+    // paper's measure.)
     const bool tri = mesh.elemType[e] == ElementType::Tri3 && guarded(e);
     if (tri)
       for (int k = 0; k < 3; ++k) corners[k] = cornerNormal(e, k);
     return evalElement(e, 0, xyz[static_cast<std::size_t>(nd[0])], n, delta, true, nullptr, nullptr,
                        nullptr, tri ? corners : nullptr);
+  }
+
+  /// Whether element e (a high-order triangle) stands across its surface at the current
+  /// positions with corner normals `corners` (standsAcross's test: wound against one).
+  bool standsAcrossNow(std::size_t e, const Vec3* corners) const {
+    Vec3 xs[kMaxElementNodes];
+    const std::int32_t* nd = mesh.elementNodes(e);
+    const int cnt = mesh.elementSize(e);
+    for (int k = 0; k < cnt; ++k) xs[k] = xyz[static_cast<std::size_t>(nd[k])];
+    return cornerSides(mesh.elemType[e], xs, corners).against;
   }
 
   /// Whether element e is held from standing across its surface (acrossArea).
@@ -824,6 +874,8 @@ struct alignas(64) Worker {
     normals.resize(s.maxDegree);
     baseNormal.resize(s.maxDegree);
     otherNormals.resize(2 * s.maxDegree);
+    if (!s.allTri3) cornerNormals.resize(3 * s.maxDegree);
+    if (!s.allTri3) holdHere.resize(s.maxDegree);
     if (!s.allTri3) highOrder.resize(s.maxDegree);
   }
   ThreadGeometry geo;
@@ -835,6 +887,10 @@ struct alignas(64) Worker {
   std::vector<Vec3> baseNormal;  // per incident element: its normal without the free corner
   // Per incident linear triangle: the corner normals of its two other corners (acrossArea).
   std::vector<Vec3> otherNormals;
+  // Per incident held high-order triangle: its corner normals (the free corner's replaced at
+  // each trial).
+  std::vector<Vec3> cornerNormals;
+  std::vector<unsigned char> holdHere;  // whether that triangle is held in this update
   // Per incident high-order triangle: its Jacobians without the free node's term.
   std::vector<HighOrderJacobians> highOrder;
   double maxRelMove = 0.0;
@@ -1463,7 +1519,8 @@ class NodeUpdater {
       const Vec3 nref = s_.usableNormal(e, corner ? Vec3(base[j] + nfree(j)) : base[j]);
       // A linear triangle's corner normals (acrossArea): the free node's, then its next and
       // previous corners' (the same for every trial of this update).
-      const bool tri = s_.mesh.elemType[e] == ElementType::Tri3 && s_.guarded(e);
+      bool guarded = s_.guarded(e);
+      const bool tri = s_.mesh.elemType[e] == ElementType::Tri3 && guarded;
       Vec3 corners[3];
       if (tri) {
         Vec3* other = w_.otherNormals.data() + 2 * j;
@@ -1474,6 +1531,18 @@ class NodeUpdater {
         corners[0] = nfree(j);
         corners[1] = other[0];
         corners[2] = other[1];
+      } else if (guarded) {
+        // A held high-order triangle's corner normals in its corners' order, the free node's
+        // (when a corner) at the trial. Not held in this update when it stands across already
+        // (an escape's joint move may leave it so): its nodes stay free to move.
+        Vec3* kept = w_.cornerNormals.data() + 3 * j;
+        if (!cur) {
+          for (int k = 0; k < 3; ++k) kept[k] = s_.cornerNormal(e, k);
+          for (int k = 0; k < 3; ++k) corners[k] = k == local ? nfree(j) : kept[k];
+          w_.holdHere[j] = !s_.standsAcrossNow(e, corners);
+        }
+        guarded = w_.holdHere[j] != 0;
+        for (int k = 0; k < 3; ++k) corners[k] = k == local ? nfree(j) : kept[k];
       }
       // A high-order triangle's Jacobians without the free node's term: the same for every
       // trial of this update too.
@@ -1487,9 +1556,9 @@ class NodeUpdater {
       Mat3 He;
       Vec3 heUV = Vec3::Zero();
       const ElemOut ev = HUV ? s_.evalElementUV(e, local, x, nref, delta, needEta0, *T, &ge, &heUV,
-                                                pre, tri ? corners : nullptr)
+                                                pre, guarded ? corners : nullptr)
                              : s_.evalElement(e, local, x, nref, delta, needEta0, g ? &ge : nullptr,
-                                              H ? &He : nullptr, pre, tri ? corners : nullptr);
+                                              H ? &He : nullptr, pre, guarded ? corners : nullptr);
       if (cur) {
         w_.eta0[j] = ev.eta0;
         w_.sig[j] = ev.minSigma;
