@@ -638,16 +638,12 @@ struct State {
     for (std::size_t e = 0; holdAcross && e < E; ++e) {
       if (!isHighOrderTriangle(m.elemType[e])) continue;
       const std::int32_t* nd = m.elementNodes(e);
-      const int cnt = m.elementSize(e);
-      Vec3 xs[kMaxElementNodes];
       bool sliding = false;
-      for (int k = 0; k < cnt; ++k) {
-        xs[k] = xyz[static_cast<std::size_t>(nd[k])];
+      for (int k = 0; k < m.elementSize(e); ++k)
         sliding = sliding || m.nodeKind[static_cast<std::size_t>(nd[k])] == NodeKind::Edge;
-      }
       Vec3 corners[3];
       for (int k = 0; k < 3; ++k) corners[k] = cornerNormal(e, k);
-      const CornerSides sides = cornerSides(m.elemType[e], xs, corners);
+      const CornerSides sides = cornerSidesAt(e, -1, Vec3::Zero(), corners);
       if (!sliding && sides.along && !sides.against)
         faceCorners[e] = static_cast<std::uint8_t>(faceCorners[e] | kAcrossGuard);
     }
@@ -724,13 +720,26 @@ struct State {
     return en > b ? s / static_cast<double>(en - b) : 0.0;
   }
 
+  /// Element e's node positions, its node `local` at x (local < 0: every node where it is).
+  void positions(std::size_t e, int local, const Vec3& x, Vec3* xs) const {
+    const std::int32_t* nd = mesh.elementNodes(e);
+    const int cnt = mesh.elementSize(e);
+    for (int k = 0; k < cnt; ++k) xs[k] = (k == local) ? x : xyz[static_cast<std::size_t>(nd[k])];
+  }
+
+  /// cornerSides of high-order triangle e with its node `local` at x (local < 0: at the
+  /// current positions) and corner normals `corners` (its corners' order).
+  CornerSides cornerSidesAt(std::size_t e, int local, const Vec3& x, const Vec3* corners) const {
+    Vec3 xs[kMaxElementNodes];
+    positions(e, local, x, xs);
+    return cornerSides(mesh.elemType[e], xs, corners);
+  }
+
   /// The Jacobians of high-order triangle e at its nodes and quadrature points without the
   /// term of its node `local` (see HighOrderJacobians), at the current positions.
   void highOrderRest(std::size_t e, int local, HighOrderJacobians* out) const {
     Vec3 xs[kMaxElementNodes];
-    const std::int32_t* nd = mesh.elementNodes(e);
-    const int cnt = mesh.elementSize(e);
-    for (int k = 0; k < cnt; ++k) xs[k] = xyz[static_cast<std::size_t>(nd[k])];
+    positions(e, -1, Vec3::Zero(), xs);
     highOrderJacobians(mesh.elemType[e], xs, local, out);
   }
 
@@ -760,8 +769,7 @@ struct State {
                                        wantEta0 ? &eta0 : nullptr);
     } else {
       Vec3 xs[kMaxElementNodes];
-      const int cnt = mesh.elementSize(e);
-      for (int k = 0; k < cnt; ++k) xs[k] = (k == local) ? x : xyz[static_cast<std::size_t>(nd[k])];
+      positions(e, local, x, xs);
       ev = elementDistortion(measure, mesh.elemType[e], xs, nu, delta, local, grad, hess,
                              wantEta0 ? &eta0 : nullptr);
     }
@@ -771,10 +779,7 @@ struct State {
     r.tangled = ev.tangled;
     if (wantEta0) r.eta0 = (ev.tangled || !std::isfinite(eta0)) ? kInf : eta0;
     if (corners && !ev.tangled && std::isfinite(ev.eta)) {
-      Vec3 xs[kMaxElementNodes];
-      const int cnt = mesh.elementSize(e);
-      for (int k = 0; k < cnt; ++k) xs[k] = (k == local) ? x : xyz[static_cast<std::size_t>(nd[k])];
-      if (cornerSides(mesh.elemType[e], xs, corners).against) {
+      if (cornerSidesAt(e, local, x, corners).against) {
         // Held from standing across: the move tangles it (a node update rejects it), while
         // its cached η and det S stay the paper's, as the quality report measures them. (Not
         // `held`: a run left with tangled elements does not start again without the hold for
@@ -822,16 +827,6 @@ struct State {
                        nullptr, tri ? corners : nullptr);
   }
 
-  /// Whether element e (a high-order triangle) stands across its surface at the current
-  /// positions with corner normals `corners` (standsAcross's test: wound against one).
-  bool standsAcrossNow(std::size_t e, const Vec3* corners) const {
-    Vec3 xs[kMaxElementNodes];
-    const std::int32_t* nd = mesh.elementNodes(e);
-    const int cnt = mesh.elementSize(e);
-    for (int k = 0; k < cnt; ++k) xs[k] = xyz[static_cast<std::size_t>(nd[k])];
-    return cornerSides(mesh.elemType[e], xs, corners).against;
-  }
-
   /// Whether element e is held from standing across its surface (acrossArea).
   bool guarded(std::size_t e) const { return (faceCorners[e] & kAcrossGuard) != 0; }
 
@@ -874,9 +869,11 @@ struct alignas(64) Worker {
     normals.resize(s.maxDegree);
     baseNormal.resize(s.maxDegree);
     otherNormals.resize(2 * s.maxDegree);
-    if (!s.allTri3) cornerNormals.resize(3 * s.maxDegree);
-    if (!s.allTri3) holdHere.resize(s.maxDegree);
-    if (!s.allTri3) highOrder.resize(s.maxDegree);
+    if (!s.allTri3) {
+      cornerNormals.resize(3 * s.maxDegree);
+      holdHere.resize(s.maxDegree);
+      highOrder.resize(s.maxDegree);
+    }
   }
   ThreadGeometry geo;
   std::vector<double> eta0, sig;  // trial's per-element η(δ=0) and scaled det S
@@ -1536,13 +1533,11 @@ class NodeUpdater {
         // (when a corner) at the trial. Not held in this update when it stands across already
         // (an escape's joint move may leave it so): its nodes stay free to move.
         Vec3* kept = w_.cornerNormals.data() + 3 * j;
-        if (!cur) {
+        if (!cur)
           for (int k = 0; k < 3; ++k) kept[k] = s_.cornerNormal(e, k);
-          for (int k = 0; k < 3; ++k) corners[k] = k == local ? nfree(j) : kept[k];
-          w_.holdHere[j] = !s_.standsAcrossNow(e, corners);
-        }
-        guarded = w_.holdHere[j] != 0;
         for (int k = 0; k < 3; ++k) corners[k] = k == local ? nfree(j) : kept[k];
+        if (!cur) w_.holdHere[j] = !s_.cornerSidesAt(e, -1, Vec3::Zero(), corners).against;
+        guarded = w_.holdHere[j] != 0;
       }
       // A high-order triangle's Jacobians without the free node's term: the same for every
       // trial of this update too.
