@@ -5,6 +5,8 @@
 #include "surfmesh/cad/cad_bridge.h"
 #include "surfmesh/geometry/analytic_surfaces.h"
 #include "surfmesh/measures/measure.h"
+#include "surfmesh/mesh/distance_to_face.h"
+#include "surfmesh/mesh/jacobian_ratio.h"
 #include "surfmesh/mesh/quality.h"
 
 #include <pybind11/numpy.h>
@@ -148,7 +150,35 @@ MeshClass bind_mesh(py::module_& m) {
           "Per-element quality: dict with quality (1/η, 0 tangled), distortion (η), tangled "
           "(bool), min_sigma, across (bool: standing across the surface — wound along its "
           "normal at some corners and against it at others) and stats (min, max, mean, std, "
-          "tangled, elements, across)");
+          "tangled, elements, across)")
+      .def(
+          "distance_to_face",
+          [](const MeshHandle& h, int divisions) {
+            const SurfaceMesh& me = h.get();
+            std::vector<double> d;
+            {
+              py::gil_scoped_release release;
+              d = elementDistanceToFace(me, divisions);
+            }
+            return fromDoubles(d);
+          },
+          py::arg("divisions") = kDistanceDivisions,
+          "Per element: the largest distance of its interior from its face's surface, sampled "
+          "on a grid of `divisions` steps per side of the reference element (float64 (E,))")
+      .def(
+          "jacobian_ratio",
+          [](const MeshHandle& h, int divisions) {
+            const SurfaceMesh& me = h.get();
+            std::vector<double> r;
+            {
+              py::gil_scoped_release release;
+              r = elementJacobianRatio(me, divisions);
+            }
+            return fromDoubles(r);
+          },
+          py::arg("divisions") = kJacobianDivisions,
+          "Per element: min J / max |J| of the map from its reference element, at its nodes and "
+          "on a grid of `divisions` steps per side (1 straight, <= 0 folded; float64 (E,))");
 
   m.def(
       "single_surface_mesh",

@@ -1,0 +1,83 @@
+// SurfMesh — the Jacobian ratio of curved (and straight) elements.
+#include "surfmesh/mesh/jacobian_ratio.h"
+
+#include "surfmesh/measures/lagrange_triangle.h"
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+namespace surfmesh {
+
+namespace {
+
+/// Reference gradients (∂N/∂a, ∂N/∂b) of element type t at (a, b): Gmsh's reference triangle,
+/// or the unit square of a bilinear quadrilateral.
+void shapeGradients(ElementType t, double a, double b, Vec2* grad) {
+  if (t == ElementType::Quad4) {
+    grad[0] = Vec2(-(1 - b), -(1 - a));
+    grad[1] = Vec2(1 - b, -a);
+    grad[2] = Vec2(b, a);
+    grad[3] = Vec2(-b, 1 - a);
+    return;
+  }
+  lagrangeTriangle(elementOrder(t)).gradients(Vec2(a, b), grad);
+}
+
+}  // namespace
+
+std::vector<double> elementJacobianRatio(const SurfaceMesh& mesh, int divisions) {
+  if (divisions < 1)
+    throw std::invalid_argument("divisions must be at least 1, got " + std::to_string(divisions));
+  const std::size_t E = mesh.elementCount();
+  std::vector<double> out(E, 0.0);
+  Vec2 grad[kMaxElementNodes];
+  Vec3 x[kMaxElementNodes];
+  std::vector<Vec2> points;
+  for (std::size_t e = 0; e < E; ++e) {
+    const ElementType t = mesh.elemType[e];
+    const int k = mesh.elementSize(e);
+    const std::int32_t* nodes = mesh.elementNodes(e);
+    for (int a = 0; a < k; ++a) x[a] = mesh.xyz[static_cast<std::size_t>(nodes[a])];
+    const bool quad = t == ElementType::Quad4;
+    Vec3 n = quad ? Vec3((x[1] + x[2] - x[0] - x[3]).cross(x[2] + x[3] - x[0] - x[1]))
+                  : Vec3((x[1] - x[0]).cross(x[2] - x[0]));
+    const double len = n.norm();
+    if (!(len > 0.0) || !std::isfinite(len)) {
+      out[e] = std::isfinite(len) ? 0.0 : std::numeric_limits<double>::quiet_NaN();
+      continue;
+    }
+    n /= len;
+    points.clear();
+    if (quad) {
+      for (double a : {0.0, 1.0})
+        for (double b : {0.0, 1.0}) points.emplace_back(a, b);
+    } else {
+      const auto& ref = lagrangeTriangle(elementOrder(t)).nodes();
+      points.assign(ref.begin(), ref.end());
+    }
+    for (int i = 0; i <= divisions; ++i)
+      for (int j = 0; j <= (quad ? divisions : divisions - i); ++j)
+        points.emplace_back(double(i) / divisions, double(j) / divisions);
+    double lo = std::numeric_limits<double>::infinity(), hi = 0.0;
+    for (const Vec2& p : points) {
+      shapeGradients(t, p.x(), p.y(), grad);
+      Vec3 xa = Vec3::Zero(), xb = Vec3::Zero();
+      for (int a = 0; a < k; ++a) {
+        xa += grad[a].x() * x[a];
+        xb += grad[a].y() * x[a];
+      }
+      const double J = n.dot(xa.cross(xb));
+      lo = std::min(lo, J);
+      hi = std::max(hi, std::abs(J));
+    }
+    out[e] = hi > 0.0 ? lo / hi : 0.0;
+  }
+  return out;
+}
+
+}  // namespace surfmesh
