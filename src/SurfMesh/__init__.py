@@ -6,6 +6,7 @@ Headless API (freecadcmd or the GUI)::
     rep = SurfMesh.measure(mesh, shape, measure="shape")     # .quality .tangled .stats
     res = SurfMesh.optimize(mesh, shape, measure="shape", boundary="fixed")
     res.mesh, res.before, res.after, res.sweeps, res.seconds
+    m = SurfMesh.metrics(mesh, shape)      # {"aspect_ratio": array per element, …}
 
 Document functions (colors, stored stats, undo)::
 
@@ -23,8 +24,10 @@ from SurfMesh.app.api import (  # noqa: F401
     QualityReport,
     measure,
     measure_names,
+    metrics,
     optimize,
 )
+from SurfMesh.app.metrics import METRIC_NAMES, METRICS  # noqa: F401
 from SurfMesh.app.document import (  # noqa: F401
     apply_colors,
     clear_colors,

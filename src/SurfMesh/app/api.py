@@ -639,6 +639,59 @@ def measure(mesh, shape, measure="shape", *, tolerance=None, hints="auto",
     return _report(data, handle, measure, measured=measured if measure == "shape" else None)
 
 
+def metrics(mesh, shape, names=None, *, tolerance=None, hints="auto", collapsed="skip",
+            duplicates="glue", divisions=None) -> dict:
+    """The element quality metrics FEM users know, per element, in the order of :func:`measure`.
+
+    Args:
+        mesh, shape, tolerance, hints, collapsed, duplicates: as in :func:`measure`.
+        names: metric names (a list, or a comma-separated string); None or "all" for every
+            one of :data:`SurfMesh.app.metrics.METRIC_NAMES`: Verdict's ``aspect_ratio``,
+            ``min_angle``, ``max_angle`` (degrees), ``scaled_jacobian``, ``condition``,
+            ``shape``, ``equiangle_skew``; for quadrilaterals also ``warpage``, ``taper``,
+            ``skew``, ``stretch`` (nan for triangles); ``jacobian_ratio`` (min J / max J over
+            the element, curved sides included: <= 0 folded), ``side_node_offset`` (a
+            high-order element's side nodes off their straight sides, over the side's length;
+            0 for linear elements) and ``distance_to_cad`` (largest distance of the element's
+            interior from its CAD face's surface, sampled densely). See docs/metrics.md.
+        divisions: grid steps per side of the reference element at which distance_to_cad and
+            jacobian_ratio sample an element (default ``SAMPLE_DIVISIONS``, 8).
+
+    Returns:
+        dict name -> numpy float64 array (E,). Elements left out (see ``collapsed``) have nan
+        for jacobian_ratio and distance_to_cad (the metrics that need their CAD face).
+    """
+    from SurfMesh.app import metrics as _metrics
+
+    wanted = _metrics.metric_names(names)
+    if divisions is None:
+        divisions = _metrics.SAMPLE_DIVISIONS
+    if isinstance(divisions, bool) or not isinstance(divisions, (int, np.integer)) \
+            or divisions < 1:
+        raise ValueError(f"divisions must be a positive integer, got {divisions!r}")
+    data, handle, measured = _prepare(mesh, shape, "fixed", tolerance, hints, collapsed,
+                                      duplicates)
+    rep = _report(data, handle, "shape", measured=measured)
+    out = _metrics.element_metrics(data, [n for n in wanted if n not in _CORE_METRICS],
+                                   tangled=rep.tangled)
+    kept = getattr(data, "kept", None)
+    for name in wanted:
+        if name not in _CORE_METRICS:
+            continue
+        values = np.asarray(getattr(handle, _CORE_METRICS[name])(int(divisions)),
+                            dtype=np.float64)
+        if kept is not None:
+            full = np.full(data.element_count, np.nan)
+            full[kept] = values
+            values = full
+        out[name] = values
+    return {n: out[n] for n in wanted}
+
+
+# Metrics the core computes on the handle (its own elements: the ones not left out).
+_CORE_METRICS = {"distance_to_cad": "distance_to_face", "jacobian_ratio": "jacobian_ratio"}
+
+
 def optimize(
     mesh,
     shape,
