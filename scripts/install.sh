@@ -12,6 +12,8 @@
 #   SURFMESH_SKIP_APT=1   do not check or install Debian packages
 #   SURFMESH_MOD_DIR      where the workbench goes
 #                         (default: $HOME/.local/share/FreeCAD/Mod/SurfMesh)
+#   SURFMESH_BIN_DIR      where the `surfmesh` command goes (a symbolic link into the workbench;
+#                         default: /usr/local/bin as root, else $HOME/.local/bin)
 set -euo pipefail
 
 REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -34,6 +36,7 @@ PACKAGES=(
   libocct-data-exchange-dev
   python3-dev python3-numpy python3-matplotlib python3-meshio
   freecad gmsh python3-gmsh
+  python3-distributed
   xvfb xauth clang-format
 )
 
@@ -139,3 +142,16 @@ mv "$stage" "$MOD_DIR"
 chmod 755 "$MOD_DIR"
 trap - EXIT
 say "done: $(find "$MOD_DIR" -type f | wc -l) files in $MOD_DIR"
+
+# ---- 4. The `surfmesh` command -----------------------------------------------------------
+if [ "$(id -u)" -eq 0 ]; then default_bin=/usr/local/bin; else default_bin="$HOME/.local/bin"; fi
+BIN_DIR="${SURFMESH_BIN_DIR:-$default_bin}"
+mkdir -p "$BIN_DIR"
+launcher="$MOD_DIR/SurfMesh/cli/launcher.py"
+chmod 755 "$launcher"
+ln -sfn "$launcher" "$BIN_DIR/surfmesh"
+say "command: $BIN_DIR/surfmesh -> $launcher"
+case ":$PATH:" in
+  *":$BIN_DIR:"*) ;;
+  *) say "  note: $BIN_DIR is not on your PATH: run $BIN_DIR/surfmesh, or add it to PATH" ;;
+esac

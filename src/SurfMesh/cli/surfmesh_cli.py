@@ -34,9 +34,9 @@ def _import_surfmesh():
     return sys.modules["SurfMesh"]
 
 
-def build_parser():
+def build_parser(prog="surfmesh_cli.py"):
     p = argparse.ArgumentParser(
-        prog="surfmesh_cli.py",
+        prog=prog,
         description="Measure, smooth and untangle surface meshes on CAD shapes (SurfMesh).",
     )
     sub = p.add_subparsers(dest="command", required=True)
@@ -127,8 +127,8 @@ def _node_ids(text, option):
     return ids
 
 
-def run(argv):
-    args = build_parser().parse_args(argv)
+def run(argv, prog="surfmesh_cli.py"):
+    args = build_parser(prog).parse_args(argv)
     sm = _import_surfmesh()
     from SurfMesh.app import api, fileio, reports
 
@@ -196,13 +196,17 @@ def run(argv):
     return 0
 
 
-def main(argv=None):
+def main(argv=None, prog="surfmesh_cli.py"):
     if argv is None:
+        # freecadcmd script.py -- args: sys.argv is [script, "--", args…] (FreeCAD 0.20) or
+        # [freecadcmd, script, "--", args…] (1.x)
         argv = sys.argv[1:]
-    if argv and argv[0] == "--":
+        if "--" in argv:
+            argv = argv[argv.index("--") + 1:]
+    elif argv and argv[0] == "--":
         argv = argv[1:]
     try:
-        return run(argv)
+        return run(argv, prog)
     except SystemExit as exc:  # argparse: usage errors (2) and --help (0)
         return int(exc.code or 0)
     except ValueError as exc:
