@@ -305,3 +305,80 @@ def beyond(name, values, threshold):
         if METRICS[name]["worse"] == "high":
             return v > threshold
         return v < threshold
+
+
+# ---- files --------------------------------------------------------------------------------------
+
+
+def _cell(v):
+    """A CSV cell: 10 significant digits; inf, -inf and nan as Python and pandas read them."""
+    v = float(v)
+    if np.isnan(v):
+        return "nan"
+    if np.isinf(v):
+        return "inf" if v > 0 else "-inf"
+    return f"{v:.10g}"
+
+
+def write_csv(path, values, element_ids, element_types=None, element_faces=None):
+    """Writes one row per element: its id, type and CAD face (FreeCAD's name, empty when left
+    out) when given, then the metrics of ``values`` (name -> array) in their order."""
+    names = list(values)
+    head = ["element_id"] + (["type"] if element_types is not None else []) + \
+        (["face"] if element_faces is not None else []) + names
+    cols = [np.asarray(values[n], dtype=np.float64) for n in names]
+    with open(path, "w", encoding="utf-8", newline="") as f:
+        f.write(",".join(head) + "\n")
+        for e, eid in enumerate(np.asarray(element_ids)):
+            row = [str(int(eid))]
+            if element_types is not None:
+                row.append(str(element_types[e]))
+            if element_faces is not None:
+                face = int(element_faces[e])
+                row.append(f"Face{face + 1}" if face >= 0 else "")
+            row.extend(_cell(c[e]) for c in cols)
+            f.write(",".join(row) + "\n")
+    return path
+
+
+def write_vtk(path, data, values, nodes=None):
+    """Writes the mesh of the MeshData ``data`` (at ``nodes``, default its own) with the
+    metrics of ``values`` (name -> array per element) and ``element_id`` as cell data, through
+    meshio (.vtk legacy or .vtu, by the extension; positions in double precision)."""
+    import meshio
+
+    from SurfMesh.app import fileio
+
+    cells = fileio._meshio_cells(data)
+    blocks = [np.nonzero(data.types == code)[0] for code in np.unique(data.types)]
+    cell_data = {"element_id": [np.asarray(data.element_ids)[b] for b in blocks]}
+    for name, v in values.items():
+        v = np.asarray(v, dtype=np.float64)
+        cell_data[name] = [v[b] for b in blocks]
+    pts = data.nodes if nodes is None else np.asarray(nodes, dtype=np.float64)
+    meshio.write(path, meshio.Mesh(pts, cells, cell_data=cell_data))
+    return path
+
+
+def per_element_types(data):
+    """The element type name of every element of the MeshData ``data``."""
+    return [conversion.ELEMENT_NAMES.get(int(t), str(int(t))) for t in data.types]
+
+
+def format_statistics(values, digits=4):
+    """A plain-text table: one row per metric with min, mean, max and the count of the
+    elements it does not apply to or that are degenerate (inf)."""
+    rows = [("Metric", "Min", "Mean", "Max", "Elements", "Degenerate")]
+    for name, v in values.items():
+        s = statistics(v)
+        if s["count"] == 0:
+            rows.append((name, "-", "-", "-", "0", str(s["infinite"])))
+            continue
+        rows.append((name, f"{s['min']:.{digits}g}", f"{s['mean']:.{digits}g}",
+                     f"{s['max']:.{digits}g}", str(s["count"] + s["infinite"]),
+                     str(s["infinite"])))
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    lines = ["  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in
+                       enumerate(zip(r, widths))) for r in rows]
+    lines.insert(1, "  ".join("-" * w for w in widths))
+    return "\n".join(lines)

@@ -63,6 +63,16 @@ def build_parser(prog="surfmesh_cli.py"):
 
     m = sub.add_parser("measure", help="quality statistics of a mesh on a shape")
     common(m)
+    m.add_argument("--metrics", metavar="LIST", default=None,
+                   help="also compute these element quality metrics, comma-separated, or "
+                   "'all' (Verdict's names: aspect_ratio, min_angle, max_angle, "
+                   "scaled_jacobian, condition, shape, equiangle_skew, warpage, taper, skew, "
+                   "stretch; jacobian_ratio, side_node_offset, distance_to_cad)")
+    m.add_argument("--csv", metavar="FILE", default=None,
+                   help="write the metrics per element as CSV (all of them unless --metrics)")
+    m.add_argument("--vtk", metavar="FILE", default=None,
+                   help="write the mesh with the metrics as cell data (.vtk or .vtu; all of "
+                   "them unless --metrics)")
     o = sub.add_parser("optimize", help="smooth and untangle a mesh on a shape")
     common(o)
     o.add_argument("-o", "--output", required=True, help="optimized mesh file")
@@ -127,6 +137,42 @@ def _node_ids(text, option):
     return ids
 
 
+def _wanted_metrics(args, fileio):
+    """The element metrics `measure` is asked for (--metrics, or all of them for --csv and
+    --vtk), checked with the files they go to before anything is read; [] for none."""
+    from SurfMesh.app import metrics
+
+    text, csv, vtk = (getattr(args, k, None) for k in ("metrics", "csv", "vtk"))
+    if text is None and csv is None and vtk is None:
+        return []
+    wanted = metrics.metric_names(text or "all")
+    if csv:
+        fileio.check_output(csv, what="CSV file")
+    if vtk:
+        if os.path.splitext(vtk)[1].lower() not in (".vtk", ".vtu"):
+            raise ValueError(f"--vtk {vtk}: give a .vtk or .vtu file")
+        fileio.check_output(vtk, what="VTK file")
+    return wanted
+
+
+def _write_metrics(args, sm, mf, shape, hints, rep, wanted):
+    """Computes the element metrics, prints their statistics, writes --csv and --vtk; returns
+    the statistics for the JSON report."""
+    from SurfMesh.app import metrics
+
+    values = sm.metrics(mf.data, shape, wanted, tolerance=args.tolerance, hints=hints,
+                        duplicates=args.duplicates)
+    print(metrics.format_statistics(values))
+    if args.csv:
+        metrics.write_csv(args.csv, values, rep.element_ids, metrics.per_element_types(mf.data),
+                          rep.element_faces)
+        print(f"wrote {args.csv}")
+    if args.vtk:
+        metrics.write_vtk(args.vtk, mf.data, values)
+        print(f"wrote {args.vtk}")
+    return {name: metrics.statistics(v) for name, v in values.items()}
+
+
 def run(argv, prog="surfmesh_cli.py"):
     args = build_parser(prog).parse_args(argv)
     sm = _import_surfmesh()
@@ -139,6 +185,7 @@ def run(argv, prog="surfmesh_cli.py"):
     if args.measure not in api.measure_names():
         raise ValueError(
             f"unknown measure {args.measure!r}; known: {', '.join(api.measure_names())}")
+    wanted = _wanted_metrics(args, fileio)
     shape = fileio.read_shape(args.shape, args.shape_object)
     mf = fileio.read_mesh(args.mesh, args.mesh_object)
     # What will be written is checked before the run, not after it.
@@ -159,6 +206,8 @@ def run(argv, prog="surfmesh_cli.py"):
         out["bridge"] = _bridge_summary(rep.bridge, mf.data)
         for w in rep.bridge.get("warnings", []):
             print(f"warning: {w}", file=sys.stderr)
+        if wanted:
+            out["metrics"] = _write_metrics(args, sm, mf, shape, hints, rep, wanted)
     else:
         options = {}
         if args.max_sweeps is not None:
