@@ -51,6 +51,13 @@ py::dict reportDict(const BridgeReport& r) {
   d["face_elements"] = r.faceElements;
   d["miswound_elements"] = toArray(r.miswoundElements);
   d["placed_nodes"] = toArray(r.placedNodes);
+  d["loose_nodes"] = toArray(r.looseNodes);
+  py::array_t<std::uint8_t> looseClass(static_cast<py::ssize_t>(r.looseClass.size()));
+  for (std::size_t i = 0; i < r.looseClass.size(); ++i)
+    looseClass.mutable_data()[i] = static_cast<std::uint8_t>(r.looseClass[i]);
+  d["loose_class"] = looseClass;
+  d["loose_entity"] = toArray(r.looseEntity);
+  d["loose_distance"] = toArray(r.looseDistance);
   d["tolerance"] = r.tolerance;
   d["max_distance"] = r.maxDistance;
   d["worst_node"] = r.worstNode;

@@ -8,6 +8,7 @@
 #include "surfmesh/measures/measure.h"
 #include "surfmesh/mesh/quality.h"
 
+#include <BRepBuilderAPI_MakeEdge.hxx>
 #include <BRepBuilderAPI_MakeVertex.hxx>
 #include <BRepClass_FaceClassifier.hxx>
 #include <BRepExtrema_DistShapeShape.hxx>
@@ -834,6 +835,99 @@ TEST(CadBridge, NodesOffTheShapeAreReportedWithCountWorstAndId) {
   BridgeOptions opt;
   opt.tolerance = 0.05 * diag;
   EXPECT_NO_THROW(CadMesh(shape, om.input, opt));
+}
+
+/// Independent distance from p to a shape (BRepExtrema).
+double distanceTo(const TopoDS_Shape& s, const Vec3& p) {
+  BRepExtrema_DistShapeShape d(BRepBuilderAPI_MakeVertex(gp_Pnt(p.x(), p.y(), p.z())).Vertex(), s);
+  return d.IsDone() ? d.Value() : INFINITY;
+}
+
+TEST(CadBridge, NodesOfNoElementAreLocatedOnTheWholeShapeAndKeptFixed) {
+  // A box and a free edge (a wire belonging to no face, as a beam beside a shell): the nodes
+  // a FEM mesh has there belong to edge elements only. They are taken (fixed, named in the
+  // report with the entity they lie on); only a node off the whole shape is refused, with the
+  // nearest entity and the distance.
+  BRep_Builder b;
+  TopoDS_Compound c;
+  b.MakeCompound(c);
+  b.Add(c, BRepPrimAPI_MakeBox(10.0, 10.0, 10.0).Shape());
+  b.Add(c, BRepBuilderAPI_MakeEdge(gp_Pnt(0, 0, 15), gp_Pnt(10, 0, 15)).Edge());
+  auto shape = std::make_shared<CadShape>(c);
+  OccMesh om = meshWithBRepMesh(*shape, 0.5, 0.5);
+  const std::int32_t first = static_cast<std::int32_t>(om.input.nodes.size());
+  const std::vector<Vec3> loose = {
+      {2.5, 0.0, 15.0},   // on the free edge
+      {10.0, 0.0, 15.0},  // on its end vertex (bounds no face)
+      {0.0, 0.0, 3.0},    // on an edge of the box, in no element
+      {5.0, 5.0, 0.0},    // inside the box's bottom face, in no element
+  };
+  for (const Vec3& p : loose) om.input.nodes.push_back(p);
+  int freeEdge = -1, freeVertex = -1;
+  for (int e = 0; e < shape->edgeCount(); ++e)
+    if (shape->edgeFaces(e).empty()) freeEdge = e;
+  for (int v = 0; v < shape->vertexCount(); ++v)
+    if (shape->vertexFaces(v).empty() && (shape->vertexPoint(v) - loose[1]).norm() < 1e-12)
+      freeVertex = v;
+  ASSERT_GE(freeEdge, 0);
+  ASSERT_GE(freeVertex, 0);
+  for (const char* boundary : {"fixed", "slide"}) {
+    BridgeOptions opt;
+    opt.boundary = boundary;
+    CadMesh cm(shape, om.input, opt);
+    const BridgeReport& r = cm.report();
+    ASSERT_EQ(r.looseNodes.size(), loose.size());
+    for (std::size_t k = 0; k < loose.size(); ++k) {
+      const std::size_t n = static_cast<std::size_t>(first) + k;
+      EXPECT_EQ(r.looseNodes[k], static_cast<std::int32_t>(n));
+      EXPECT_EQ(cm.mesh().nodeKind[n], NodeKind::Fixed);
+      EXPECT_EQ(cm.mesh().xyz[n], loose[k]);
+      // the entity named: the node lies on it (independent distance)
+      const int id = r.looseEntity[k];
+      const TopoDS_Shape& named =
+          r.looseClass[k] == NodeClass::Vertex ? static_cast<const TopoDS_Shape&>(shape->vertex(id))
+          : r.looseClass[k] == NodeClass::Edge ? static_cast<const TopoDS_Shape&>(shape->edge(id))
+                                               : static_cast<const TopoDS_Shape&>(shape->face(id));
+      EXPECT_LT(distanceTo(named, loose[k]), 1e-9) << k;
+      EXPECT_LT(r.looseDistance[k], 1e-9) << k;
+      EXPECT_LT(r.nodeDistance[n], 1e-9) << k;
+    }
+    EXPECT_EQ(r.looseClass[0], NodeClass::Edge);
+    EXPECT_EQ(r.looseEntity[0], freeEdge);
+    EXPECT_EQ(r.looseClass[1], NodeClass::Vertex);
+    EXPECT_EQ(r.looseEntity[1], freeVertex);
+    EXPECT_EQ(r.looseClass[2], NodeClass::Edge);
+    EXPECT_EQ(r.looseClass[3], NodeClass::Face);
+    EXPECT_EQ(r.unusedNodes, loose.size());
+    bool named = false;
+    for (const auto& w : r.warnings)
+      named |= w.find("4 nodes belong to no element") != std::string::npos &&
+               w.find("1 on CAD vertices, 2 on CAD edges, 1 on faces") != std::string::npos;
+    EXPECT_TRUE(named);
+  }
+  // A node of no element 2 away from the free edge's middle (and 7 from the box): refused,
+  // naming it, its distance (BRepExtrema's) and the free edge as the nearest entity.
+  MeshInput off = om.input;
+  const Vec3 p(5.0, 2.0, 15.0);
+  off.nodes.push_back(p);
+  const std::string msg = errorOf([&] { CadMesh cm(shape, off); });
+  std::cout << msg << "\n";
+  const double d = distanceTo(shape->shape(), p);
+  EXPECT_NEAR(d, 2.0, 1e-9);
+  EXPECT_NE(msg.find("1 of"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("node " + std::to_string(off.nodes.size() - 1) + " at distance 2 "),
+            std::string::npos)
+      << msg;
+  EXPECT_NE(msg.find("from edge " + std::to_string(freeEdge) + ", the nearest"), std::string::npos)
+      << msg;
+  // A face element's node on the free edge: the element lies on no face.
+  MeshInput onFree = om.input;
+  onFree.conn[0] = first;  // the free edge's node as a corner of element 0
+  const std::string m2 = errorOf([&] { CadMesh cm(shape, onFree); });
+  EXPECT_NE(m2.find("nodes of face elements but lie on no face"), std::string::npos) << m2;
+  EXPECT_NE(m2.find("edge " + std::to_string(freeEdge) + ", which bounds no face"),
+            std::string::npos)
+      << m2;
 }
 
 TEST(CadBridge, MeshOfAnotherPartFailsFast) {

@@ -427,6 +427,10 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, duplicates="glu
         report["glued_nodes"] = int(glued.size)
         unused = max(0, int(report.get("unused_nodes", 0)) - glued.size)
         report["unused_nodes"] = unused
+        if "loose_nodes" in report:
+            keep = ~np.isin(np.asarray(report["loose_nodes"], dtype=np.int64), glued)
+            for key in _LOOSE_KEYS:
+                report[key] = np.asarray(report[key])[keep]
         if "fixed_nodes" in report:  # a glued node is fixed when the node it moves with is
             kinds = np.asarray(handle.node_kinds())
             report["fixed_nodes"] = int(report["fixed_nodes"]) - glued.size + int(
@@ -436,7 +440,8 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, duplicates="glu
             if _UNUSED_NODES.match(w):
                 if not unused:
                     continue
-                w = _UNUSED_NODES.sub(f"{unused} nodes belong", w, count=1)
+                w = (_name_by_ids(_loose_note(report), data) if "loose_nodes" in report
+                     else _UNUSED_NODES.sub(f"{unused} nodes belong", w, count=1))
             warnings.append(w)
         report["warnings"] = warnings + [note]
     astray = _side_nodes_astray(data)
@@ -457,12 +462,32 @@ def _prepare(mesh, shape, boundary, tolerance, hints, collapsed, duplicates="glu
 
 
 _UNUSED_NODES = re.compile(r"^\d+ nodes belong(?= to no element)")
+# The bridge report's arrays on the nodes of no element (aligned with "loose_nodes").
+_LOOSE_KEYS = ("loose_nodes", "loose_class", "loose_entity", "loose_distance")
+_ENTITY_NAMES = ("Vertex", "Edge", "Face")
+
+
+def _loose_note(report):
+    """The core's warning on the nodes of no element (its indices), from the report's arrays
+    (after glued nodes were taken out of them)."""
+    loose = np.asarray(report["loose_nodes"], dtype=np.int64)
+    cls = np.asarray(report["loose_class"], dtype=np.int64)
+    dist = np.asarray(report["loose_distance"], dtype=np.float64)
+    ent = np.asarray(report["loose_entity"], dtype=np.int64)
+    k = int(np.argmax(dist))
+    kind = ("vertex", "edge", "face", "none")[int(cls[k])]
+    return (f"{loose.size} nodes belong to no element (e.g. nodes of edge or vertex elements); "
+            "they are kept fixed and lie on the shape: "
+            f"{int(np.sum(cls == 0))} on CAD vertices, {int(np.sum(cls == 1))} on CAD edges, "
+            f"{int(np.sum(cls == 2))} on faces; farthest: node {int(loose[k])} "
+            f"({float(dist[k]):.6g} from {kind} {int(ent[k])}); e.g. nodes "
+            + " ".join(str(int(n)) for n in loose[:5]))
 # "node 5", "nodes 2 and 7", "nodes 2, 7 and 9", "nodes 7 19 32" (lists as the core writes
 # them), "row 5" (a row of the node array); the same for elements.
 _ID_LIST = r"(\d+(?:(?:, | and | )\d+(?!\d|\.\d))*)"
 _NODE_REF = re.compile(r"\b(nodes?|row) " + _ID_LIST)
 _ELEMENT_REF = re.compile(r"\b(elements?) " + _ID_LIST)
-_FACE_INDEX = re.compile(r"\bon face (\d+)\b")
+_FACE_INDEX = re.compile(r"\b(on|from) (face|edge|vertex) (\d+)\b")
 
 
 #: A side node farther from the segment between its side's corners than this many times the
@@ -500,8 +525,9 @@ def _name_by_ids(message, data):
     """The core names nodes and elements by their 0-based position in the arrays it was given;
     users know them by their ids (FEM node and element ids, which need not start at 0 or 1).
     Rewrites "node 5", "nodes 2 and 7", "nodes 2, 7 and 9", "nodes 7 19 32", "row 5" (a row
-    of the node array) and "element 3" (every id of a list); "on face 4" (the core's face
-    index) becomes FreeCAD's name, "on Face5"."""
+    of the node array) and "element 3" (every id of a list); "on face 4" and "from edge 2"
+    (the core's indices of the shape's faces, edges and vertices) become FreeCAD's names,
+    "on Face5", "from Edge3"."""
     def ids_of(table, label_row=False):
         def one(m):
             k = int(m.group(0))
@@ -517,7 +543,8 @@ def _name_by_ids(message, data):
     if getattr(data, "element_ids", None) is not None:
         message = _ELEMENT_REF.sub(ids_of(data.element_ids), message)
     # The core's face index (the shape's faces counted from 0) as FreeCAD names the face.
-    return _FACE_INDEX.sub(lambda m: f"on Face{int(m.group(1)) + 1}", message)
+    return _FACE_INDEX.sub(
+        lambda m: f"{m.group(1)} {m.group(2).capitalize()}{int(m.group(3)) + 1}", message)
 
 
 def _flat_boundary_elements(work, handle):
@@ -565,6 +592,15 @@ def _bridge_report(handle, data):
     if "placed_nodes" in out:
         out["placed_nodes"] = [int(data.node_ids[int(n)])
                                for n in np.asarray(out["placed_nodes"])]
+    if "loose_nodes" in out:
+        # The nodes of no element (of edge or vertex elements alone), by the user's ids, and
+        # where each lies: FreeCAD's name of the vertex, edge or face, and the distance to it.
+        out["loose_nodes"] = [int(data.node_ids[int(n)]) for n in np.asarray(out["loose_nodes"])]
+        out["loose_on"] = [
+            f"{_ENTITY_NAMES[int(c)]}{int(e) + 1}" if int(c) < 3 and int(e) >= 0 else ""
+            for c, e in zip(np.asarray(out.pop("loose_class")),
+                            np.asarray(out.pop("loose_entity")))]
+        out["loose_distance"] = [float(d) for d in np.asarray(out["loose_distance"])]
     return out
 
 

@@ -112,6 +112,11 @@ def _bridge_summary(bridge, data):
     out = {k: bridge[k] for k in keys if k in bridge}
     # high-order side nodes put on their element's face, by the file's node ids
     out["placed_nodes"] = [int(n) for n in bridge.get("placed_nodes", [])]
+    # nodes of no face element (of edge or vertex elements alone), by the file's node ids, with
+    # the vertex, edge or face each lies on and the distance to it
+    for key in ("loose_nodes", "loose_on", "loose_distance"):
+        if key in bridge:
+            out[key] = list(bridge[key])
     return out
 
 

@@ -659,6 +659,68 @@ class Projector {
     return best;
   }
 
+  /// Distance from p to the whole shape: its faces, and the edges and vertices that bound no
+  /// face (free edges, lone vertices: a shell's or a wire's), with the nearest entity
+  /// (`kind`: Face, Edge or Vertex, `id` its 0-based id).
+  double wholeShapeDistance(const Vec3& p, NodeClass* kind, int* id) {
+    int f = -1;
+    double best = shapeDistance(p, &f);
+    *kind = NodeClass::Face;
+    *id = f;
+    for (int e = 0; e < s_.edgeCount(); ++e) {
+      if (!s_.edgeFaces(e).empty() || s_.isDegeneratedEdge(e)) continue;
+      if (boxDistance(edgeBoxes_[static_cast<std::size_t>(e)], p) >= best) continue;
+      double t = 0.0;
+      const double d = edgeDistance(e, p, &t);
+      if (d < best) {
+        best = d;
+        *kind = NodeClass::Edge;
+        *id = e;
+      }
+    }
+    for (int v = 0; v < s_.vertexCount(); ++v) {
+      if (!s_.vertexEdges(v).empty()) continue;
+      const double d = (s_.vertexPoint(v) - p).norm();
+      if (d < best) {
+        best = d;
+        *kind = NodeClass::Vertex;
+        *id = v;
+      }
+    }
+    return best;
+  }
+
+  /// Where p lies on the whole shape: the CAD vertex within its tolerance (at least `close`),
+  /// else the CAD edge (face-bound or free) within its tolerance, else the nearest face or
+  /// free edge or lone vertex (wholeShapeDistance). Returns the distance to that entity.
+  double locate(const Vec3& p, double close, NodeClass* kind, int* id, double* t) {
+    *t = kNaN;
+    for (int v = 0; v < s_.vertexCount(); ++v) {
+      const double d = (s_.vertexPoint(v) - p).norm();
+      if (d <= std::max(close, s_.vertexTolerance(v))) {
+        *kind = NodeClass::Vertex;
+        *id = v;
+        return d;
+      }
+    }
+    double best = kInf;
+    for (int e = 0; e < s_.edgeCount(); ++e) {
+      if (s_.isDegeneratedEdge(e)) continue;
+      const double reach = std::max(close, BRep_Tool::Tolerance(s_.edge(e)));
+      if (boxDistance(edgeBoxes_[static_cast<std::size_t>(e)], p) > std::min(reach, best)) continue;
+      double te = 0.0;
+      const double d = edgeDistance(e, p, &te);
+      if (d <= reach && d < best) {
+        best = d;
+        *kind = NodeClass::Edge;
+        *id = e;
+        *t = te;
+      }
+    }
+    if (std::isfinite(best)) return best;
+    return wholeShapeDistance(p, kind, id);
+  }
+
   /// Every face within tol of p. Faces are searched near p first (the radius the per-face
   /// slack needs once a face at distance ~0 is found), then out to tol if none is that close.
   /// With `keep` > 0, faces farther than the nearest one plus max(keep, their slack) may be
@@ -1143,6 +1205,32 @@ const char* nodeClassName(NodeClass c) {
   return "?";
 }
 
+namespace {
+
+/// The warning on the nodes of no element (BridgeReport::looseNodes): where they lie.
+std::string looseNodesNote(const BridgeReport& r) {
+  std::size_t on[3] = {0, 0, 0}, worst = 0;
+  for (std::size_t k = 0; k < r.looseNodes.size(); ++k) {
+    const NodeClass c = r.looseClass[k];
+    if (c == NodeClass::Vertex || c == NodeClass::Edge || c == NodeClass::Face)
+      ++on[static_cast<int>(c)];
+    if (r.looseDistance[k] > r.looseDistance[worst]) worst = k;
+  }
+  std::ostringstream os;
+  os << r.looseNodes.size()
+     << " nodes belong to no element (e.g. nodes of edge or vertex elements); they are kept "
+        "fixed and lie on the shape: "
+     << on[0] << " on CAD vertices, " << on[1] << " on CAD edges, " << on[2]
+     << " on faces; farthest: node " << r.looseNodes[worst] << " (" << r.looseDistance[worst]
+     << " from " << nodeClassName(r.looseClass[worst]) << " " << r.looseEntity[worst]
+     << "); e.g. nodes";
+  for (std::size_t k = 0; k < std::min<std::size_t>(r.looseNodes.size(), 5); ++k)
+    os << " " << r.looseNodes[k];
+  return os.str();
+}
+
+}  // namespace
+
 std::string BridgeReport::summary() const {
   std::ostringstream os;
   os << nodeClass.size() << " nodes: " << vertexNodes << " on vertices (" << poleNodes
@@ -1339,7 +1427,9 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
       const std::size_t n = k * N / samples;
       std::vector<FaceHit> hits;
       pr.facesNear(input.nodes[n], tol, &hits);
-      sd[k] = hits.empty() ? pr.shapeDistance(input.nodes[n], nullptr) : 0.0;
+      NodeClass kind;
+      int id = -1;
+      sd[k] = hits.empty() ? pr.wholeShapeDistance(input.nodes[n], &kind, &id) : 0.0;
     });
     std::size_t off = 0, worst = 0;
     for (std::size_t k = 0; k < samples; ++k)
@@ -1350,10 +1440,9 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
     if (off * 2 > samples) {
       std::ostringstream os;
       os << "the mesh does not lie on this shape: " << off << " of " << samples
-         << " sampled nodes are farther than the tolerance " << tol
-         << " from every face (e.g. node " << worst * N / samples << " at distance " << sd[worst]
-         << "); mesh bounding box " << boxText(mb) << ", shape bounding box " << boxText(sb)
-         << unitHint();
+         << " sampled nodes are farther than the tolerance " << tol << " from the shape (e.g. node "
+         << worst * N / samples << " at distance " << sd[worst] << "); mesh bounding box "
+         << boxText(mb) << ", shape bounding box " << boxText(sb) << unitHint();
       fail(os.str());
     }
   }
@@ -1511,32 +1600,72 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
 
   report_.tolerance = tol;
   report_.nodeDistance.assign(N, kInf);
-  std::vector<std::size_t> offNodes;
-  for (std::size_t n = 0; n < N; ++n) {
-    double d = kInf;
-    for (const FaceHit& h : hits[n]) d = std::min(d, h.dist);
-    report_.nodeDistance[n] = d;
-    if (hits[n].empty()) offNodes.push_back(n);
+  for (std::size_t n = 0; n < N; ++n)
+    for (const FaceHit& h : hits[n])
+      report_.nodeDistance[n] = std::min(report_.nodeDistance[n], h.dist);
+  // Nodes of no element (a FEM mesh's nodes of edge or vertex elements alone: on a free edge,
+  // a beam in a shell mesh): located on the whole shape — a CAD vertex or edge within its
+  // tolerance, else the nearest face, free edge or lone vertex — and kept fixed.
+  std::vector<unsigned char> inElement(N, 0);
+  for (std::int32_t n : input.conn) inElement[static_cast<std::size_t>(n)] = 1;
+  for (std::size_t n = 0; n < N; ++n)
+    if (!inElement[n]) report_.looseNodes.push_back(static_cast<std::int32_t>(n));
+  {
+    const std::size_t L = report_.looseNodes.size();
+    report_.looseClass.assign(L, NodeClass::None);
+    report_.looseEntity.assign(L, -1);
+    report_.looseDistance.assign(L, kInf);
+    parallelFor(L, projectors, [&](std::size_t k, Projector& pr) {
+      const std::size_t n = static_cast<std::size_t>(report_.looseNodes[k]);
+      double t = 0.0;
+      report_.looseDistance[k] = pr.locate(input.nodes[n], 1e-6 * diag, &report_.looseClass[k],
+                                           &report_.looseEntity[k], &t);
+    });
+    for (std::size_t k = 0; k < L; ++k) {
+      const std::size_t n = static_cast<std::size_t>(report_.looseNodes[k]);
+      report_.nodeDistance[n] = std::min(report_.nodeDistance[n], report_.looseDistance[k]);
+    }
   }
+  std::vector<std::size_t> offNodes;
+  for (std::size_t n = 0; n < N; ++n)
+    if (hits[n].empty() && (inElement[n] || !(report_.nodeDistance[n] <= tol)))
+      offNodes.push_back(n);
   if (!offNodes.empty()) {
     const std::size_t checked = std::min<std::size_t>(offNodes.size(), 1000);
+    std::vector<NodeClass> nearKind(checked, NodeClass::None);
+    std::vector<int> nearId(checked, -1);
     parallelFor(checked, projectors, [&](std::size_t k, Projector& pr) {
       const std::size_t n = offNodes[k];
-      report_.nodeDistance[n] = pr.shapeDistance(input.nodes[n], nullptr);
+      report_.nodeDistance[n] = pr.wholeShapeDistance(input.nodes[n], &nearKind[k], &nearId[k]);
     });
-    std::size_t worst = offNodes[0];
+    std::size_t worst = 0;
     for (std::size_t k = 0; k < checked; ++k)
-      if (report_.nodeDistance[offNodes[k]] > report_.nodeDistance[worst]) worst = offNodes[k];
+      if (report_.nodeDistance[offNodes[k]] > report_.nodeDistance[offNodes[worst]]) worst = k;
+    const std::size_t wn = offNodes[worst];
+    const double wd = report_.nodeDistance[wn];
     std::ostringstream os;
-    os << offNodes.size() << " of " << N << " nodes are farther than the tolerance " << tol
-       << " from the shape; worst: node " << worst << " at distance " << report_.nodeDistance[worst]
-       << " (" << report_.nodeDistance[worst] / diag << " x diagonal)";
+    if (wd <= tol) {
+      // Every such node is an element's node on a free edge or a lone vertex (else the worst
+      // would be farther): an element there lies on no face.
+      os << offNodes.size() << " of " << N << " nodes are nodes of face elements but lie on no "
+         << "face: node " << wn << " lies " << wd << " from " << nodeClassName(nearKind[worst])
+         << " " << nearId[worst] << ", which bounds no face";
+    } else {
+      os << offNodes.size() << " of " << N << " nodes are farther than the tolerance " << tol
+         << " from the shape (its faces, edges and vertices); worst: node " << wn << " at distance "
+         << wd << " (" << wd / diag << " x diagonal) from " << nodeClassName(nearKind[worst]) << " "
+         << nearId[worst] << ", the nearest";
+    }
     if (checked < offNodes.size()) os << " among the first " << checked << " checked";
     os << "; e.g. nodes";
     for (std::size_t k = 0; k < std::min<std::size_t>(offNodes.size(), 5); ++k)
       os << " " << offNodes[k];
-    os << ". Check that the mesh belongs to this shape (same placement), or pass a larger "
-          "tolerance.";
+    if (wd <= tol)
+      os << ". Face elements must lie on the shape's faces: give the face elements only, or the "
+            "shape the mesh was made on.";
+    else
+      os << ". Check that the mesh belongs to this shape (same placement), or pass a larger "
+            "tolerance.";
     fail(os.str());
   }
   std::size_t rejected = 0;
@@ -1986,9 +2115,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
     if (M.nodeKind[n] == NodeKind::Fixed) ++report_.fixedNodes;
     if (M.nodeKind[n] == NodeKind::Edge) ++report_.slidingNodes;
   }
-  if (report_.unusedNodes)
-    report_.warnings.push_back(std::to_string(report_.unusedNodes) +
-                               " nodes belong to no element; they are kept fixed");
+  if (!report_.looseNodes.empty()) report_.warnings.push_back(looseNodesNote(report_));
   // High-order nodes beyond the tolerance (kHighOrderReach) go to their nearest point on their
   // face, edge or vertex: the run must start, and end, with every node on the shape.
   {

@@ -33,7 +33,10 @@
 //      shared by them (when closer than a tenth of its shortest mesh edge) or else on their
 //      nearest common CAD edge. Nodes on degenerated edges (poles) are vertex nodes.
 //   4. Node kinds: face nodes move in (u,v) (NodeKind::Face); vertex nodes, poles and nodes in
-//      no element are Fixed; edge nodes are Fixed (boundary "fixed", the paper's setting) or
+//      no element are Fixed (a node of no element — a FEM mesh's node of edge or vertex
+//      elements alone, on a free edge or a beam — is located on the whole shape: a CAD vertex
+//      or edge within its tolerance, else the nearest face, free edge or lone vertex;
+//      BridgeReport::looseNodes); edge nodes are Fixed (boundary "fixed", the paper's setting) or
 //      slide along their edge (boundary "slide": NodeKind::Edge with nodeEdge / nodeT).
 //   5. Orientation: the reference normal of face f is its outward normal (normalSign · φ_u×φ_v).
 //      Faces joined by mesh edges have related windings whatever the node positions: the same
@@ -60,9 +63,11 @@
 // Errors (std::invalid_argument with a message saying what and where): empty mesh,
 // non-finite coordinates, index out of range, bad element sizes/offsets, bad hints, negative
 // tolerance, unknown boundary mode, a mesh that does not lie on the shape (fails after a
-// sample of nodes), nodes farther than the tolerance (how many, the worst distance and that
-// node's id; for high-order side and interior nodes, farther than their element's longest
-// side), elements whose nodes share no face.
+// sample of nodes), nodes farther than the tolerance from the whole shape (faces, edges,
+// vertices: how many, the worst distance, that node's id and its nearest entity; for
+// high-order side and interior nodes, farther than their element's longest side), an
+// element's node that lies on a free edge or lone vertex only (on no face), elements whose
+// nodes share no face.
 #pragma once
 
 #include "surfmesh/cad/cad_shape.h"
@@ -128,7 +133,7 @@ enum class NodeClass : std::uint8_t {
   Vertex = 0,  ///< on a CAD vertex (also nodes on a degenerated edge: poles)
   Edge = 1,    ///< on a CAD edge (not a seam of a single face), parameter t
   Face = 2,    ///< inside a face (seam edges included), parameters (u,v)
-  None = 3,    ///< in no element (unused node; still checked to be on the shape)
+  None = 3,    ///< in no element (see BridgeReport::looseNodes), or placed on no entity
 };
 const char* nodeClassName(NodeClass c);
 
@@ -137,7 +142,8 @@ struct BridgeReport {
   std::vector<NodeClass> nodeClass;      ///< N
   std::vector<std::int32_t> nodeEntity;  ///< N; vertex, edge or face id (by nodeClass)
   std::vector<double> nodeParam;         ///< N; t for Edge nodes, NaN otherwise
-  std::vector<double> nodeDistance;      ///< N; distance to the shape (nearest face)
+  std::vector<double> nodeDistance;      ///< N; distance to the shape (nearest face; for a node
+                                         ///< of no element, also free edges and lone vertices)
   // ---- per face ---------------------------------------------------------------------------
   std::vector<unsigned char> faceFlipped;  ///< F; 1 when the mesh is wound against the face
   std::vector<int> flippedFaces;           ///< ids of the flipped faces
@@ -155,6 +161,17 @@ struct BridgeReport {
   /// on the face's surface outside its trimmed domain), sorted: the SurfaceMesh has them at
   /// their nearest point on their face, edge or vertex (every other node keeps its position).
   std::vector<std::int32_t> placedNodes;
+  /// Nodes in no element of the input (sorted): a FEM mesh's nodes of edge or vertex elements
+  /// alone (a free edge's, a beam's in a shell mesh), or nodes nothing uses. They are Fixed
+  /// (NodeClass::None) and located on the whole shape, aligned with looseNodes: the entity
+  /// they lie on (looseClass Vertex, Edge or Face and looseEntity its id: a CAD vertex or edge
+  /// — one bounding no face included — within its tolerance, else the nearest face, free edge
+  /// or lone vertex) and their distance to it. A node of no element farther than the tolerance
+  /// from the whole shape is an error like any other.
+  std::vector<std::int32_t> looseNodes;
+  std::vector<NodeClass> looseClass;
+  std::vector<std::int32_t> looseEntity;
+  std::vector<double> looseDistance;
   // ---- totals -----------------------------------------------------------------------------
   double tolerance = 0.0;    ///< the tolerance used
   double maxDistance = 0.0;  ///< largest node distance to the shape
