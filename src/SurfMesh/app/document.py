@@ -402,13 +402,25 @@ class ElementPick:
         c = self.centers[0]
         where = f"near ({c[0]:.6g}, {c[1]:.6g}, {c[2]:.6g})" + (
             f" on {self.faces[0]}" if self.faces[0] else "")
+        faces = self.face_counts()
+        # every face involved, most elements first, when they lie on more than one
+        spread = ("" if len(faces) < 2 else f"; they lie on {len(faces)} faces: "
+                  + ", ".join(f"{f} ({k})" for f, k in faces))
         if self.kind == "tangled":
             first = "the first" if n > 1 else "it"
             return (f"{n} tangled {noun}{'s' if n != 1 else ''} ({self.measure} measure): "
-                    f"{ids}; {first}, {noun} {self.ids[0]}, lies {where}")
+                    f"{ids}; {first}, {noun} {self.ids[0]}, lies {where}{spread}")
         return (f"no tangled {noun} ({self.measure} measure); the {n} worst, quality "
                 f"{self.quality[0]:.4g} to {self.quality[-1]:.4g}: {ids}; the worst, "
-                f"{noun} {self.ids[0]} (quality {self.quality[0]:.4g}), lies {where}")
+                f"{noun} {self.ids[0]} (quality {self.quality[0]:.4g}), lies {where}{spread}")
+
+    def face_counts(self):
+        """[(face name, how many of the picked elements lie on it)], most first."""
+        counts = {}
+        for f in self.faces:
+            if f:
+                counts[f] = counts.get(f, 0) + 1
+        return sorted(counts.items(), key=lambda fc: (-fc[1], int(fc[0][4:])))
 
 
 def tangled_elements(obj, shape=None, measure="shape", worst=WORST_ELEMENTS, **kwargs):
@@ -516,7 +528,32 @@ def optimize_object(obj, shape=None, measure="shape", boundary="fixed", name=Non
         doc.abortTransaction()
         raise
     doc.commitTransaction()
+    import FreeCAD
+
+    FreeCAD.Console.PrintMessage(f"SurfMesh: {new.Label}: {outcome_of(new)}\n")
     return new
+
+
+def outcome_of(obj):
+    """What the optimization that made ``obj`` did, in one line (see reports.outcome_text),
+    from what :func:`optimize_object` stored on it; None for an object it did not make."""
+    from SurfMesh.app import reports
+
+    before, after = stats_of(obj, before=True), stats_of(obj)
+    if before is None or after is None or "SurfMeshRun" not in obj.PropertiesList:
+        return None
+    run = dict(obj.SurfMeshRun)
+    return reports.outcome_text(before, after, int(run.get("sweeps", 0)),
+                                float(run.get("seconds", 0.0)), run.get("reason", ""))
+
+
+def run_warnings(obj):
+    """The warnings of the optimization that made ``obj`` (elements left tangled, …), as
+    :func:`optimize_object` stored them."""
+    if "SurfMeshRun" not in obj.PropertiesList:
+        return []
+    text = dict(obj.SurfMeshRun).get("warnings", "")
+    return [w for w in text.split(" | ") if w]
 
 
 def report_rows(obj, measures=None, shape=None):

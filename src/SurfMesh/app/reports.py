@@ -13,12 +13,22 @@ import numpy as np
 COLUMNS = ("Min. Q.", "Max. Q.", "Mean Q.", "Std. Dev.", "Tang. el.")
 
 
+def format_value(v, digits=2):
+    """``v`` with ``digits`` decimals, except where that would round a non-zero value to 0
+    (|v| < 0.5·10^-digits): there with ``digits`` significant digits, so that a minimum quality
+    of 2.8e-6 reads "2.8e-06", not "0.00" (which reads like a tangled mesh)."""
+    v = float(v)
+    if v != 0.0 and np.isfinite(v) and abs(v) < 0.5 * 10.0 ** -digits:
+        return f"{v:.{digits}g}"
+    return f"{v:.{digits}f}"
+
+
 def stats_row(stats):
     return [
-        f"{stats['min']:.2f}",
-        f"{stats['max']:.2f}",
-        f"{stats['mean']:.2f}",
-        f"{stats['std']:.2f}",
+        format_value(stats["min"]),
+        format_value(stats["max"]),
+        format_value(stats["mean"]),
+        format_value(stats["std"]),
         f"{int(stats['tangled'])}",
     ]
 
@@ -49,13 +59,8 @@ def _table_body(rows, digits):
     body = []
     last = None
     for measure, label, stats in rows:
-        cells = [
-            f"{stats['min']:.{digits}f}",
-            f"{stats['max']:.{digits}f}",
-            f"{stats['mean']:.{digits}f}",
-            f"{stats['std']:.{digits}f}",
-            f"{int(stats['tangled'])}",
-        ]
+        cells = [format_value(stats[k], digits) for k in ("min", "max", "mean", "std")] + [
+            f"{int(stats['tangled'])}"]
         body.append([measure.capitalize() if measure != last else "", label] + cells)
         last = measure
     return body
@@ -113,7 +118,8 @@ def histogram_figure(series, title="Element quality", bins=20):
         q = q[~(q < 0.0)]
         if len(q) == 0:
             continue
-        lab = f"{label} (min {q.min():.2f}, mean {q.mean():.2f}, tangled {int(tangled)})"
+        lab = (f"{label} (min {format_value(q.min())}, mean {format_value(q.mean())}, "
+               f"tangled {int(tangled)})")
         ax.hist(q, bins=edges, alpha=0.55, color=colors[k % len(colors)], label=lab,
                 edgecolor="black", linewidth=0.4)
     ax.set_xlim(0.0, 1.0)
@@ -130,3 +136,37 @@ def save_histogram(path, series, title="Element quality", bins=20):
     fig = histogram_figure(series, title=title, bins=bins)
     fig.savefig(path)
     return path
+
+
+#: The optimizer's reasons for stopping, in a user's words.
+REASONS = {
+    "converged": "converged",
+    "max_sweeps": "stopped at the sweep limit",
+    "nothing_to_do": "nothing to do",
+}
+
+
+def outcome_text(before, after, sweeps, seconds, reason):
+    """One line saying what an optimization did, from the statistics before and after it:
+    "tangled 49 → 0, min quality 2.8e-06 → 0.31, mean 0.85 → 0.90; 48 sweeps, 5.5 s
+    (converged)"."""
+    def arrow(key, fmt):
+        return f"{fmt(before[key])} → {fmt(after[key])}"
+
+    count = lambda v: str(int(v))  # noqa: E731
+    text = (f"tangled {arrow('tangled', count)}, min quality {arrow('min', format_value)}, "
+            f"mean {arrow('mean', format_value)}")
+    if int(after.get("across", 0)) or int(before.get("across", 0)):
+        text += f", standing across {arrow('across', count)}"
+    return (f"{text}; {int(sweeps)} sweep{'s' if int(sweeps) != 1 else ''}, "
+            f"{float(seconds):.2g} s ({REASONS.get(reason, reason)})")
+
+
+def measure_text(stats, measure):
+    """One line saying what a measure found: "4898 elements, 49 tangled, min quality 2.8e-06,
+    mean 0.85 (shape measure)"."""
+    skipped = int(stats.get("skipped", 0))
+    left = f", {skipped} left out" if skipped else ""
+    return (f"{int(stats['elements'])} elements, {int(stats['tangled'])} tangled{left}, "
+            f"min quality {format_value(stats['min'])}, mean {format_value(stats['mean'])} "
+            f"({measure} measure)")
