@@ -346,6 +346,21 @@ class TestSurfmeshBatch(unittest.TestCase):
         self.assertEqual(code, 2)
         self.assertIn("does not exist", se)
 
+    def test_docs_example_manifest_runs(self):
+        manifest = os.path.join(T.REPO, "docs", "examples", "batch_manifest.csv")
+        out = os.path.join(self.dir, "out_docs_example")
+        shutil.rmtree(out, ignore_errors=True)
+        code, so, se = run("batch", manifest, "--out", out, "--jobs", "2")
+        self.assertEqual(code, 0, so + se)
+        recs = by_id(records(out))
+        self.assertEqual(sorted(recs), ["crankarm-fixed", "crankarm-oddy", "crankarm-slide-vtk"])
+        for rid, name in (("crankarm-fixed", "crankarm_fixed.unv"),
+                          ("crankarm-slide-vtk", "crankarm_slide.vtk")):
+            self.assertEqual(recs[rid]["output"], os.path.join(out, name))
+            self.assertTrue(os.path.getsize(recs[rid]["output"]) > 0)
+            self.assertEqual(recs[rid]["after"]["tangled"], 0)
+        self.assertEqual(recs["crankarm-oddy"]["command"], "measure")
+
     # ---- batch on a Dask cluster ------------------------------------------------------------
 
     def test_dask_cluster(self):

@@ -291,6 +291,9 @@ class _Progress:
                     a, b = rec["after"], rec.get("before") or {}
                     msg += (f", tangled {b.get('tangled')} -> {a.get('tangled')}, "
                             f"min {b.get('min', float('nan')):.3g} -> {a.get('min', float('nan')):.3g}")
+                elif rec["status"] == "ok" and rec.get("before"):
+                    b = rec["before"]
+                    msg += f", tangled {b.get('tangled')}, min {b.get('min', float('nan')):.3g}"
                 elif rec.get("error"):
                     msg += f": {rec['error']}"
                 self.stream.write(f"{msg} ({rec.get('seconds', 0):.1f} s)\n")
