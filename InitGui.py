@@ -20,7 +20,13 @@ class SurfMeshWorkbench(FreeCADGui.Workbench):
         from SurfMesh.gui import commands
 
         names = commands.register()
+        import os
+
+        from SurfMesh import paths
         from SurfMesh.gui.preferences import PreferencePage
+
+        # the preference dialog's icon of the group "SurfMesh": preferences-surfmesh.svg
+        FreeCADGui.addIconPath(os.path.join(paths.resources_dir(), "icons"))
 
         FreeCADGui.addPreferencePage(PreferencePage, "SurfMesh")
         self.appendToolbar("SurfMesh", names)

@@ -197,7 +197,7 @@ try:
           f"the run's options stored on the result ({dict(new.SurfMeshRun)})")
     again = OptimizePanel(mesh, tor)
     check(again.over_relaxation.value() == 1.5 and again.max_sweeps.value() == 200
-          and again.boundary.currentText() == "fixed" and again.monotone.isChecked(),
+          and again.boundary.currentData() == "fixed" and again.monotone.isChecked(),
           "the panel opens with the settings of the last run")
     preferences.set_optimize_settings(dict(SurfMesh.OPTIMIZE_DEFAULTS, boundary="fixed"))
     fresh = OptimizePanel(mesh, tor)

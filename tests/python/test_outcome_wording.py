@@ -77,6 +77,34 @@ class Outcome(unittest.TestCase):
         self.assertIsNone(document.outcome_of(mesh))  # not made by optimize_object
 
 
+class StopRuleProgress(unittest.TestCase):
+    def test_untangling_then_converging(self):
+        from SurfMesh.app.progress import StopRuleProgress
+
+        rule = StopRuleProgress(rel_tol=1e-3, max_sweeps=100)
+        p = [rule.update(dict(sweep=1, max_sweeps=100, tangled=10, objective=100.0)),
+             rule.update(dict(sweep=2, max_sweeps=100, tangled=5, objective=90.0))]
+        self.assertEqual(p, [0.01, 0.25])  # sweep 1 of 100 (untangling not begun), half of 0.5
+        p.append(rule.update(dict(sweep=3, max_sweeps=100, tangled=0, objective=10.0)))
+        self.assertEqual(p[-1], 0.5)  # untangled: the first half done
+        # decreases 10 % (r0), then 1 %: log(0.1 / 0.01) / log(0.1 / 0.001) = 1/2 of the rest
+        rule.update(dict(sweep=4, max_sweeps=100, tangled=0, objective=9.0))
+        self.assertAlmostEqual(rule.update(dict(sweep=5, max_sweeps=100, tangled=0,
+                                                objective=9.0 * 0.99)), 0.75, places=12)
+        # below rel_tol: done, whatever the sweep count says
+        self.assertEqual(rule.update(dict(sweep=6, max_sweeps=100, tangled=0,
+                                          objective=9.0 * 0.99 * 0.9999)), 1.0)
+
+    def test_never_drops_and_follows_the_sweep_limit(self):
+        from SurfMesh.app.progress import StopRuleProgress
+
+        rule = StopRuleProgress(rel_tol=1e-3, max_sweeps=10)
+        a = rule.update(dict(sweep=1, max_sweeps=10, tangled=4, objective=1.0))
+        b = rule.update(dict(sweep=2, max_sweeps=10, tangled=6, objective=1.0))  # more tangled
+        self.assertEqual((a, b), (0.1, 0.2))
+        self.assertEqual(rule.update(dict(sweep=10, max_sweeps=10, tangled=6)), 1.0)
+
+
 class FacesOfPickedElements(unittest.TestCase):
     def test_summary_names_every_face(self):
         pick = document.ElementPick(

@@ -72,8 +72,8 @@ def resolve_shape(obj, shape=None):
     src = shapes.source_shape_object(obj)
     if src is None:
         raise ValueError(
-            f"no shape known for mesh {obj.Label!r}: pass the shape (or select it together "
-            "with the mesh)"
+            f"no shape known for mesh {obj.Label!r}: select the part's shape together with "
+            "the mesh (in Python: give it as shape=)"
         )
     return src.Shape
 

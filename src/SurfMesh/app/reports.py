@@ -170,3 +170,19 @@ def measure_text(stats, measure):
     return (f"{int(stats['elements'])} elements, {int(stats['tangled'])} tangled{left}, "
             f"min quality {format_value(stats['min'])}, mean {format_value(stats['mean'])} "
             f"({measure} measure)")
+
+
+#: The measures and boundary modes as the GUI names them (the API's names are the keys).
+MEASURE_LABELS = {
+    "shape": "Shape (Knupp's shape measure)",
+    "oddy": "Oddy (angles and aspect)",
+}
+BOUNDARY_LABELS = {
+    "fixed": "Nodes on CAD edges stay",
+    "slide": "Nodes slide along CAD edges",
+}
+
+
+def measure_label(name):
+    """A measure's name in the GUI (its API name when it has no label)."""
+    return MEASURE_LABELS.get(name, name.capitalize())

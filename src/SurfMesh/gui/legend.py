@@ -19,6 +19,14 @@ _nodes = {}
 
 _X0, _X1 = -0.975, -0.95  # the bar's left and right (the view's width spans -1 … 1)
 _Y0, _Y1 = -0.55, 0.45  # its bottom (q = 0) and top (q = 1)
+# The title's height above the bar's top: clear of the "1" label down to views ~200 px high
+# (13 px text; the view's height spans 2).
+_TITLE_GAP = 0.14
+# The panel under the legend (x0, y0, x1, y1): the bar, its labels, the title and the two
+# swatches below; light and nearly opaque.
+_PANEL = (-0.99, -0.78, -0.58, 0.68)
+_PANEL_RGB = (0.97, 0.97, 0.97)
+_PANEL_TRANSPARENCY = 0.15
 
 
 def _colored_objects(doc):
@@ -57,13 +65,15 @@ def _text(parent, xy, text, rgb=(0.0, 0.0, 0.0)):
     parent.addChild(sep)
 
 
-def _quad(parent, x0, y0, x1, y1, colors):
+def _quad(parent, x0, y0, x1, y1, colors, transparency=0.0):
     """A quad with one color per corner (bottom left, bottom right, top right, top left)."""
     from pivy import coin
 
     sep = coin.SoSeparator()
     mat = coin.SoMaterial()
     mat.diffuseColor.setValues(0, 4, [tuple(map(float, c)) for c in colors])
+    if transparency:
+        mat.transparency.setValue(float(transparency))
     bind = coin.SoMaterialBinding()
     bind.value = coin.SoMaterialBinding.PER_VERTEX_INDEXED
     co = coin.SoCoordinate3()
@@ -98,6 +108,8 @@ def build(heading: str):
     font.size = 13.0
     for n in (cam, pick, light, font):
         over.addChild(n)
+    # a light panel under the scale and its labels, so that they read over any model
+    _quad(over, *_PANEL, [_PANEL_RGB] * 4, transparency=_PANEL_TRANSPARENCY)
     stops = coloring._STOPS
     for a, b in zip(stops[:-1], stops[1:]):
         ya = _Y0 + (_Y1 - _Y0) * a[0]
@@ -106,7 +118,7 @@ def build(heading: str):
     for q in (0.0, 0.25, 0.5, 0.75, 1.0):
         y = _Y0 + (_Y1 - _Y0) * q
         _text(over, (_X1 + 0.01, y - 0.01), f"{q:g}")
-    _text(over, (_X0, _Y1 + 0.05), heading)
+    _text(over, (_X0, _Y1 + _TITLE_GAP), heading)
     h = 0.05
     for k, (rgb, label) in enumerate(((coloring.TANGLED_RGB, "tangled"),
                                       (coloring.SKIPPED_RGB, "left out"))):

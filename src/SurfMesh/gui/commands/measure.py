@@ -29,5 +29,9 @@ class MeasureCommand:
         if mesh is None:
             return
         if rep is not None:
-            FreeCAD.Console.PrintMessage(f"SurfMesh: {mesh.Label}: {rep!r}\n")
+            from SurfMesh.app import reports
+
+            text = f"SurfMesh: {mesh.Label}: {reports.measure_text(rep.stats, rep.measure)}"
+            FreeCAD.Console.PrintMessage(text + "\n")
+            FreeCADGui.getMainWindow().statusBar().showMessage(text, 30000)
         FreeCADGui.updateGui()

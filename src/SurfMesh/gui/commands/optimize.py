@@ -14,8 +14,9 @@ class OptimizeCommand:
             "Pixmap": paths.icon("SurfMesh_Optimize"),
             "MenuText": "Optimize mesh",
             "ToolTip": "Smooths and untangles the selected mesh on its CAD shape; nodes move "
-            "in the surfaces' parameters and never leave the CAD geometry.\nCreates "
-            "<name>_optimized (the original is kept). Select one mesh object, and its shape "
+            "in the surfaces' parameters and never leave the CAD geometry.\nCreates a new "
+            "mesh named after the original with \"_optimized\" added (the original is kept). "
+            "Select one mesh object, and its shape "
             "unless the mesh was made from it; select faces of the shape to optimize only the "
             "elements on them.",
         }

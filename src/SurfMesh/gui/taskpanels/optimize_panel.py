@@ -14,7 +14,7 @@ import FreeCADGui
 from PySide import QtCore, QtGui
 
 from SurfMesh import paths
-from SurfMesh.app import api, progress
+from SurfMesh.app import api, document, progress, reports
 from SurfMesh.gui import preferences, runner, selection
 
 
@@ -43,18 +43,22 @@ class OptimizePanel:
         self.measure = QtGui.QComboBox()
         self.measure.setObjectName("measure")
         names = api.measure_names()
-        self.measure.addItems(names)
+        for name in names:
+            self.measure.addItem(reports.measure_label(name), name)
         cur = preferences.measure()
         if cur in names:
             self.measure.setCurrentIndex(names.index(cur))
-        lay.addRow("Measure", self.measure)
+        self.measure.setToolTip("The element quality the run improves")
+        lay.addRow("Quality measure", self.measure)
         last = preferences.optimize_settings()  # the settings of the last run applied
         self.boundary = QtGui.QComboBox()
         self.boundary.setObjectName("boundary")
-        self.boundary.addItems(list(api.BOUNDARY_MODES))
+        for mode in api.BOUNDARY_MODES:
+            self.boundary.addItem(reports.BOUNDARY_LABELS.get(mode, mode), mode)
         self.boundary.setCurrentIndex(list(api.BOUNDARY_MODES).index(last["boundary"]))
-        self.boundary.setToolTip("fixed: nodes on CAD edges stay; slide: they slide along edges")
-        lay.addRow("Boundary", self.boundary)
+        self.boundary.setToolTip("Whether the nodes on the part's edges stay where they are, "
+                                 "or slide along the edges (the nodes on corners always stay)")
+        lay.addRow("Edges", self.boundary)
         self.faces = QtGui.QLineEdit(", ".join(self.initial_faces))
         self.faces.setObjectName("faces")
         self.faces.setPlaceholderText("all")
@@ -64,33 +68,42 @@ class OptimizePanel:
             "whole mesh"
         )
         lay.addRow("Only faces", self.faces)
-        self.tolerance = QtGui.QDoubleSpinBox()
-        self.tolerance.setObjectName("tolerance")
-        self.tolerance.setDecimals(6)
-        self.tolerance.setRange(0.0, 1e6)
-        self.tolerance.setSpecialValueText("automatic")
-        self.tolerance.setToolTip("Largest distance of a node from the shape (0: automatic)")
-        lay.addRow("Shape tolerance", self.tolerance)
-        self.rel_tol = QtGui.QDoubleSpinBox()
-        self.rel_tol.setObjectName("rel_tol")
-        self.rel_tol.setDecimals(8)
-        self.rel_tol.setRange(1e-8, 1.0)
-        self.rel_tol.setSingleStep(1e-5)
-        self.rel_tol.setValue(last["rel_tol"])
-        lay.addRow("Relative tolerance", self.rel_tol)
         self.max_sweeps = QtGui.QSpinBox()
         self.max_sweeps.setObjectName("max_sweeps")
         self.max_sweeps.setRange(1, 100000)
         self.max_sweeps.setValue(last["max_sweeps"])
+        self.max_sweeps.setToolTip("The run stops after this many passes over the nodes at "
+                                   "the latest")
         lay.addRow("Max. sweeps", self.max_sweeps)
         self.monotone = QtGui.QCheckBox("Never lower the minimum quality")
         self.monotone.setObjectName("monotone")
         self.monotone.setChecked(bool(last["monotone"]))
         self.monotone.setToolTip(
             "Once the mesh is untangled, reject node moves that would lower its minimum quality "
-            "(off: minimize the sum of (eta - 1)^2 alone)"
+            "(off: improve the quality of the mesh as a whole alone)"
         )
-        lay.addRow("Monotone", self.monotone)
+        lay.addRow(self.monotone)
+        advanced = QtGui.QGroupBox("Advanced")
+        advanced.setObjectName("advanced")
+        adv = QtGui.QFormLayout(advanced)
+        self.tolerance = QtGui.QDoubleSpinBox()
+        self.tolerance.setObjectName("tolerance")
+        self.tolerance.setDecimals(6)
+        self.tolerance.setRange(0.0, 1e6)
+        self.tolerance.setSuffix(" mm")
+        self.tolerance.setSpecialValueText("automatic")
+        self.tolerance.setToolTip("Largest distance of a node from the part for it to count as "
+                                  "lying on it (0: chosen from the part's size and tolerances)")
+        adv.addRow("Distance to the part", self.tolerance)
+        self.rel_tol = QtGui.QDoubleSpinBox()
+        self.rel_tol.setObjectName("rel_tol")
+        self.rel_tol.setDecimals(8)
+        self.rel_tol.setRange(1e-8, 1.0)
+        self.rel_tol.setSingleStep(1e-5)
+        self.rel_tol.setValue(last["rel_tol"])
+        self.rel_tol.setToolTip("Once untangled, the run stops when a sweep improves the mesh by "
+                                "less than this fraction")
+        adv.addRow("Stop below an improvement of", self.rel_tol)
         self.over_relaxation = QtGui.QDoubleSpinBox()
         self.over_relaxation.setObjectName("over_relaxation")
         self.over_relaxation.setDecimals(2)
@@ -101,13 +114,19 @@ class OptimizePanel:
             "Once untangled, a node first tries this multiple of its Newton step (kept only when "
             "it lowers the objective); 1 = plain Gauss-Seidel"
         )
-        lay.addRow("Over-relaxation", self.over_relaxation)
+        adv.addRow("Over-relaxation", self.over_relaxation)
         self.threads = QtGui.QSpinBox()
         self.threads.setObjectName("threads")
         self.threads.setRange(0, 256)
         self.threads.setSpecialValueText("all")
         self.threads.setValue(last["threads"])
-        lay.addRow("Threads", self.threads)
+        self.threads.setToolTip("Processor threads the run uses (the result does not depend on "
+                                "it)")
+        adv.addRow("Threads", self.threads)
+        lay.addRow(advanced)
+        # what a run disables while it lasts
+        self.inputs = [self.measure, self.boundary, self.faces, self.max_sweeps, self.monotone,
+                       self.tolerance, self.rel_tol, self.over_relaxation, self.threads]
         self.bar = QtGui.QProgressBar()
         self.bar.setObjectName("progress")
         self.bar.setRange(0, 100)
@@ -130,8 +149,8 @@ class OptimizePanel:
 
     def options(self):
         return {
-            "measure": self.measure.currentText(),
-            "boundary": self.boundary.currentText(),
+            "measure": self.measure.currentData(),
+            "boundary": self.boundary.currentData(),
             "tolerance": self.tolerance.value() or None,
             "rel_tol": self.rel_tol.value(),
             "max_sweeps": self.max_sweeps.value(),
@@ -171,11 +190,10 @@ class OptimizePanel:
 
     def _hook(self, info):
         self.bar.setRange(0, 100)
-        total = max(int(info.get("max_sweeps", 1)), 1)
-        self.bar.setValue(int(100 * int(info.get("sweep", 0)) / total))
+        self.bar.setValue(int(round(100 * self.rule.update(info))))
         self.status.setText(
             f"sweep {info.get('sweep')}: {info.get('tangled')} tangled, "
-            f"min quality {float(info.get('min_quality', 0.0)):.3f}"
+            f"min quality {reports.format_value(float(info.get('min_quality', 0.0)), 3)}"
         )
         QtGui.QApplication.processEvents(QtCore.QEventLoop.AllEvents, 50)
         return not self.stop_requested
@@ -187,8 +205,11 @@ class OptimizePanel:
         self.running = True
         self.stop_requested = False
         self.stop.setEnabled(True)
+        for w in self.inputs:
+            w.setEnabled(False)
         self.bar.setValue(0)
-        preferences.set_measure(self.measure.currentText())
+        self.rule = progress.StopRuleProgress(self.rel_tol.value(), self.max_sweeps.value())
+        preferences.set_measure(self.measure.currentData())
         preferences.set_optimize_settings(self.options())
         try:
             with progress.hook(self._hook), progress.stage_hook(self._stage):
@@ -204,12 +225,36 @@ class OptimizePanel:
         finally:
             self.running = False
             self.stop.setEnabled(False)
+            for w in self.inputs:
+                w.setEnabled(True)
             if self.bar.maximum() == 0:
                 self.bar.setRange(0, 100)
         self.result = new
         self.bar.setRange(0, 100)
         self.bar.setValue(100)
+        self.outcome = document.outcome_of(new)
+        self.status.setText(f"{new.Label}: {self.outcome}")
+        left = (document.stats_of(new) or {}).get("tangled", 0)
+        if left:
+            self._warn_left_tangled(new, int(left))
         return new
+
+    def _warn_left_tangled(self, new, left):
+        """The dialog a run that left tangled elements shows: the outcome, and the run's
+        warnings (which elements, why, what to try) under "Show Details"."""
+        box = QtGui.QMessageBox(FreeCADGui.getMainWindow())
+        box.setObjectName("SurfMeshTangledLeft")
+        box.setIcon(QtGui.QMessageBox.Warning)
+        box.setWindowTitle("SurfMesh: optimize")
+        box.setText(f"{left} element{'s' if left != 1 else ''} of {new.Label} "
+                    f"{'are' if left != 1 else 'is'} still tangled: a solver will reject the "
+                    "mesh.")
+        box.setInformativeText(self.outcome)
+        warnings = document.run_warnings(new)
+        if warnings:
+            box.setDetailedText("\n\n".join(warnings))
+        box.setStandardButtons(QtGui.QMessageBox.Ok)
+        box.exec_()
 
     # ---- task dialog protocol --------------------------------------------------------------
     def getStandardButtons(self):
@@ -245,6 +290,8 @@ class OptimizePanel:
         new.Document.recompute()
         FreeCADGui.Selection.clearSelection()
         FreeCADGui.Selection.addSelection(new)
+        FreeCADGui.getMainWindow().statusBar().showMessage(
+            f"SurfMesh: {new.Label}: {self.outcome}", 60000)
         return True
 
     def reject(self):

@@ -1,0 +1,216 @@
+"""GUI test: what the GUI tells a user, and how the Optimize panel reads.
+
+Checks, in the real FreeCAD GUI on a tangled Gmsh FEM mesh of a torus:
+- the Optimize tooltip shows "_optimized" as text (no "<name>" swallowed as rich text);
+- the preference dialog's SurfMesh group has SurfMesh's icon (not FreeCAD's missing-icon cross):
+  its pixels equal those of resources/icons/preferences-surfmesh.svg;
+- the Optimize panel names measures and edge modes in words (no raw "oddy"/"slide"), gives the
+  distance to the part in mm, keeps its expert settings in an "Advanced" group, disables its
+  inputs while a run lasts (and enables them after), and its progress bar ends near 100 %
+  when the run converges long before the sweep limit;
+- after the run: the report view and the status bar say "tangled N → 0, …" with the counts
+  measured independently of the run;
+- a run that leaves tangled elements (one sweep) opens a warning dialog that says so, with the
+  outcome and the run's warnings as details;
+- the color scale stands on a light panel: on a black screenshot the legend's area is mostly
+  light (it was black around the labels before).
+"""
+
+import os
+import sys
+import traceback
+
+sys.path.insert(0, os.path.join(os.environ.get("SURFMESH_REPO", os.getcwd()), "tests", "gui"))
+from gui_testing import check, finish, pixels, report_text  # noqa: E402
+
+code = 1
+try:
+    import FreeCAD
+    import FreeCADGui
+    import numpy as np
+    from PySide import QtCore, QtGui
+
+    assert FreeCAD.GuiUp
+    FreeCAD.ParamGet("User parameter:BaseApp/Preferences/View").SetBool(
+        "UseNavigationAnimations", False)
+    out = os.environ.get("SURFMESH_TEST_OUTPUT_DIR", ".")
+    os.makedirs(out, exist_ok=True)
+    FreeCADGui.activateWorkbench("SurfMeshWorkbench")
+    mw = FreeCADGui.getMainWindow()
+
+    import SurfMesh
+    from SurfMesh import paths
+    from SurfMesh.app import examples, reports
+
+    # ---- the Optimize tooltip -------------------------------------------------------------
+    actions = [a for a in mw.findChildren(QtGui.QAction) if a.objectName() == "SurfMesh_Optimize"]
+    check(actions, "the Optimize action exists")
+    tip = actions[0].toolTip()
+    check("<name>" not in tip and '"_optimized"' in tip,
+          f"the tooltip names the new mesh in words ({tip[:120]!r})")
+
+    # ---- the preference group's icon --------------------------------------------------------
+    seen = {}
+
+    def _look():
+        w = QtGui.QApplication.activeModalWidget()
+        if w is None:
+            return
+        for lw in w.findChildren(QtGui.QListWidget):
+            for i in range(lw.count()):
+                item = lw.item(i)
+                if item.text() == "SurfMesh":
+                    seen["icon"] = item.icon().pixmap(48, 48).toImage()
+        w.reject()
+
+    poke = QtCore.QTimer()
+    poke.setInterval(200)
+    poke.timeout.connect(_look)
+    poke.start()
+    FreeCADGui.runCommand("Std_DlgPreferences")
+    poke.stop()
+    check("icon" in seen, "the preference dialog lists the SurfMesh group")
+    ours = QtGui.QIcon(paths.icon("preferences-surfmesh")).pixmap(48, 48).toImage()
+
+    def rgba(img):
+        img = img.scaled(32, 32, QtCore.Qt.IgnoreAspectRatio, QtCore.Qt.SmoothTransformation)
+        img = img.convertToFormat(QtGui.QImage.Format_RGBA8888)
+        ptr = img.constBits()
+        return np.frombuffer(bytes(ptr), dtype=np.uint8)[: img.width() * img.height() * 4] \
+            .reshape(img.height(), img.width(), 4).astype(float)
+
+    a, b = rgba(seen["icon"]), rgba(ours)
+    check(np.abs(a - b).mean() < 12.0,
+          f"the group's icon is SurfMesh's (mean difference {np.abs(a - b).mean():.1f})")
+
+    # ---- a tangled FEM mesh ----------------------------------------------------------------
+    doc = FreeCAD.newDocument("SurfMeshOutcome")
+    doc.UndoMode = 1
+    tor = examples.make_torus(doc)
+    mesh = examples.make_gmsh_mesh(doc, tor, 2.0, name="TorusMesh")
+    amp, tangled = examples.tangle_to(mesh, tor.Shape, target=25, seed=1)
+    tor.ViewObject.Visibility = False
+    doc.recompute()
+    view = FreeCADGui.ActiveDocument.ActiveView
+    view.viewIsometric()
+    view.fitAll()
+    before = SurfMesh.measure(mesh, tor)  # measured here, independently of the panel's run
+    check(before.stats["tangled"] == tangled > 0, f"{tangled} tangled elements to start with")
+
+    from SurfMesh.gui import preferences
+    from SurfMesh.gui.taskpanels.optimize_panel import OptimizePanel
+
+    preferences.set_optimize_settings(dict(SurfMesh.OPTIMIZE_DEFAULTS, boundary="fixed"))
+    panel = OptimizePanel(mesh, tor)
+    FreeCADGui.Control.showDialog(panel)
+    FreeCADGui.updateGui()
+    m_items = [panel.measure.itemText(i) for i in range(panel.measure.count())]
+    b_items = [panel.boundary.itemText(i) for i in range(panel.boundary.count())]
+    check(not set(m_items) & set(SurfMesh.measure_names()) and panel.measure.currentData()
+          == "shape", f"measures in words ({m_items})")
+    check(not set(b_items) & {"fixed", "slide"} and panel.boundary.currentData() == "fixed",
+          f"edge modes in words ({b_items})")
+    check(panel.tolerance.suffix().strip() == "mm", "the distance to the part has its unit")
+    groups = [g for g in panel.form.findChildren(QtGui.QGroupBox) if g.title() == "Advanced"]
+    check(len(groups) == 1 and all(groups[0].isAncestorOf(w) for w in (
+        panel.rel_tol, panel.over_relaxation, panel.threads, panel.tolerance)),
+        "expert settings in an Advanced group")
+    check("'shape'" in panel.command() or "measure='shape'" in panel.command(),
+          f"the command still passes the API's names ({panel.command()})")
+
+    during = []
+    orig_hook = panel._hook
+
+    def watching_hook(info):
+        go = orig_hook(info)
+        during.append((all(not w.isEnabled() for w in panel.inputs), panel.bar.value(),
+                       int(info.get("sweep", 0)), int(info.get("max_sweeps", 1))))
+        return go
+
+    panel._hook = watching_hook
+    enabled_after = []
+    orig_run = panel.run
+
+    def run_and_look():  # the panel closes once the run is applied: look before
+        new = orig_run()
+        enabled_after.append(all(w.isEnabled() for w in panel.inputs))
+        enabled_after.append(panel.status.text())
+        return new
+
+    panel.run = run_and_look
+    check(panel.accept() is True, "the run applies")
+    new = doc.getObject("TorusMesh_optimized")
+    check(new is not None, "the optimized mesh exists")
+    check(during and all(d[0] for d in during), "inputs disabled while the run lasts")
+    check(enabled_after[0] is True, "inputs enabled again after it")
+    last_sweep, total = during[-1][2], during[-1][3]
+    check(last_sweep < total / 2 and during[-1][1] >= 90,
+          f"progress ends near 100 % at sweep {last_sweep} of {total} ({during[-1][1]} %; the "
+          f"sweep count alone would give {100 * last_sweep // total} %)")
+    check([d[1] for d in during] == sorted(d[1] for d in during), "progress never drops")
+    after = SurfMesh.measure(new, tor)
+    text = report_text(mw)
+    run = dict(new.SurfMeshRun)
+    line = f"SurfMesh: {new.Label}: " + reports.outcome_text(
+        before.stats, after.stats, int(run["sweeps"]), float(run["seconds"]), run["reason"])
+    check(f"{before.stats['tangled']} tangled" in line and "0 tangled" in line, line)
+    check(line in text, f"the report view says what the run did ({line!r})")
+    check(enabled_after[1].startswith(line[len("SurfMesh: "):]),
+          f"so does the panel ({enabled_after[1][:100]!r})")
+    check(mw.statusBar().currentMessage().startswith(line),
+          f"so does the status bar ({mw.statusBar().currentMessage()[:100]!r})")
+
+    # ---- a run that leaves tangled elements: a warning dialog -------------------------------
+    boxes = []
+
+    def _catch():
+        w = QtGui.QApplication.activeModalWidget()
+        if isinstance(w, QtGui.QMessageBox):
+            boxes.append((w.objectName(), w.text(), w.informativeText(), w.detailedText()))
+            w.accept()
+
+    catcher = QtCore.QTimer()
+    catcher.setInterval(50)
+    catcher.timeout.connect(_catch)
+    catcher.start()
+    panel2 = OptimizePanel(mesh, tor)
+    FreeCADGui.Control.showDialog(panel2)
+    panel2.max_sweeps.setValue(1)
+    panel2.monotone.setChecked(True)
+    check(panel2.accept() is True, "a one-sweep run applies")
+    catcher.stop()
+    short = doc.Objects[-1]
+    left = SurfMesh.measure(short, tor).stats["tangled"]
+    check(left > 0, f"one sweep leaves {left} tangled elements")
+    check(len(boxes) == 1 and boxes[0][0] == "SurfMeshTangledLeft"
+          and f"{left} element" in boxes[0][1] and "still tangled" in boxes[0][1],
+          f"a warning dialog says how many stay tangled ({boxes[:1]})")
+    check("→" in boxes[0][2] and "tangled element" in boxes[0][3].lower()
+          or "stay tangled" in boxes[0][3], "with the outcome, and the warnings as details")
+
+    # ---- the legend's panel -----------------------------------------------------------------
+    short.ViewObject.Visibility = False
+    new.ViewObject.Visibility = True
+    FreeCADGui.updateGui()
+    from SurfMesh.gui import legend
+
+    check(legend.shown(doc), "the color scale is shown")
+    shot = os.path.join(out, "gui_outcome_legend.png")
+    W, H = 800, 600
+    view.saveImage(shot, W, H, "Black")
+    img = pixels(shot)
+    x0, y0, x1, y1 = legend._PANEL
+    cols = slice(int((x0 + 1) / 2 * W) + 3, int((x1 + 1) / 2 * W) - 3)
+    rows = slice(int((1 - y1) / 2 * H) + 3, int((1 - y0) / 2 * H) - 3)
+    region = img[rows, cols]
+    light = (region.mean(axis=2) > 0.75).mean()
+    check(light > 0.6, f"the legend stands on a light panel ({light:.2f} of its area light, on "
+          "a black background)")
+    outside = img[rows, int((x1 + 1) / 2 * W) + 10: int((x1 + 1) / 2 * W) + 40]
+    check((outside.mean(axis=2) > 0.75).mean() < 0.5, "and the panel ends where it should")
+
+    FreeCAD.closeDocument(doc.Name)
+    code = 0
+except BaseException:
+    traceback.print_exc()
+finish("test_surfmesh_outcome", code, last=None)
