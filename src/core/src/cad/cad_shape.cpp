@@ -1,6 +1,7 @@
 // SurfMesh — a B-rep shape with indexed faces, edges and vertices (see cad_shape.h).
 #include "surfmesh/cad/cad_shape.h"
 
+#include <BRepAdaptor_Surface.hxx>
 #include <BRepBndLib.hxx>
 #include <BRepTools.hxx>
 #include <BRep_Builder.hxx>
@@ -33,6 +34,33 @@ std::string lower(std::string s) {
   return s;
 }
 
+/// The bounding box of a face. BRepBndLib::Add alone can miss most of a periodic face whose
+/// parameter range does not start where OCC's bounding of the analytic surface expects it:
+/// the face of a torus with v in [-π, π] (Part.makeTorus(R, r, p, d, -180, 180)) gets a box
+/// flat in z (OCCT 7.6). There, the box of BRepBndLib::AddOptimal (from the surface itself,
+/// enlarged by the face's tolerance) is added to it.
+Bnd_Box faceBoundingBox(const TopoDS_Face& face) {
+  Bnd_Box box;
+  BRepBndLib::Add(face, box, Standard_False);
+  bool periodic = false;
+  try {
+    BRepAdaptor_Surface ad(face, Standard_False);
+    periodic = ad.IsUPeriodic() || ad.IsVPeriodic();
+  } catch (const Standard_Failure&) {
+  }
+  if (!periodic) return box;
+  try {
+    Bnd_Box exact;
+    BRepBndLib::AddOptimal(face, exact, Standard_False, Standard_False);
+    if (!exact.IsVoid()) {
+      exact.Enlarge(BRep_Tool::Tolerance(face));
+      box.Add(exact);
+    }
+  } catch (const Standard_Failure&) {
+  }
+  return box;
+}
+
 void sortUnique(std::vector<int>& v) {
   std::sort(v.begin(), v.end());
   v.erase(std::unique(v.begin(), v.end()), v.end());
@@ -54,9 +82,10 @@ CadShape::CadShape(const TopoDS_Shape& shape) : shape_(shape) {
   for (int f = 0; f < nf; ++f) {
     const TopoDS_Face& face = TopoDS::Face(faces_(f + 1));
     surfaces_.push_back(std::make_unique<OccFaceSurface>(face, f));
-    BRepBndLib::Add(face, faceBoxes_[static_cast<std::size_t>(f)], Standard_False);
+    faceBoxes_[static_cast<std::size_t>(f)] = faceBoundingBox(face);
   }
   BRepBndLib::Add(shape_, bbox_, Standard_False);
+  for (const Bnd_Box& b : faceBoxes_) bbox_.Add(b);  // a face's box may hold more (see above)
   if (!bbox_.IsVoid()) diagonal_ = std::sqrt(bbox_.SquareExtent());
 
   // Adjacency.
