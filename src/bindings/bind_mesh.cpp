@@ -124,6 +124,28 @@ MeshClass bind_mesh(py::module_& m) {
             if (CadMesh* cm = h.cadMesh()) cm->releaseNodeSearch();
           },
           "Frees the per-node face search kept by cad_mesh(keep_node_search=True)")
+      .def(
+          "distances_to_shape",
+          [](const MeshHandle& h, const ArrayD& points, const ArrayI& faces) {
+            const CadMesh* cm = h.cadMesh();
+            if (!cm)
+              throw std::invalid_argument("distances_to_shape: the mesh was not made by cad_mesh");
+            checkShape2D(points, 3, "points");
+            checkShape1D(faces, "faces", points.shape(0));
+            checkRange(faces, -1, cm->shape().faceCount(), "faces");
+            const std::vector<Vec3> p = toVec3(points);
+            const std::vector<std::int32_t> f = toInt32(faces);
+            std::vector<double> toFace, toShape;
+            {
+              py::gil_scoped_release release;
+              cm->distancesToShape(p, f, &toFace, &toShape);
+            }
+            return py::make_tuple(fromDoubles(toFace), fromDoubles(toShape));
+          },
+          py::arg("points"), py::arg("faces"),
+          "(to_face, to_shape): per point (float64 (K, 3)), its distance to the trimmed face "
+          "faces[k] (int64 (K,), shape face ids; -1: nan), the face's boundary included, and to "
+          "the whole shape (faces, free edges, lone vertices)")
       .def_property_readonly(
           "keeps_node_search",
           [](const MeshHandle& h) {

@@ -157,3 +157,102 @@ class EdgeElementNodesCli(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+def corner_signs(nodes, tris, face):
+    """(E, 3) bool, computed without SurfMesh: whether each triangle's normal
+    (x1 − x0) × (x2 − x0) points along the face's outward normal (FreeCAD's Face.normalAt at
+    Surface.parameter of the corner) at each of its corners."""
+    surf = face.Surface
+    out = np.zeros((len(tris), 3), dtype=bool)
+    for e, t in enumerate(tris):
+        c = np.cross(nodes[t[1]] - nodes[t[0]], nodes[t[2]] - nodes[t[0]])
+        for j, k in enumerate(t):
+            u, v = surf.parameter(FreeCAD.Vector(*map(float, nodes[k])))
+            n = face.normalAt(u, v)
+            out[e, j] = float(np.dot(c, (n.x, n.y, n.z))) > 0.0
+    return out
+
+
+def fem_arrays(fem, ids):
+    """(node positions, 0-based triangles, element ids) of a tria3 FemMesh."""
+    nid = sorted(fem.Nodes)
+    at = {n: k for k, n in enumerate(nid)}
+    nodes = np.array([tuple(fem.Nodes[n]) for n in nid])
+    tris = np.array([[at[n] for n in fem.getElementNodes(e)] for e in ids])
+    return nodes, tris
+
+
+class ResultFigures(unittest.TestCase):
+    """Issue 41, points 4 and 5: the figures of a result are those of the mesh returned, and
+    the counts read "N invalid (T tangled, A standing across)"."""
+
+    def setUp(self):
+        self.doc = FreeCAD.newDocument("SurfMeshResultFigures")
+
+    def tearDown(self):
+        FreeCAD.closeDocument(self.doc.Name)
+
+    def test_counts_and_distances_are_those_of_the_returned_mesh(self):
+        from SurfMesh.app import reports
+
+        tor, mesh = T.torus_fem(self.doc, tangled=True)
+        face = tor.Shape.Faces[0]
+        res = SurfMesh.optimize(mesh, tor)
+        for fem, rep in ((mesh.FemMesh, res.before), (res.mesh, res.after)):
+            ids = [int(e) for e in rep.element_ids]
+            nodes, tris = fem_arrays(fem, ids)
+            signs = corner_signs(nodes, tris, face)
+            across = signs.any(axis=1) & ~signs.all(axis=1)
+            invalid = ~signs.all(axis=1)
+            s = rep.stats
+            self.assertEqual(s["across"], int(across.sum()))
+            self.assertEqual(s["invalid"], int(invalid.sum()))
+            self.assertEqual(s["invalid"], int(np.count_nonzero(rep.tangled | rep.across)))
+            self.assertEqual(reports.validity_text(s), f"{int(invalid.sum())} invalid "
+                             f"({s['tangled']} tangled, {int(across.sum())} standing across)")
+            self.assertIn(reports.validity_text(s), repr(rep))
+        self.assertGreater(res.before.stats["across"], 0)  # the fixture has some
+        # distances of the moved nodes, on the mesh returned: FreeCAD's distToShape and the
+        # torus' closed form agree with the figures given
+        old, new = T.fem_snapshot(mesh.FemMesh)[0], T.fem_snapshot(res.mesh)[0]
+        moved = [n for n in new if new[n] != old[n]]
+        a = res.after.stats
+        self.assertEqual(a["moved_nodes"], len(moved))
+        pts = np.array([new[n] for n in moved])
+        d_shape = T.distance_to_shape(tor.Shape, pts)
+        self.assertLess(abs(a["max_distance_to_shape"] - d_shape.max()), 1e-12)
+        self.assertLess(abs(a["max_distance_to_face"] - d_shape.max()), 1e-12)
+        self.assertLess(T.torus_distance(pts).max(), 1e-12)
+        self.assertIn(a["worst_node_to_face"], moved)
+
+    def test_distances_to_the_trimmed_face_match_freecad(self):
+        # The bridge's distance query on points off a trimmed face (beyond its boundary, in its
+        # plane, and above it): FreeCAD's Face.distToShape / Shape.distToShape give the same.
+        import Part
+
+        from SurfMesh.app import api
+
+        part = self.doc.addObject("Part::Feature", "Plate")
+        part.Shape = Part.makeBox(10, 6, 2).cut(Part.makeCylinder(2, 2, FreeCAD.Vector(5, 3, 0)))
+        self.doc.recompute()
+        import MeshPart
+
+        tri = MeshPart.meshFromShape(Shape=part.Shape, LinearDeflection=0.05)
+        data, handle = api.prepare(tri, part)
+        shape = part.Shape
+        top = [k for k, f in enumerate(shape.Faces)
+               if f.Surface.__class__.__name__ == "Plane" and abs(f.CenterOfMass.z - 2) < 1e-9][0]
+        pts = np.array([[5.0, 3.0, 2.0],     # in the hole, in the top face's plane
+                        [12.0, 3.0, 2.0],    # beyond the face's outer boundary
+                        [4.0, 1.0, 2.5],     # above the face
+                        [5.0, 4.5, 2.0],     # on the face
+                        [-3.0, -4.0, 7.0]])  # off everything
+        to_face, to_shape = handle.distances_to_shape(pts, np.full(len(pts), top))
+        for k, p in enumerate(pts):
+            v = Part.Vertex(FreeCAD.Vector(*p))
+            self.assertAlmostEqual(to_face[k], shape.Faces[top].distToShape(v)[0], delta=1e-9)
+            self.assertAlmostEqual(to_shape[k], shape.distToShape(v)[0], delta=1e-9)
+        self.assertGreater(to_face[0], 1.0)  # the hole: not on the face although on its plane
+        with self.assertRaises(ValueError):
+            handle.distances_to_shape(pts, np.full(len(pts), len(shape.Faces)))

@@ -50,7 +50,8 @@ class Outcome(unittest.TestCase):
         before = dict(min=0.0, max=1.0, mean=0.85, std=0.1, tangled=49, elements=100, across=0)
         after = dict(min=2.8e-6, max=1.0, mean=0.9, std=0.1, tangled=0, elements=100, across=0)
         self.assertEqual(reports.outcome_text(before, after, 48, 5.5, "converged"),
-                         "tangled 49 → 0, min quality 0.00 → 2.8e-06, mean 0.85 → 0.90; "
+                         "49 invalid (49 tangled, 0 standing across) → 0 invalid (0 tangled, "
+                         "0 standing across), min quality 0.00 → 2.8e-06, mean 0.85 → 0.90; "
                          "48 sweeps, 5.5 s (converged)")
         self.assertIn("(stopped at the sweep limit)",
                       reports.outcome_text(before, after, 100, 12.0, "max_sweeps"))
@@ -64,16 +65,20 @@ class Outcome(unittest.TestCase):
         text = document.outcome_of(new)
         after = SurfMesh.measure(new, tor)
         run = dict(new.SurfMeshRun)
-        m = re.fullmatch(r"tangled (\d+) → (\d+), min quality (\S+) → (\S+), mean (\S+) → (\S+)"
-                         r"(?:, standing across \d+ → \d+)?; (\d+) sweeps?, (\S+) s \((.*)\)",
-                         text)
+        m = re.fullmatch(r"(\d+) invalid \((\d+) tangled, (\d+) standing across\) → "
+                         r"(\d+) invalid \((\d+) tangled, (\d+) standing across\), "
+                         r"min quality (\S+) → (\S+), mean (\S+) → (\S+)"
+                         r"; (\d+) sweeps?, (\S+) s \((.*)\)", text)
         self.assertIsNotNone(m, text)
-        self.assertEqual(int(m.group(1)), rep.stats["tangled"])  # measured here, independently
-        self.assertEqual(int(m.group(2)), after.stats["tangled"])
-        self.assertEqual(m.group(4), reports.format_value(after.stats["min"]))
-        self.assertEqual(m.group(6), reports.format_value(after.stats["mean"]))
-        self.assertEqual(int(m.group(7)), int(run["sweeps"]))
-        self.assertEqual(m.group(9), reports.REASONS[run["reason"]])
+        # measured here, independently
+        for k, s, key in ((1, rep.stats, "invalid"), (2, rep.stats, "tangled"),
+                          (3, rep.stats, "across"), (4, after.stats, "invalid"),
+                          (5, after.stats, "tangled"), (6, after.stats, "across")):
+            self.assertEqual(int(m.group(k)), s[key], key)
+        self.assertEqual(m.group(8), reports.format_value(after.stats["min"]))
+        self.assertEqual(m.group(10), reports.format_value(after.stats["mean"]))
+        self.assertEqual(int(m.group(11)), int(run["sweeps"]))
+        self.assertEqual(m.group(13), reports.REASONS[run["reason"]])
         self.assertIsNone(document.outcome_of(mesh))  # not made by optimize_object
 
 

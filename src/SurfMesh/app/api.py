@@ -30,7 +30,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from SurfMesh.app import conversion, progress as _progress, shapes
+from SurfMesh.app import conversion, progress as _progress, reports, shapes
 from SurfMesh.app.native import core
 
 BOUNDARY_MODES = ("fixed", "slide")
@@ -98,7 +98,8 @@ class QualityReport:
         s = self.stats
         return (
             f"<QualityReport {self.measure}: min {s['min']:.4f} max {s['max']:.4f} "
-            f"mean {s['mean']:.4f} std {s['std']:.4f} tangled {s['tangled']}/{s['elements']}>"
+            f"mean {s['mean']:.4f} std {s['std']:.4f}; {s['elements']} elements, "
+            f"{reports.validity_text(s)}>"
         )
 
     def to_dict(self, arrays=False):
@@ -146,7 +147,7 @@ class OptimizeResult:
         return (
             f"<OptimizeResult {self.before.measure}: {self.sweeps} sweeps, {self.seconds:.2f} s, "
             f"{self.reason}; min {b['min']:.4f} -> {a['min']:.4f}, "
-            f"tangled {b['tangled']} -> {a['tangled']}>"
+            f"{reports.validity_text(b)} -> {reports.validity_text(a)}>"
         )
 
     def to_dict(self):
@@ -635,6 +636,9 @@ def _report(data, handle, name, bridge=None, measured=None) -> QualityReport:
         distortion, min_sigma = expand(distortion, np.inf), expand(min_sigma, 0.0)
         faces = expand(faces, -1)
     stats["skipped"] = int(skipped.sum())
+    # Invalid: tangled or standing across (or both), so that no invalid element hides behind a
+    # count of 0 tangled (see validity_text).
+    stats["invalid"] = int(np.count_nonzero(tangled | across))
     return QualityReport(
         measure=name,
         quality=quality,
@@ -824,8 +828,11 @@ def optimize(
         new_nodes = new_nodes[data.glued]
     _progress.phase("measuring the result")
     after = _report(data, handle, measure, bridge)
-    t3 = time.perf_counter()
     new_mesh = conversion.rebuild(data, new_nodes) if data.kind in ("mesh", "fem") else None
+    # The distances of the moved nodes, on the positions returned (a Mesh.Mesh's float32 ones).
+    returned = new_nodes if data.kind != "mesh" else conversion.read_mesh(new_mesh).nodes
+    after.stats.update(_moved_node_distances(data, handle, returned))
+    t3 = time.perf_counter()
     t4 = time.perf_counter()
     timings.update(before=t1 - t0, optimize=t2 - t1, after=t3 - t2, rebuild=t4 - t3,
                    total=t4 - t_start)
@@ -899,6 +906,37 @@ def optimize(
         warnings=warnings,
         timings=timings,
     )
+
+
+def _moved_node_distances(data, handle, nodes):
+    """Figures of a result on its returned positions ``nodes`` (N, 3): how many nodes moved,
+    the largest distance of a moved node to its face (the trimmed face, its boundary edges
+    included: a node beyond them is as far as its nearest boundary point) and to the whole
+    shape, and the ids of the nodes where they are reached (-1 when no node moved)."""
+    moved = np.any(nodes != data.nodes, axis=1)
+    out = {"moved_nodes": int(np.count_nonzero(moved)), "max_distance_to_face": 0.0,
+           "max_distance_to_shape": 0.0, "worst_node_to_face": -1, "worst_node_to_shape": -1}
+    if not moved.any():
+        return out
+    # each node's face: the one it moves on, else (a node sliding on a CAD edge) the face of an
+    # element of it; a glued node takes the face of the node it is glued to
+    work = data if data.kept is None else data.subset(data.kept)
+    face = np.full(data.node_count, -1, dtype=np.int64)
+    face[work.conn] = np.repeat(np.asarray(handle.element_faces(), dtype=np.int64),
+                                np.diff(work.offsets))
+    own = np.asarray(handle.node_faces(), dtype=np.int64)
+    face = np.where(own >= 0, own, face)
+    if data.glued is not None:
+        face = face[data.glued]
+    idx = np.nonzero(moved)[0]
+    to_face, to_shape = handle.distances_to_shape(
+        np.ascontiguousarray(nodes[idx], dtype=np.float64), face[idx])
+    to_face = np.where(np.isnan(to_face), to_shape, to_face)
+    kf, ks = int(np.argmax(to_face)), int(np.argmax(to_shape))
+    out.update(max_distance_to_face=float(to_face[kf]), max_distance_to_shape=float(to_shape[ks]),
+               worst_node_to_face=int(data.node_ids[idx[kf]]),
+               worst_node_to_shape=int(data.node_ids[idx[ks]]))
+    return out
 
 
 def face_list(text):

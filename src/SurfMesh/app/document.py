@@ -38,8 +38,8 @@ import numpy as np
 from SurfMesh.app import api, coloring, conversion, progress, shapes
 
 GROUP = "SurfMesh"
-STAT_KEYS = ("min", "max", "mean", "std", "tangled", "elements", "across")
-_COUNT_KEYS = ("tangled", "elements", "across")
+STAT_KEYS = ("min", "max", "mean", "std", "tangled", "elements", "across", "invalid")
+_COUNT_KEYS = ("tangled", "elements", "across", "invalid")
 
 
 # ---- helpers ---------------------------------------------------------------------------------

@@ -33,8 +33,23 @@ def stats_row(stats):
     ]
 
 
+def validity_text(stats):
+    """"N invalid (T tangled, A standing across)": an element is invalid when it is tangled or
+    stands across its surface (wound along the face's normal at some corners and against it at
+    others), so that no invalid element hides behind a count of 0 tangled. Statistics stored
+    before ``invalid`` was counted give it only where nothing stands across."""
+    tangled, across = int(stats.get("tangled", 0)), int(stats.get("across", 0))
+    invalid = stats.get("invalid")
+    if invalid is None and across == 0:
+        invalid = tangled
+    counts = f"{tangled} tangled, {across} standing across"
+    return f"{counts} (invalid: unknown)" if invalid is None else \
+        f"{int(invalid)} invalid ({counts})"
+
+
 def format_table(rows, title=None, digits=2):
-    """Plain-text table in the layout of the paper's Tables 1-4.
+    """Plain-text table in the layout of the paper's Tables 1-4, then one line per row with
+    its invalid elements (:func:`validity_text`), where its statistics count them.
 
     rows: iterable of (measure, mesh_label, stats) — consecutive rows with the same measure
     show it once.  ``digits`` decimals for the quality columns.
@@ -50,7 +65,15 @@ def format_table(rows, title=None, digits=2):
     lines.append("  ".join("-" * w for w in widths))
     for r in body:
         lines.append(fmt.format(*r))
+    lines.extend(_validity_lines(rows))
     return "\n".join(lines)
+
+
+def _validity_lines(rows):
+    """"<mesh>: N invalid (T tangled, A standing across)" for the rows whose statistics count
+    the elements standing across."""
+    return [f"{label}: {validity_text(stats)}" for _measure, label, stats in rows
+            if "across" in stats]
 
 
 def _table_body(rows, digits):
@@ -77,6 +100,7 @@ def table_html(rows, digits=2):
         out.extend(f"<td align='right'>{c}</td>" for c in cells)
         out.append("</tr>")
     out.append("</table>")
+    out.extend(f"<p>{line}</p>" for line in _validity_lines(rows))
     return "".join(out)
 
 
@@ -148,26 +172,23 @@ REASONS = {
 
 def outcome_text(before, after, sweeps, seconds, reason):
     """One line saying what an optimization did, from the statistics before and after it:
-    "tangled 49 → 0, min quality 2.8e-06 → 0.31, mean 0.85 → 0.90; 48 sweeps, 5.5 s
-    (converged)"."""
+    "49 invalid (49 tangled, 0 standing across) → 0 invalid (0 tangled, 0 standing across),
+    min quality 2.8e-06 → 0.31, mean 0.85 → 0.90; 48 sweeps, 5.5 s (converged)"."""
     def arrow(key, fmt):
         return f"{fmt(before[key])} → {fmt(after[key])}"
 
-    count = lambda v: str(int(v))  # noqa: E731
-    text = (f"tangled {arrow('tangled', count)}, min quality {arrow('min', format_value)}, "
-            f"mean {arrow('mean', format_value)}")
-    if int(after.get("across", 0)) or int(before.get("across", 0)):
-        text += f", standing across {arrow('across', count)}"
+    text = (f"{validity_text(before)} → {validity_text(after)}, "
+            f"min quality {arrow('min', format_value)}, mean {arrow('mean', format_value)}")
     return (f"{text}; {int(sweeps)} sweep{'s' if int(sweeps) != 1 else ''}, "
             f"{float(seconds):.2g} s ({REASONS.get(reason, reason)})")
 
 
 def measure_text(stats, measure):
-    """One line saying what a measure found: "4898 elements, 49 tangled, min quality 2.8e-06,
-    mean 0.85 (shape measure)"."""
+    """One line saying what a measure found: "4898 elements, 49 invalid (49 tangled, 0 standing
+    across), min quality 2.8e-06, mean 0.85 (shape measure)"."""
     skipped = int(stats.get("skipped", 0))
     left = f", {skipped} left out" if skipped else ""
-    return (f"{int(stats['elements'])} elements, {int(stats['tangled'])} tangled{left}, "
+    return (f"{int(stats['elements'])} elements, {validity_text(stats)}{left}, "
             f"min quality {format_value(stats['min'])}, mean {format_value(stats['mean'])} "
             f"({measure} measure)")
 

@@ -240,6 +240,11 @@ def run(argv, prog="surfmesh_cli.py"):
         held = f"; {res.held_nodes} node(s) held by --faces/--fixed-nodes" if res.held_nodes else ""
         print(f"{res.sweeps} sweeps{phases}, {res.seconds:.3g} s ({res.reason}){held}; "
               f"wrote {args.output}")
+        a = res.after.stats
+        if a.get("moved_nodes"):
+            print(f"{a['moved_nodes']} node(s) moved; the farthest from its face: "
+                  f"{a['max_distance_to_face']:.3g} (node {a['worst_node_to_face']}), from the "
+                  f"shape: {a['max_distance_to_shape']:.3g} (node {a['worst_node_to_shape']})")
         for w in list(res.bridge.get("warnings", [])) + list(res.warnings):
             print(f"warning: {w}", file=sys.stderr)
         out.update(res.to_dict())

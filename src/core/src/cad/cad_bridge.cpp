@@ -1163,6 +1163,62 @@ void settleDoubtfulFaces(const std::vector<EdgePair>& edges,
 
 }  // namespace
 
+namespace {
+
+/// What a Projector works with: the boxes of the shape's faces and edges, and per face how much
+/// farther than the nearest face a node may be and still lie on it (the sloppiest tolerance
+/// among the face's edges and vertices, at least 1e-6·diag, at most `tol`).
+void projectorGeometry(const CadShape& S, double tol, std::vector<Box>* faceBoxes,
+                       std::vector<Box>* edgeBoxes, std::vector<double>* faceSlack) {
+  const int NF = S.faceCount(), NE = S.edgeCount();
+  faceBoxes->assign(static_cast<std::size_t>(NF), Box{});
+  edgeBoxes->assign(static_cast<std::size_t>(NE), Box{});
+  faceSlack->assign(static_cast<std::size_t>(NF), 0.0);
+  for (int f = 0; f < NF; ++f) (*faceBoxes)[static_cast<std::size_t>(f)] = toBox(S.faceBox(f));
+  for (int e = 0; e < NE; ++e) (*edgeBoxes)[static_cast<std::size_t>(e)] = toBox(S.edgeBox(e));
+  for (int f = 0; f < NF; ++f) {
+    double t = BRep_Tool::Tolerance(S.face(f));
+    for (int e : S.faceEdges(f)) {
+      t = std::max(t, BRep_Tool::Tolerance(S.edge(e)));
+      for (int v : S.edgeVertices(e)) t = std::max(t, S.vertexTolerance(v));
+    }
+    (*faceSlack)[static_cast<std::size_t>(f)] =
+        std::min(tol, std::max(1e-6 * S.diagonal(), 2.0 * t));
+  }
+}
+
+}  // namespace
+
+void CadMesh::distancesToShape(const std::vector<Vec3>& points,
+                               const std::vector<std::int32_t>& faces, std::vector<double>* toFace,
+                               std::vector<double>* toShape) const {
+  const CadShape& S = *shape_;
+  if (faces.size() != points.size())
+    fail("distancesToShape: " + std::to_string(faces.size()) + " faces for " +
+         std::to_string(points.size()) + " points");
+  for (std::size_t k = 0; k < faces.size(); ++k)
+    if (faces[k] < -1 || faces[k] >= S.faceCount())
+      fail("distancesToShape: face " + std::to_string(faces[k]) + " of point " + std::to_string(k) +
+           " out of range [-1, " + std::to_string(S.faceCount()) + ")");
+  std::vector<Box> faceBoxes, edgeBoxes;
+  std::vector<double> faceSlack;
+  const double tol = report_.tolerance > 0.0 ? report_.tolerance : 1e-3 * S.diagonal();
+  projectorGeometry(S, tol, &faceBoxes, &edgeBoxes, &faceSlack);
+  const int threads = options_.threads > 0
+                          ? options_.threads
+                          : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  ProjectorPool projectors(threads, S, faceBoxes, edgeBoxes, faceSlack);
+  toFace->assign(points.size(), kNaN);
+  toShape->assign(points.size(), kNaN);
+  parallelFor(points.size(), projectors, [&](std::size_t k, Projector& pr) {
+    if (!points[k].allFinite()) return;
+    if (faces[k] >= 0) (*toFace)[k] = pr.faceDistance(faces[k], points[k], kInf).dist;
+    NodeClass kind;
+    int id = -1;
+    (*toShape)[k] = pr.wholeShapeDistance(points[k], &kind, &id);
+  });
+}
+
 /// The hint a node's classification was forced by.
 enum class Forced : std::uint8_t { None, Vertex, Edge, Face };
 
@@ -1337,21 +1393,9 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   checkHints(input.hintEdge, NE, "hintEdge");
   checkHints(input.hintVertex, NV, "hintVertex");
 
-  std::vector<Box> faceBoxes(static_cast<std::size_t>(NF)), edgeBoxes(static_cast<std::size_t>(NE));
-  for (int f = 0; f < NF; ++f) faceBoxes[static_cast<std::size_t>(f)] = toBox(S.faceBox(f));
-  for (int e = 0; e < NE; ++e) edgeBoxes[static_cast<std::size_t>(e)] = toBox(S.edgeBox(e));
-
-  // Per face: how much farther than the nearest face a node may be and still lie on it (the
-  // sloppiest tolerance among the face's edges and vertices, at least 1e-6·diag).
-  std::vector<double> faceSlack(static_cast<std::size_t>(NF));
-  for (int f = 0; f < NF; ++f) {
-    double t = BRep_Tool::Tolerance(S.face(f));
-    for (int e : S.faceEdges(f)) {
-      t = std::max(t, BRep_Tool::Tolerance(S.edge(e)));
-      for (int v : S.edgeVertices(e)) t = std::max(t, S.vertexTolerance(v));
-    }
-    faceSlack[static_cast<std::size_t>(f)] = std::min(tol, std::max(1e-6 * diag, 2.0 * t));
-  }
+  std::vector<Box> faceBoxes, edgeBoxes;
+  std::vector<double> faceSlack;
+  projectorGeometry(S, tol, &faceBoxes, &edgeBoxes, &faceSlack);
   ProjectorPool projectors(threads, S, faceBoxes, edgeBoxes, faceSlack);
 
   // Reach of each high-order node that is no element's corner (kHighOrderReach), 0 otherwise.

@@ -218,6 +218,14 @@ class CadMesh {
   bool keepsNodeSearch() const { return nodeSearch_ != nullptr; }
   /// Frees the kept node search (when no second recovery will need it).
   void releaseNodeSearch() { nodeSearch_.reset(); }
+  /// Independent of the mesh: for each point, its distance to the trimmed face `faces[k]`
+  /// (the surface inside the face's trimming loops, else the nearest of its boundary edges;
+  /// NaN for faces[k] = −1) and to the whole shape (faces, free edges, lone vertices), with
+  /// the recovery's projection tools and threads. For figures of a result measured on the
+  /// positions it returns. Throws std::invalid_argument on a face id out of range or sizes that
+  /// differ.
+  void distancesToShape(const std::vector<Vec3>& points, const std::vector<std::int32_t>& faces,
+                        std::vector<double>* toFace, std::vector<double>* toShape) const;
 
  private:
   std::shared_ptr<const CadShape> shape_;
