@@ -6,6 +6,7 @@
 #include <BRepTools.hxx>
 #include <BRep_Builder.hxx>
 #include <BRep_Tool.hxx>
+#include <Bnd_Box.hxx>
 #include <IFSelect_ReturnStatus.hxx>
 #include <IGESControl_Reader.hxx>
 #include <STEPControl_Reader.hxx>
@@ -17,6 +18,7 @@
 #include <TopoDS.hxx>
 #include <TopoDS_Edge.hxx>
 #include <TopoDS_Face.hxx>
+#include <gp_Torus.hxx>
 
 #include <algorithm>
 #include <cctype>
@@ -34,27 +36,50 @@ std::string lower(std::string s) {
   return s;
 }
 
-/// The bounding box of a face. BRepBndLib::Add alone can miss most of a periodic face whose
-/// parameter range does not start where OCC's bounding of the analytic surface expects it:
-/// the face of a torus with v in [-π, π] (Part.makeTorus(R, r, p, d, -180, 180)) gets a box
-/// flat in z (OCCT 7.6). There, the box of BRepBndLib::AddOptimal (from the surface itself,
-/// enlarged by the face's tolerance) is added to it.
-Bnd_Box faceBoundingBox(const TopoDS_Face& face) {
+/// The bounding box of a face, and (`points`) a box of points of the face's surface. OCC's box
+/// (BRepBndLib::Add) can miss most of a torus face whose parameter range does not start where
+/// OCC's bounding of the torus expects it: the face of Part.makeTorus(R, r, p, d, -180, 180)
+/// (v in [-π, π]) gets a box flat in z (OCCT 7.6). For tori and surfaces of revolution a grid
+/// of the face's points over its (u,v) box is checked against OCC's box; where one falls out,
+/// the box also takes in, for a torus, the grid's box enlarged by the largest gap between the
+/// torus's circles and their chords over a grid cell (any point of the face is that near a
+/// chord, and the chords lie in the box of the grid points), for a surface of revolution the
+/// box of BRepBndLib::AddOptimal. Elsewhere OCC's box stays as it is (spheres, cylinders and
+/// cones over shifted ranges are bounded right: tests/cpp/cad_periodic_test).
+Bnd_Box faceBoundingBox(const TopoDS_Face& face, Bnd_Box* points) {
   Bnd_Box box;
   BRepBndLib::Add(face, box, Standard_False);
-  bool periodic = false;
   try {
-    BRepAdaptor_Surface ad(face, Standard_False);
-    periodic = ad.IsUPeriodic() || ad.IsVPeriodic();
-  } catch (const Standard_Failure&) {
-  }
-  if (!periodic) return box;
-  try {
-    Bnd_Box exact;
-    BRepBndLib::AddOptimal(face, exact, Standard_False, Standard_False);
-    if (!exact.IsVoid()) {
-      exact.Enlarge(BRep_Tool::Tolerance(face));
-      box.Add(exact);
+    BRepAdaptor_Surface ad(face, Standard_True);
+    const GeomAbs_SurfaceType type = ad.GetType();
+    if (type != GeomAbs_Torus && type != GeomAbs_SurfaceOfRevolution) return box;
+    double u0 = 0, u1 = 0, v0 = 0, v1 = 0;
+    BRepTools::UVBounds(face, u0, u1, v0, v1);
+    constexpr int n = 32;
+    const double du = (u1 - u0) / n, dv = (v1 - v0) / n;
+    Bnd_Box grid;
+    bool out = false;
+    for (int i = 0; i <= n; ++i)
+      for (int j = 0; j <= n; ++j) {
+        const gp_Pnt p = ad.Value(u0 + i * du, v0 + j * dv);
+        grid.Add(p);
+        out = out || box.IsOut(p);
+      }
+    points->Add(grid);
+    if (!out) return box;
+    const double tol = BRep_Tool::Tolerance(face);
+    if (type == GeomAbs_Torus) {
+      const gp_Torus t = ad.Torus();
+      const double R = t.MajorRadius(), r = t.MinorRadius();
+      grid.Enlarge((R + r) * (1.0 - std::cos(0.5 * du)) + r * (1.0 - std::cos(0.5 * dv)) + tol);
+      box.Add(grid);
+    } else {
+      Bnd_Box exact;
+      BRepBndLib::AddOptimal(face, exact, Standard_False, Standard_False);
+      if (!exact.IsVoid()) {
+        exact.Enlarge(tol);
+        box.Add(exact);
+      }
     }
   } catch (const Standard_Failure&) {
   }
@@ -79,13 +104,16 @@ CadShape::CadShape(const TopoDS_Shape& shape) : shape_(shape) {
   const int nf = faces_.Extent(), ne = edges_.Extent(), nv = vertices_.Extent();
   surfaces_.reserve(static_cast<std::size_t>(nf));
   faceBoxes_.resize(static_cast<std::size_t>(nf));
+  Bnd_Box surfacePoints;
   for (int f = 0; f < nf; ++f) {
     const TopoDS_Face& face = TopoDS::Face(faces_(f + 1));
     surfaces_.push_back(std::make_unique<OccFaceSurface>(face, f));
-    faceBoxes_[static_cast<std::size_t>(f)] = faceBoundingBox(face);
+    faceBoxes_[static_cast<std::size_t>(f)] = faceBoundingBox(face, &surfacePoints);
   }
   BRepBndLib::Add(shape_, bbox_, Standard_False);
-  for (const Bnd_Box& b : faceBoxes_) bbox_.Add(b);  // a face's box may hold more (see above)
+  // Points of the faces that OCC's box may have missed (see faceBoundingBox): the diagonal,
+  // the scale of every tolerance, is the shape's (unchanged where OCC's box holds them).
+  if (!surfacePoints.IsVoid()) bbox_.Add(surfacePoints);
   if (!bbox_.IsVoid()) diagonal_ = std::sqrt(bbox_.SquareExtent());
 
   // Adjacency.
