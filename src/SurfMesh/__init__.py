@@ -27,6 +27,7 @@ from SurfMesh.app.api import (  # noqa: F401
     metrics,
     optimize,
 )
+from SurfMesh.app.metric_report import color_by_metric  # noqa: F401
 from SurfMesh.app.metrics import METRIC_NAMES, METRICS  # noqa: F401
 from SurfMesh.app.document import (  # noqa: F401
     apply_colors,

@@ -154,6 +154,7 @@ def apply_colors(obj, report=None):
     # colors given to the view (ElementColor / NodeColor cannot be read back in 0.20).
     _ensure(obj, "App::PropertyColorList", "SurfMeshColors", "Quality color per element")
     obj.SurfMeshColors = [tuple(map(float, c)) for c in rgb]
+    _forget_metric_colors(obj)
     vo = getattr(obj, "ViewObject", None)
     if vo is None:
         return rgb
@@ -189,6 +190,9 @@ def show_stored_colors(obj):
     (it was colored and not cleared since). Changes no property of the document. Returns
     whether colors were shown."""
     vo = getattr(obj, "ViewObject", None)
+    if (vo is not None and "FemMesh" in obj.PropertiesList
+            and "SurfMeshColorBy" in obj.PropertiesList and "SurfMeshColors" in obj.PropertiesList):
+        return _show_stored_metric_colors(obj, vo)
     if (vo is None or "FemMesh" not in obj.PropertiesList
             or "SurfMeshColors" not in obj.PropertiesList
             or "SurfMeshQuality" not in obj.PropertiesList or not obj.SurfMeshQuality):
@@ -199,6 +203,25 @@ def show_stored_colors(obj):
         return False
     _color_fem_view(vo, data, coloring.quality_rgb(quality, tangled, skipped), quality,
                     tangled, skipped)
+    _fem_view_colored(obj, True)
+    return True
+
+
+def _show_stored_metric_colors(obj, vo):
+    """A FEM mesh colored by a metric (SurfMesh.app.metric_report) gets its stored colors
+    back: per element on tria3 meshes, else per node (the color of an element around it)."""
+    data = conversion.read_mesh(obj.FemMesh)
+    rgb = np.array([tuple(c)[:3] for c in obj.SurfMeshColors], dtype=float)
+    if len(rgb) != data.element_count:
+        return False
+    if np.all(data.types == conversion.ELEMENT_TYPES["tri3"]):
+        vo.resetNodeColor()
+        vo.ElementColor = {int(e): tuple(map(float, c)) for e, c in zip(data.element_ids, rgb)}
+    else:
+        vo.ElementColor = {}
+        node_rgb = np.full((data.node_count, 3), 0.6)
+        node_rgb[data.conn] = np.repeat(rgb, np.diff(data.offsets), axis=0)
+        vo.NodeColor = {int(n): tuple(map(float, c)) for n, c in zip(data.node_ids, node_rgb)}
     _fem_view_colored(obj, True)
     return True
 
@@ -307,9 +330,17 @@ def clear_colors(obj):
     doc.commitTransaction()
 
 
+def _forget_metric_colors(obj):
+    """Removes what colors by a metric (SurfMesh.app.metric_report) stored on ``obj``."""
+    for prop in ("SurfMeshColorBy", "SurfMeshThreshold"):
+        if prop in obj.PropertiesList:
+            obj.removeProperty(prop)
+
+
 def _clear_colors(obj, kind):
     if "SurfMeshColors" in obj.PropertiesList:
         obj.removeProperty("SurfMeshColors")
+    _forget_metric_colors(obj)
     vo = getattr(obj, "ViewObject", None)
     if vo is None:
         return

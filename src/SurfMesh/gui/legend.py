@@ -19,12 +19,12 @@ _nodes = {}
 
 _X0, _X1 = -0.975, -0.95  # the bar's left and right (the view's width spans -1 … 1)
 _Y0, _Y1 = -0.55, 0.45  # its bottom (q = 0) and top (q = 1)
-# The title's height above the bar's top: clear of the "1" label down to views ~200 px high
-# (13 px text; the view's height spans 2).
-_TITLE_GAP = 0.14
+# The title's height above the bar's top (its first line; the second one is a line below):
+# clear of the top label down to views ~300 px high (13 px text; the view's height spans 2).
+_TITLE_GAP = 0.2
 # The panel under the legend (x0, y0, x1, y1): the bar, its labels, the title and the two
 # swatches below; light and nearly opaque.
-_PANEL = (-0.99, -0.78, -0.58, 0.68)
+_PANEL = (-0.99, -0.78, -0.58, 0.76)
 _PANEL_RGB = (0.97, 0.97, 0.97)
 _PANEL_TRANSPARENCY = 0.15
 
@@ -44,13 +44,34 @@ def _colored_objects(doc):
 
 
 def title(objects) -> str:
-    """The legend's title: the measure(s) of the colored objects."""
+    """The legend's title: the measure(s) of the colored objects, or the metric and its
+    threshold when one of them is colored by a metric."""
+    scale = metric_scale(objects)
+    if scale is not None:
+        name, threshold = scale
+        from SurfMesh.app import metrics, reports
+
+        sign = ">" if metrics.METRICS[name]["worse"] == "high" else "<"
+        return (f"SurfMesh: {metrics.METRICS[name]['label']} "
+                f"(red: {sign} {reports.format_value(threshold, 3)})")
     names = sorted({o.SurfMeshMeasure for o in objects if "SurfMeshMeasure" in o.PropertiesList
                     and o.SurfMeshMeasure})
     return "SurfMesh quality" + (f" ({', '.join(names)})" if names else "")
 
 
+def metric_scale(objects):
+    """(metric, threshold) of the first of ``objects`` colored by a metric, or None."""
+    from SurfMesh.app import metric_report
+
+    for o in objects:
+        by = metric_report.colored_by(o)
+        if by is not None:
+            return by
+    return None
+
+
 def _text(parent, xy, text, rgb=(0.0, 0.0, 0.0)):
+    """Text from ``xy`` (its first line's baseline); "\n" starts a line below."""
     from pivy import coin
 
     sep = coin.SoSeparator()
@@ -59,7 +80,8 @@ def _text(parent, xy, text, rgb=(0.0, 0.0, 0.0)):
     tr = coin.SoTranslation()
     tr.translation = (xy[0], xy[1], 0.0)
     t = coin.SoText2()
-    t.string = text
+    lines = text.split("\n")
+    t.string.setValues(0, len(lines), lines)
     for n in (col, tr, t):
         sep.addChild(n)
     parent.addChild(sep)
@@ -86,8 +108,8 @@ def _quad(parent, x0, y0, x1, y1, colors, transparency=0.0):
     parent.addChild(sep)
 
 
-def build(heading: str):
-    """The overlay's scene graph."""
+def build(heading: str, scale=None):
+    """The overlay's scene graph (``scale``: (metric, threshold) for colors by a metric)."""
     from pivy import coin
 
     root = coin.SoSeparator()
@@ -110,18 +132,32 @@ def build(heading: str):
         over.addChild(n)
     # a light panel under the scale and its labels, so that they read over any model
     _quad(over, *_PANEL, [_PANEL_RGB] * 4, transparency=_PANEL_TRANSPARENCY)
-    stops = coloring._STOPS
+    if scale is None:
+        stops = coloring._STOPS
+        ticks = [(q, f"{q:g}") for q in (0.0, 0.25, 0.5, 0.75, 1.0)]
+        swatches = ((coloring.TANGLED_RGB, "tangled"), (coloring.SKIPPED_RGB, "left out"))
+    else:
+        from SurfMesh.app import metric_report, metrics, reports
+
+        name, threshold = scale
+        info = metrics.METRICS[name]
+        stops = [(0.0,) + metric_report.GOOD_RGB, (1.0,) + metric_report.LIMIT_RGB]
+        ideal = "best" if info["ideal"] is None else reports.format_value(info["ideal"], 3)
+        ticks = [(0.0, ideal), (1.0, reports.format_value(threshold, 3))]
+        sign = ">" if info["worse"] == "high" else "<"
+        swatches = ((metric_report.BEYOND_RGB, f"{sign} {reports.format_value(threshold, 3)}"),
+                    (metric_report.NA_RGB, "n/a"))
     for a, b in zip(stops[:-1], stops[1:]):
         ya = _Y0 + (_Y1 - _Y0) * a[0]
         yb = _Y0 + (_Y1 - _Y0) * b[0]
         _quad(over, _X0, ya, _X1, yb, [a[1:], a[1:], b[1:], b[1:]])
-    for q in (0.0, 0.25, 0.5, 0.75, 1.0):
+    for q, label in ticks:
         y = _Y0 + (_Y1 - _Y0) * q
-        _text(over, (_X1 + 0.01, y - 0.01), f"{q:g}")
-    _text(over, (_X0, _Y1 + _TITLE_GAP), heading)
+        _text(over, (_X1 + 0.01, y - 0.01), label)
+    # the title in two lines (the measure or the threshold below), to stay on the panel
+    _text(over, (_X0, _Y1 + _TITLE_GAP), heading.replace(" (", "\n(", 1))
     h = 0.05
-    for k, (rgb, label) in enumerate(((coloring.TANGLED_RGB, "tangled"),
-                                      (coloring.SKIPPED_RGB, "left out"))):
+    for k, (rgb, label) in enumerate(swatches):
         y = _Y0 - 0.08 - k * 1.5 * h
         _quad(over, _X0, y, _X1, y + h, [rgb] * 4)
         _text(over, (_X1 + 0.01, y + 0.01), label)
@@ -160,7 +196,7 @@ def update(doc):
     if not objects:
         return False
     heading = title(objects)
-    node = build(heading)
+    node = build(heading, metric_scale(objects))
     for root in roots:
         if root.findChild(node) < 0:  # (views may share their document's scene)
             root.insertChild(node, 0)  # first: its bounding-box reset clears only itself

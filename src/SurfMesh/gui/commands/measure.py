@@ -28,6 +28,8 @@ class MeasureCommand:
         )
         if mesh is None:
             return
+        if rep is not None and preferences.color_by() != "quality":
+            self._color_by_metric(mesh, preferences.color_by())
         if rep is not None:
             from SurfMesh.app import reports
 
@@ -35,3 +37,25 @@ class MeasureCommand:
             FreeCAD.Console.PrintMessage(text + "\n")
             FreeCADGui.getMainWindow().statusBar().showMessage(text, 30000)
         FreeCADGui.updateGui()
+
+    def _color_by_metric(self, mesh, name):
+        """Colors the measured mesh by the metric of the preferences (red beyond its
+        threshold), and says how many elements are beyond it."""
+        from SurfMesh.app import metrics, reports
+        from SurfMesh.gui import runner
+
+        _, shape = selection.selected_mesh_and_shape()
+        t = preferences.metric_threshold(name)
+        args = selection.object_ref(mesh) + f", {name!r}, {t!r}"
+        if shape is not None:
+            args += ", shape=" + selection.object_ref(shape)
+        try:
+            beyond = runner.run(f"SurfMesh.color_by_metric({args})")
+        except Exception as exc:
+            runner.show_error("SurfMesh: color by metric", exc)
+            return
+        info = metrics.METRICS[name]
+        sign = ">" if info["worse"] == "high" else "<"
+        FreeCAD.Console.PrintMessage(
+            f"SurfMesh: {mesh.Label}: colored by {info['label'].lower()}: {beyond} element(s) "
+            f"{sign} {reports.format_value(mesh.SurfMeshThreshold, 3)} in red\n")

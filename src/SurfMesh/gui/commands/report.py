@@ -17,7 +17,9 @@ class ReportCommand:
             "MenuText": "Quality report",
             "ToolTip": "Shows the quality statistics of the selected mesh for every measure "
             "(min, max, mean, std. dev., tangled elements; before and after for an optimized "
-            "mesh) and a histogram of the element quality.",
+            "mesh), a histogram of the element quality, and the element metrics FEM checks use "
+            "(aspect ratio, angles, Jacobian ratio, warpage…) with a threshold, their "
+            "histogram, colors and CSV export.",
         }
 
     def IsActive(self):
@@ -31,9 +33,11 @@ class ReportCommand:
         args = selection.call_arguments(mesh, shape, shape_keyword=True) + f", histogram={png!r}"
         try:
             report = runner.run(f"SurfMesh.app.document.report_object({args})")
+            metrics = runner.run("SurfMesh.app.metric_report.metric_report("
+                                 f"{selection.call_arguments(mesh, shape, shape_keyword=True)})")
         except Exception as exc:
             runner.show_error("SurfMesh: report", exc)
             return
         from SurfMesh.gui.report_dialog import show_report
 
-        show_report(mesh.Label, report)
+        show_report(mesh.Label, report, metric_report=metrics, mesh=mesh)
