@@ -211,6 +211,38 @@ try:
     outside = img[rows, int((x1 + 1) / 2 * W) + 10: int((x1 + 1) / 2 * W) + 40]
     check((outside.mean(axis=2) > 0.75).mean() < 0.5, "and the panel ends where it should")
 
+    # ---- a FEM mesh in an analysis: replaced there, in one undo step -------------------------
+    import ObjectsFem
+
+    mesh2 = examples.make_gmsh_mesh(doc, tor, 2.0, name="AnalysisMesh")
+    examples.tangle_to(mesh2, tor.Shape, target=10, seed=3)
+    analysis = ObjectsFem.makeAnalysis(doc, "Analysis")
+    analysis.addObject(mesh2)
+    doc.recompute()
+    panel3 = OptimizePanel(mesh2, tor)
+    FreeCADGui.Control.showDialog(panel3)
+    FreeCADGui.updateGui()
+    box = panel3.form.findChild(QtGui.QCheckBox, "replaceInAnalysis")
+    check(box is not None and box.isVisible() and box.isChecked(),
+          "the panel offers to replace the mesh in its analysis, checked")
+    check("replace_in_analysis" not in panel3.command(), "(the default of the call)")
+    box.setChecked(False)
+    check("replace_in_analysis=False" in panel3.command(), "unchecked, the call says so")
+    box.setChecked(True)
+    undo0 = doc.UndoCount
+    check(panel3.accept() is True, "the run in the analysis applies")
+    result = doc.getObject("AnalysisMesh_optimized")
+    check(analysis.Group == [result] and result.Part == tor,
+          "the result is the analysis' mesh, linked to the shape")
+    check(doc.UndoCount == undo0 + 1, "in one undo step")
+    doc.undo()
+    FreeCADGui.updateGui()
+    check(analysis.Group == [mesh2] and doc.getObject("AnalysisMesh_optimized") is None,
+          "undo puts the original back")
+    panel4 = OptimizePanel(mesh, tor)  # a mesh in no analysis: no such option shown
+    check(not panel4.replace.isVisible() and panel4.analysis is None,
+          "no replace option for a mesh in no analysis")
+
     FreeCAD.closeDocument(doc.Name)
     code = 0
 except BaseException:

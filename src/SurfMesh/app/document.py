@@ -497,16 +497,38 @@ def tangled_elements(obj, shape=None, measure="shape", worst=WORST_ELEMENTS, **k
     )
 
 
+def analysis_of(obj):
+    """The FEM analysis ``obj`` is a member of, or None."""
+    doc = getattr(obj, "Document", None)
+    for a in (doc.Objects if doc is not None else []):
+        try:
+            if a.isDerivedFrom("Fem::FemAnalysis") and obj in a.Group:
+                return a
+        except Exception:  # an object on its way out
+            continue
+    return None
+
+
 def optimize_object(obj, shape=None, measure="shape", boundary="fixed", name=None, color=True,
-                    progress_callback=None, **options):
+                    progress_callback=None, replace_in_analysis=None, **options):
     """Optimizes mesh object ``obj``; creates ``<name>_optimized`` (the original is kept, and
     hidden in the GUI) in one undo transaction, stores before/after stats on it and colors it.
     Returns the new object (its ``SurfMeshStats`` / ``SurfMeshStatsBefore`` hold the result).
 
     ``progress_callback`` is called after every sweep (see SurfMesh.optimize); returning
     False cancels: then SurfMesh.Cancelled is raised and the document is unchanged.
+
+    ``replace_in_analysis`` (FEM meshes; default: True when ``obj`` is in a FEM analysis): the
+    new mesh takes the original's place in its analysis, with the original's shape link (a
+    ``Part`` link, which FEM's solvers read), and the original leaves the analysis (it stays
+    in the document) — in the same undo step.
     """
     kind = _mesh_kind(obj)
+    analysis = analysis_of(obj) if kind == "fem" else None
+    if replace_in_analysis is None:
+        replace_in_analysis = analysis is not None
+    elif replace_in_analysis and analysis is None:
+        raise ValueError(f"replace_in_analysis: {obj.Label!r} is in no FEM analysis")
     shp = resolve_shape(obj, shape)
     src = shape if (shape is not None and hasattr(shape, "isDerivedFrom")) else \
         shapes.source_shape_object(obj)
@@ -550,6 +572,8 @@ def optimize_object(obj, shape=None, measure="shape", boundary="fixed", name=Non
         store_report(new, res.after)
         if color:
             apply_colors(new, res.after)
+        if replace_in_analysis:
+            _replace_in_analysis(analysis, obj, new, src)
         doc.recompute()
         # The new mesh takes the original's place in the 3D view (undone with the rest).
         vo = getattr(obj, "ViewObject", None)
@@ -563,6 +587,27 @@ def optimize_object(obj, shape=None, measure="shape", boundary="fixed", name=Non
 
     FreeCAD.Console.PrintMessage(f"SurfMesh: {new.Label}: {outcome_of(new)}\n")
     return new
+
+
+def _replace_in_analysis(analysis, old, new, src):
+    """``new`` takes ``old``'s place in FEM ``analysis``, with its shape link: FEM reads a
+    mesh's shape from its ``Shape`` or ``Part`` property (femmesh.meshsetsgetter)."""
+    link = None
+    for prop in ("Part", "Shape"):
+        if prop in old.PropertiesList and old.getTypeIdOfProperty(prop) == "App::PropertyLink":
+            link = getattr(old, prop)
+            if link is not None:
+                break
+    if link is None and src is not None and hasattr(src, "Shape"):
+        link = src
+    if link is not None:
+        if "Part" not in new.PropertiesList:
+            new.addProperty("App::PropertyLink", "Part", "FEM Mesh",
+                            "The shape the mesh was made from (as a Gmsh mesh's Part)")
+        new.Part = link
+    group = list(analysis.Group)
+    group[group.index(old)] = new  # the analysis keeps its order
+    analysis.Group = group
 
 
 def outcome_of(obj):

@@ -83,6 +83,19 @@ class OptimizePanel:
             "(off: improve the quality of the mesh as a whole alone)"
         )
         lay.addRow(self.monotone)
+        self.analysis = document.analysis_of(self.mesh) if "FemMesh" in getattr(
+            self.mesh, "PropertiesList", []) else None
+        self.replace = QtGui.QCheckBox("Replace the mesh in its analysis")
+        self.replace.setObjectName("replaceInAnalysis")
+        self.replace.setChecked(self.analysis is not None)
+        self.replace.setVisible(self.analysis is not None)
+        self.replace.setToolTip(
+            "The optimized mesh takes this mesh's place in "
+            f"{self.analysis.Label if self.analysis is not None else 'its analysis'}, linked to "
+            "the same shape; this mesh leaves the analysis and stays in the document. Undo "
+            "brings it back")
+        if self.analysis is not None:
+            lay.addRow(self.replace)
         advanced = QtGui.QGroupBox("Advanced")
         advanced.setObjectName("advanced")
         adv = QtGui.QFormLayout(advanced)
@@ -126,7 +139,8 @@ class OptimizePanel:
         lay.addRow(advanced)
         # what a run disables while it lasts
         self.inputs = [self.measure, self.boundary, self.faces, self.max_sweeps, self.monotone,
-                       self.tolerance, self.rel_tol, self.over_relaxation, self.threads]
+                       self.replace, self.tolerance, self.rel_tol, self.over_relaxation,
+                       self.threads]
         self.bar = QtGui.QProgressBar()
         self.bar.setObjectName("progress")
         self.bar.setRange(0, 100)
@@ -174,6 +188,8 @@ class OptimizePanel:
         faces = self.face_names()
         if faces:
             args.append(f"faces={faces!r}")
+        if self.analysis is not None and not self.replace.isChecked():
+            args.append("replace_in_analysis=False")  # (the default for a mesh in an analysis)
         return "SurfMesh.optimize_object(" + ", ".join(args) + ")"
 
     # ---- running ---------------------------------------------------------------------------
