@@ -368,13 +368,27 @@ def _fem_mesh_type():
 
 
 def _print_warnings(warnings):
-    """The run's warnings (how the mesh was read on the CAD: elements left out, nodes glued;
-    elements left tangled) on FreeCAD's report view."""
+    """The run's warnings (elements left tangled) on FreeCAD's report view."""
     if warnings:
         import FreeCAD
 
         for w in warnings:
             FreeCAD.Console.PrintWarning(f"SurfMesh: {w}\n")
+
+
+def _print_notes(obj, warnings):
+    """How the mesh was read on the CAD (elements left out, nodes glued…): each kind once per
+    mesh and the meshes optimized from it, in a user's words (SurfMesh.app.notes; the full
+    texts are its details, in the Quality report)."""
+    from SurfMesh.app import notes
+
+    fresh = notes.new_notes(obj, warnings)
+    if fresh:
+        import FreeCAD
+
+        label = notes.lineage(obj).Label
+        for n in fresh:
+            FreeCAD.Console.PrintWarning(f"SurfMesh: {label}: {n}\n")
 
 
 def measure_object(obj, shape=None, measure="shape", color=True, **kwargs):
@@ -392,7 +406,7 @@ def measure_object(obj, shape=None, measure="shape", color=True, **kwargs):
         doc.abortTransaction()
         raise
     doc.commitTransaction()
-    _print_warnings(rep.bridge.get("warnings", []))
+    _print_notes(obj, rep.bridge.get("warnings", []))
     return rep
 
 
@@ -465,7 +479,7 @@ def tangled_elements(obj, shape=None, measure="shape", worst=WORST_ELEMENTS, **k
         raise ValueError(f"worst must be a positive integer, got {worst!r}")
     shp = resolve_shape(obj, shape)
     rep = api.measure(obj, shp, measure=measure, **kwargs)
-    _print_warnings(rep.bridge.get("warnings", []))
+    _print_notes(obj, rep.bridge.get("warnings", []))
     if rep.tangled.any():
         picked, what = np.nonzero(rep.tangled)[0], "tangled"
     else:
@@ -567,7 +581,8 @@ def optimize_object(obj, shape=None, measure="shape", boundary="fixed", name=Non
                if options else {}),
             **({"warnings": " | ".join(res.warnings)} if res.warnings else {}),
         }
-        _print_warnings(list(res.bridge.get("warnings", [])) + list(res.warnings))
+        _print_notes(obj, res.bridge.get("warnings", []))
+        _print_warnings(res.warnings)
         store_report(new, res.before, before=True)
         store_report(new, res.after)
         if color:

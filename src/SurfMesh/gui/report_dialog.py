@@ -32,6 +32,21 @@ def show_report(label, report, modal=False, metric_report=None, mesh=None):
         img.setPixmap(QtGui.QPixmap(report["histogram"]))
         img.setAlignment(QtCore.Qt.AlignCenter)
         lay.addWidget(img)
+    if mesh is not None:
+        from SurfMesh.app import notes
+
+        told = notes.details(mesh)
+        if told:
+            box = QtGui.QGroupBox("Notes on reading the mesh (details)", dlg)
+            box.setObjectName("SurfMeshNotes")
+            blay = QtGui.QVBoxLayout(box)
+            items = QtGui.QListWidget(box)
+            items.setObjectName("SurfMeshNotesList")
+            items.setWordWrap(True)
+            items.addItems(told)
+            items.setMaximumHeight(110)
+            blay.addWidget(items)
+            lay.addWidget(box)
     if metric_report is not None:
         lay.addWidget(_metrics_box(dlg, metric_report, mesh))
     buttons = QtGui.QDialogButtonBox(QtGui.QDialogButtonBox.Close, parent=dlg)

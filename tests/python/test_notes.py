@@ -1,0 +1,80 @@
+"""What SurfMesh noticed reading a mesh, told once per mesh in a user's words: the bridge's
+warnings on Gmsh's second-order mesh of the crank arm (nodes of no element, collapsed elements
+left out, side nodes far from their sides) become one note each, with the counts of the
+warnings; a second command on the mesh, or on a mesh optimized from it, tells nothing new;
+the details keep the full texts.
+
+Run by scripts/test.sh (``freecadcmd -t test_notes -M tests/python``).
+"""
+
+import gzip
+import os
+import re
+import shutil
+import unittest
+
+import FreeCAD as App
+import Fem
+import Part
+
+import SurfMesh
+import surfmesh_testing as T
+from SurfMesh.app import notes
+
+
+class Notes(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.inp = os.path.join(T.output_dir(), "notes_crankarm_order2.inp")
+        with gzip.open(os.path.join(T.data_dir(), "occt_crankarm_gmsh_order2.inp.gz")) as src, \
+                open(cls.inp, "wb") as dst:
+            shutil.copyfileobj(src, dst)
+
+    def setUp(self):
+        self.doc = App.newDocument("SurfMeshNotes")
+        self.doc.UndoMode = 1
+        self.part = self.doc.addObject("Part::Feature", "CrankArm")
+        self.part.Shape = Part.read(os.path.join(T.data_dir(), "occt_crankarm.brep"))
+        self.mesh = self.doc.addObject("Fem::FemMeshObjectPython", "Mesh2nd")
+        self.mesh.FemMesh = Fem.read(self.inp)
+
+    def tearDown(self):
+        notes.forget(self.doc.Name)
+        App.closeDocument(self.doc.Name)
+
+    def test_user_words_with_the_warnings_counts(self):
+        rep = SurfMesh.measure(self.mesh, self.part)
+        warnings = rep.bridge["warnings"]
+        words = dict(notes.user_words(w) for w in warnings)
+        counts = {}
+        for w in warnings:  # the counts as the warnings give them
+            if w.startswith("left out"):
+                counts["left_out"] = sum(int(n) for n in re.findall(r"(\d+) [a-z-]*\s*element",
+                                                                    w.split(": ids")[0]))
+            else:
+                counts[notes.user_words(w)[0]] = int(re.match(r"\D*(\d+)", w).group(1))
+        self.assertEqual(set(words), {"unused", "left_out", "node_order"}, warnings)
+        for kind, n in counts.items():
+            self.assertTrue(words[kind].startswith(f"{n} "), (kind, words[kind]))
+        for text in words.values():
+            self.assertNotRegex(text, r"node order corners first, then|\?")
+
+    def test_once_per_mesh_and_its_optimized_meshes(self):
+        SurfMesh.measure_object(self.mesh, self.part)
+        told = notes.details(self.mesh)
+        self.assertEqual(len(told), 3)
+        rep = SurfMesh.measure(self.mesh, self.part)
+        self.assertEqual(notes.new_notes(self.mesh, rep.bridge["warnings"]), [])
+        # a mesh optimized from it (its SurfMeshOriginal) is the same mesh for the notes
+        child = self.doc.addObject("Fem::FemMeshObjectPython", "Mesh2nd_optimized")
+        child.addProperty("App::PropertyLink", "SurfMeshOriginal", "SurfMesh")
+        child.SurfMeshOriginal = self.mesh
+        changed = [re.sub(r"\d+", "7", w) for w in rep.bridge["warnings"]]  # other counts
+        self.assertEqual(notes.new_notes(child, changed), [])
+        self.assertEqual(notes.details(child), changed)  # the latest texts
+        other = self.doc.addObject("Fem::FemMeshObjectPython", "Other")
+        self.assertEqual(len(notes.new_notes(other, changed)), 3)
+
+
+if __name__ == "__main__":
+    unittest.main()
