@@ -1,10 +1,14 @@
-"""Task panel of SurfMesh_Optimize: measure, boundary mode, tolerances, sweeps, monotone mode,
-over-relaxation, threads (the panel opens with the settings of the last run applied), and the
-faces whose elements to optimize (those selected with the mesh; empty: the whole mesh).
+"""Task panel of SurfMesh_Optimize: the quality measure, what the nodes on CAD edges do, the
+faces whose elements to optimize (those selected with the mesh; empty: the whole mesh), the
+sweep limit and the monotone mode; for a FEM mesh in an analysis, whether the result replaces
+it there; in an "Advanced" group the distance to the part, the stopping tolerance,
+over-relaxation and threads (the panel opens with the settings of the last run applied).
 
 OK (Apply) runs SurfMesh.optimize_object through FreeCADGui.doCommand with a progress hook
-that drives the panel's progress bar; Cancel (or Stop) during a run stops it and leaves the
-document unchanged; Cancel when idle closes the panel.
+that drives the panel's progress bar (against the run's stopping rule) while its inputs are
+disabled; Cancel (or Stop) during a run stops it and leaves the document unchanged; Cancel
+when idle closes the panel. After a run the report view, the panel and the status bar say
+what it did, and a dialog warns when elements stay tangled.
 """
 
 from __future__ import annotations
