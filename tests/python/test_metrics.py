@@ -206,6 +206,40 @@ class CurvedAndCad(unittest.TestCase):
         self.assertAlmostEqual(m["min_angle"][2], 45, places=12)
 
 
+class DistanceOnAFreeformFace(unittest.TestCase):
+    def test_against_freecads_distance_to_the_face(self):
+        """distance_to_cad on a Gmsh mesh of a wavy B-spline face, against Part's distToShape
+        from the same grid points of each element (i/8, j/8 barycentric) to the face."""
+        from SurfMesh.app import examples
+
+        doc = App.newDocument("SurfMeshFreeform")
+        try:
+            surf = Part.BSplineSurface()
+            pts = [[App.Vector(10 * i, 10 * j, 3.0 * math.sin(i) * math.cos(0.8 * j))
+                    for j in range(5)] for i in range(5)]
+            surf.interpolate(pts)
+            part = doc.addObject("Part::Feature", "Wavy")
+            part.Shape = surf.toShape()
+            doc.recompute()
+            mesh = examples.make_gmsh_mesh(doc, part, 6.0, name="WavyMesh")
+            doc.recompute()
+            m = SurfMesh.metrics(mesh, part, ["distance_to_cad"])["distance_to_cad"]
+            data = conversion.read_mesh(mesh)
+            face = part.Shape.Faces[0]
+            n = M.SAMPLE_DIVISIONS
+            grid = [(i / n, j / n) for i in range(n + 1) for j in range(n + 1 - i)]
+            rng = np.random.default_rng(0)
+            picked = rng.choice(data.element_count, size=15, replace=False)
+            for e in list(picked) + [int(np.argmax(m))]:
+                x = data.nodes[data.element(int(e))]
+                ref = max(face.distToShape(Part.Vertex(App.Vector(
+                    *((1 - a - b) * x[0] + a * x[1] + b * x[2]))))[0] for a, b in grid)
+                self.assertAlmostEqual(m[e], ref, delta=1e-7 * (1 + ref), msg=f"element {e}")
+            self.assertGreater(m.max(), 1e-3)  # the chords do leave the curved face
+        finally:
+            App.closeDocument(doc.Name)
+
+
 class BadInput(unittest.TestCase):
     def test_unknown_metric_is_named(self):
         x = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
