@@ -211,6 +211,63 @@ class TestSurfmeshBatch(unittest.TestCase):
         self.assertEqual(j1["after"]["tangled"], 0)
         self.assertIn("Tang. el.", so)
 
+    def test_command_reads_every_format_as_freecadcmd_does(self):
+        """The command runs FreeCAD as a library: FEM's readers (Python modules of FEM's
+        resource folder) must be there as in freecadcmd. Each format measured both ways."""
+        import gzip
+
+        crank = os.path.join(T.data_dir(), "occt_crankarm.brep")
+        inp = os.path.join(self.dir, "crankarm_order2.inp")
+        with gzip.open(os.path.join(T.data_dir(), "occt_crankarm_gmsh_order2.inp.gz")) as src:
+            with open(inp, "wb") as dst:
+                dst.write(src.read())
+        fcstd = os.path.join(self.dir, "torus_fem.FCStd")
+        doc = FreeCAD.newDocument("SurfMeshBatchFcstd")
+        try:
+            import Part
+
+            feat = doc.addObject("Part::Feature", "Torus")
+            feat.Shape = Part.makeTorus(R, r)
+            mesh = doc.addObject("Fem::FemMeshObject", "TorusMesh")
+            mesh.FemMesh = self._fem_of_msh(os.path.join(self.dir, "parts", "a.msh"))
+            doc.recompute()
+            doc.saveAs(fcstd)
+        finally:
+            FreeCAD.closeDocument(doc.Name)
+        cases = [
+            ("inp", crank, inp, []),
+            ("unv", crank, os.path.join(T.data_dir(), "occt_crankarm_fillet_fold.unv"), []),
+            ("msh", self.brep, os.path.join(self.dir, "parts", "a.msh"), []),
+            ("fcstd", fcstd, fcstd, ["--shape-object", "Torus", "--mesh-object", "TorusMesh"]),
+        ]
+        for name, shape, mesh_path, opts in cases:
+            with self.subTest(fmt=name):
+                r1 = os.path.join(self.dir, f"fmt_{name}_1.json")
+                r2 = os.path.join(self.dir, f"fmt_{name}_2.json")
+                code, so, se = run("measure", shape, mesh_path, "--report", r1, *opts)
+                self.assertEqual(code, 0, se)
+                c2, so2, se2 = run_cli("measure", shape, mesh_path, "--report", r2, *opts)
+                self.assertEqual(c2, 0, se2)
+                j1, j2 = json.load(open(r1)), json.load(open(r2))
+                self.assertEqual(j1["stats"], j2["stats"])
+                self.assertEqual(j1["mesh"], j2["mesh"])
+                self.assertGreater(j1["stats"]["elements"], 0)
+
+    def _fem_of_msh(self, path):
+        """A Fem.FemMesh of a Gmsh .msh file's triangles, node and element ids kept."""
+        import Fem
+
+        from SurfMesh.app import fileio
+
+        data = fileio.read_mesh(path).data
+        fem = Fem.FemMesh()
+        for nid, p in zip(data.node_ids, data.nodes):
+            fem.addNode(float(p[0]), float(p[1]), float(p[2]), int(nid))
+        for e, eid in enumerate(data.element_ids):
+            nodes = data.conn[data.offsets[e]:data.offsets[e + 1]]
+            fem.addFace([int(data.node_ids[n]) for n in nodes], int(eid))
+        return fem
+
     # ---- batch on the local pool ------------------------------------------------------------
 
     def check_batch(self, out, recs, worker_field=False):

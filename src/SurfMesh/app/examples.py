@@ -32,8 +32,10 @@ def make_gmsh_mesh(doc, part, size, name=None, order="1st", recombine=False):
     import ObjectsFem
     from femmesh.gmshtools import GmshTools
 
+    from SurfMesh.app import compat
+
     obj = ObjectsFem.makeMeshGmsh(doc, name or f"{part.Name}_Mesh")
-    obj.Part = part
+    compat.set_mesh_shape(obj, part)  # its Part (0.20) or Shape (1.x)
     obj.ElementDimension = "2D"
     obj.ElementOrder = order
     obj.CharacteristicLengthMax = float(size)

@@ -50,7 +50,9 @@ def source_shape_object(mesh_obj):
     ``SurfMeshSource`` link SurfMesh stores on the objects it creates, or the source recorded
     by MeshPart's task panel (``Mesh::Feature`` objects created from a shape have no link:
     then None)."""
-    for prop in ("SurfMeshSource", "Part", "Shape"):
+    from SurfMesh.app.compat import MESH_SHAPE_LINKS
+
+    for prop in ("SurfMeshSource",) + MESH_SHAPE_LINKS:
         if prop in getattr(mesh_obj, "PropertiesList", []):
             target = getattr(mesh_obj, prop)
             if target is not None and hasattr(target, "Shape") and hasattr(target, "isDerivedFrom"):

@@ -68,9 +68,9 @@ def main(outdir):
 
 
 def _run():
-    args = sys.argv[1:]
-    if args and args[0] == "--":
-        args = args[1:]
+    from SurfMesh.app.compat import script_args
+
+    args = script_args()  # freecadcmd demo.py -- DIR
     outdir = os.path.abspath(args[0] if args else "demo-output")
     try:
         return main(outdir)

@@ -52,6 +52,20 @@ def _import_freecad():
         raise SystemExit(
             f"surfmesh: error: cannot import FreeCAD in {sys.executable} ({exc}); install "
             "FreeCAD (scripts/install.sh), or set FREECAD_LIB to the folder of FreeCAD.so")
+    # Imported as a library, FreeCAD puts only the Mod folders of its home (the libraries') on
+    # sys.path, not those of its resource folder (Debian: /usr/share/freecad/Mod), which hold the
+    # workbenches' Python parts: FEM's readers (Fem.read of an .inp asks feminout), its objects,
+    # Gmsh tools. freecadcmd puts every one of them there; so does this.
+    for base in {FreeCAD.getResourceDir(), FreeCAD.getHomePath()}:
+        mods = os.path.join(base, "Mod")
+        if not os.path.isdir(mods):
+            continue
+        for name in sorted(os.listdir(mods)):
+            d = os.path.join(mods, name)
+            if os.path.isdir(d) and d not in sys.path:
+                sys.path.append(d)
+        if mods not in sys.path:
+            sys.path.append(mods)
     return FreeCAD
 
 
@@ -63,7 +77,7 @@ def _version():
 
     ver = ".".join(fc.Version()[:3]).rstrip(".")
     return (f"surfmesh {SurfMesh.__version__} (FreeCAD {ver}, Python "
-            f"{sys.version.split()[0]}, {os.path.dirname(SurfMesh.__file__)})")
+            f"{sys.version.split()[0]}, {os.path.normpath(os.path.dirname(SurfMesh.__file__))})")
 
 
 def main(argv):

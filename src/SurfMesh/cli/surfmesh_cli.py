@@ -256,12 +256,11 @@ def run(argv, prog="surfmesh_cli.py"):
 
 
 def main(argv=None, prog="surfmesh_cli.py"):
-    if argv is None:
-        # freecadcmd script.py -- args: sys.argv is [script, "--", args…] (FreeCAD 0.20) or
-        # [freecadcmd, script, "--", args…] (1.x)
-        argv = sys.argv[1:]
-        if "--" in argv:
-            argv = argv[argv.index("--") + 1:]
+    if argv is None:  # freecadcmd surfmesh_cli.py -- args
+        _import_surfmesh()
+        from SurfMesh.app.compat import script_args
+
+        argv = script_args()
     elif argv and argv[0] == "--":
         argv = argv[1:]
     try:

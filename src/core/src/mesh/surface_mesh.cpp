@@ -130,32 +130,30 @@ std::string vecText(const Vec3& p) {
 
 /// Two nodes used by elements at exactly the same position.
 void checkDuplicateNodes(const SurfaceMesh& m) {
-  std::vector<std::int32_t> used;
-  {
-    std::vector<unsigned char> isUsed(m.nodeCount(), 0);
-    for (std::int32_t n : m.elemNodes) isUsed[static_cast<std::size_t>(n)] = 1;
-    for (std::size_t i = 0; i < isUsed.size(); ++i)
-      if (isUsed[i]) used.push_back(static_cast<std::int32_t>(i));
-  }
+  // The nodes the elements use, ascending.
+  std::vector<std::int32_t> used(m.elemNodes.begin(), m.elemNodes.end());
+  std::sort(used.begin(), used.end());
+  used.erase(std::unique(used.begin(), used.end()), used.end());
   // Sorted by position, then index (a total order: any sort gives the same sequence); the
   // positions are copied next to the indices so that the sort reads contiguous memory.
   struct Key {
     double x, y, z;
     std::int32_t i;
   };
-  std::vector<Key> keys(used.size());
-  for (std::size_t k = 0; k < used.size(); ++k) {
-    const Vec3& p = m.xyz[static_cast<std::size_t>(used[k])];
-    keys[k] = {p.x(), p.y(), p.z(), used[k]};
-  }
-  std::sort(keys.begin(), keys.end(), [](const Key& p, const Key& q) {
-    if (p.x != q.x) return p.x < q.x;
-    if (p.y != q.y) return p.y < q.y;
-    if (p.z != q.z) return p.z < q.z;
-    return p.i < q.i;
-  });
-  for (std::size_t k = 0; k < used.size(); ++k) used[k] = keys[k].i;
-  keys = std::vector<Key>();
+  {
+    std::vector<Key> keys(used.size());
+    for (std::size_t k = 0; k < used.size(); ++k) {
+      const Vec3& p = m.xyz[static_cast<std::size_t>(used[k])];
+      keys[k] = {p.x(), p.y(), p.z(), used[k]};
+    }
+    std::sort(keys.begin(), keys.end(), [](const Key& p, const Key& q) {
+      if (p.x != q.x) return p.x < q.x;
+      if (p.y != q.y) return p.y < q.y;
+      if (p.z != q.z) return p.z < q.z;
+      return p.i < q.i;
+    });
+    for (std::size_t k = 0; k < used.size(); ++k) used[k] = keys[k].i;
+  }  // (freed here: GCC 14 misreads a move-assignment of an empty vector as a bad delete)
   std::size_t count = 0;
   std::int32_t a0 = -1, b0 = -1;
   for (std::size_t k = 1; k < used.size(); ++k)

@@ -1,0 +1,70 @@
+"""What differs between the FreeCAD releases SurfMesh runs in (0.20.2 on Debian bookworm, 1.0 on
+trixie, 1.1 on sid), in one place. Each function says which releases do what; every other module
+asks here instead of testing versions itself (tests/python/test_compat.py checks each one on the
+FreeCAD it runs in). Headless: nothing here imports FreeCADGui.
+"""
+
+from __future__ import annotations
+
+import sys
+
+
+def freecad_version() -> tuple:
+    """FreeCAD's (major, minor, patch) as integers, e.g. (0, 20, 2) or (1, 0, 0)."""
+    import FreeCAD
+
+    out = []
+    for part in FreeCAD.Version()[:3]:
+        digits = "".join(ch for ch in str(part) if ch.isdigit())
+        out.append(int(digits) if digits else 0)
+    return tuple(out)
+
+
+def script_args(argv=None) -> list:
+    """The arguments given to a script run as ``freecadcmd script.py -- a b``: ``[a, b]``.
+    FreeCAD 0.20 sets ``sys.argv = [script, "--", a, b]``, 1.x ``[freecadcmd, script, "--", a,
+    b]``; a script run by plain Python (``python3 script.py a b``) gets ``[a, b]`` too."""
+    argv = list(sys.argv if argv is None else argv)
+    if "--" in argv:
+        return argv[argv.index("--") + 1:]
+    return argv[1:]
+
+
+#: The properties by which a FEM mesh object links the shape it meshes: Gmsh's mesh object calls
+#: it ``Part`` in 0.20 and ``Shape`` in 1.x; the Netgen one ``Shape`` in both.
+MESH_SHAPE_LINKS = ("Part", "Shape")
+
+
+def mesh_shape_link(mesh_obj):
+    """Name of the property of ``mesh_obj`` that links the shape it was made from (``Part`` or
+    ``Shape``, see MESH_SHAPE_LINKS), or None when it has none."""
+    props = getattr(mesh_obj, "PropertiesList", [])
+    for name in MESH_SHAPE_LINKS:
+        if name in props and mesh_obj.getTypeIdOfProperty(name) == "App::PropertyLink":
+            return name
+    return None
+
+
+def set_mesh_shape(mesh_obj, shape_obj):
+    """Links ``mesh_obj`` (a FEM mesh object) to ``shape_obj`` through whichever of ``Part`` /
+    ``Shape`` it has (a plain FEM mesh object, which has neither, gets ``Part``)."""
+    name = mesh_shape_link(mesh_obj)
+    if name is None:
+        mesh_obj.addProperty("App::PropertyLink", "Part", "FEM Mesh",
+                             "The shape the mesh was made from")
+        name = "Part"
+    setattr(mesh_obj, name, shape_obj)
+    return name
+
+
+def show_fem_colors(view_obj, by: str):
+    """After ElementColor / NodeColor were set on a FEM mesh view: FreeCAD 1.x draws them only
+    when ``ColorMode`` says so (``by`` is "element" or "node"); 0.20 has no such property."""
+    if "ColorMode" in getattr(view_obj, "PropertiesList", []):
+        view_obj.ColorMode = {"element": "ByElement", "node": "ByNode"}[by]
+
+
+def hide_fem_colors(view_obj):
+    """The FEM mesh view's colors back to its one color (1.x: ColorMode "Overall")."""
+    if "ColorMode" in getattr(view_obj, "PropertiesList", []):
+        view_obj.ColorMode = "Overall"
