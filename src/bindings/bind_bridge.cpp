@@ -15,7 +15,7 @@ namespace surfmesh::bindings {
 
 namespace {
 
-constexpr std::int64_t kTypeCount = 6;  // ElementType Tri3 … Tri21
+constexpr std::int64_t kTypeCount = 7;  // ElementType Tri3 … Tri21, Quad8
 
 template <class T>
 py::array_t<T> toArray(const std::vector<T>& v) {

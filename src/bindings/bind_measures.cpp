@@ -26,8 +26,9 @@ void bind_measures(py::module_& m) {
       "element_types",
       []() {
         py::dict d;
-        for (ElementType t : {ElementType::Tri3, ElementType::Quad4, ElementType::Tri6,
-                              ElementType::Tri10, ElementType::Tri15, ElementType::Tri21})
+        for (ElementType t :
+             {ElementType::Tri3, ElementType::Quad4, ElementType::Tri6, ElementType::Tri10,
+              ElementType::Tri15, ElementType::Tri21, ElementType::Quad8})
           d[elementTypeName(t)] = static_cast<int>(t);
         return d;
       },

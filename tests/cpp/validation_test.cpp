@@ -219,8 +219,9 @@ TEST(ValidateMesh, UnsupportedElementTypeCode) {
   EXPECT_MESSAGE_HAS(msg, "element 3 has an unsupported element type (code 9");
   EXPECT_MESSAGE_HAS(invalidArgument([] { nodeCount(static_cast<ElementType>(7)); }),
                      "unsupported element type code 7");
-  EXPECT_FALSE(isElementTypeCode(6));
-  EXPECT_TRUE(isElementTypeCode(5));
+  EXPECT_FALSE(isElementTypeCode(7));
+  EXPECT_TRUE(isElementTypeCode(6));  // quad8
+  EXPECT_EQ(elementTypeFromName("quad8"), ElementType::Quad8);
   EXPECT_MESSAGE_HAS(invalidArgument([] { elementTypeFromName("tri7"); }),
                      "unknown element type 'tri7'");
 }
@@ -242,6 +243,24 @@ TEST(ValidateMesh, MixedOrders) {
   const std::int32_t quad[4] = {1, 2, 4, 6};
   q.addElement(ElementType::Quad4, quad, 0);
   EXPECT_NO_THROW(q.validate());
+
+  // quad8 is of order 2: with tri6 accepted, with tri3 refused, naming both.
+  // The unit square split at x = 0.5: a quad8 on the left, two tri6 on the right.
+  const std::vector<Vec2> uv2 = {{0, 0},     {0.5, 0},  {0.5, 1},    {0, 1},   {0.25, 0},
+                                 {0.5, 0.5}, {0.25, 1}, {0, 0.5},    {1, 0},   {1, 1},
+                                 {0.75, 0},  {1, 0.5},  {0.75, 0.5}, {0.75, 1}};
+  SurfaceMesh mixed =
+      makeSingleSurfaceMesh(plane, uv2, ElementType::Quad8, {0, 1, 2, 3, 4, 5, 6, 7}, {});
+  const std::int32_t a[6] = {1, 8, 9, 10, 11, 12}, b[6] = {1, 9, 2, 12, 13, 5};
+  mixed.addElement(ElementType::Tri6, a, 0);
+  mixed.addElement(ElementType::Tri6, b, 0);
+  EXPECT_NO_THROW(mixed.validate());
+  SurfaceMesh bad =
+      makeSingleSurfaceMesh(plane, uv2, ElementType::Quad8, {0, 1, 2, 3, 4, 5, 6, 7}, {});
+  const std::int32_t t3[3] = {1, 8, 9};
+  bad.addElement(ElementType::Tri3, t3, 0);
+  EXPECT_MESSAGE_HAS(invalidArgument([&] { bad.validate(); }),
+                     "element 0 is quad8 (order 2), element 1 is tri3 (order 1)");
 }
 
 TEST(ValidateMesh, BrokenArraysNeverReadOutOfBounds) {
@@ -587,6 +606,14 @@ TEST(CadInput, UnsupportedElementTypeCode) {
     EXPECT_MESSAGE_HAS(msg, "unsupported element type");
     EXPECT_MESSAGE_HAS(msg, "7");
   }
+  // A quad8 given three nodes' offsets: refused, naming the element and both counts.
+  MeshInput in = boxInput();
+  in.offsets.resize(in.types.size() + 1);
+  for (std::size_t e = 0; e <= in.types.size(); ++e)
+    in.offsets[e] = static_cast<std::int64_t>(3 * e);
+  in.types[4] = ElementType::Quad8;
+  EXPECT_MESSAGE_HAS(invalidArgument([&] { CadMesh(boxShape(), in); }),
+                     "element 4 has 3 nodes, expected 8 for quad8");
 }
 
 TEST(CadInput, BadOffsets) {

@@ -96,7 +96,7 @@ def arrays(nodes, elems, types=None):
     elems = [list(map(int, e)) for e in elems]
     counts = [len(e) for e in elems]
     if types is None:
-        types = [{3: 0, 4: 1, 6: 2}[c] for c in counts]
+        types = [{3: 0, 4: 1, 6: 2, 8: 6}[c] for c in counts]
     offsets = np.zeros(len(elems) + 1, dtype=np.int64)
     offsets[1:] = np.cumsum(counts)
     nodes = np.ascontiguousarray(nodes, dtype=np.float64).reshape(-1, 3)
@@ -342,14 +342,22 @@ class BadInputApi(unittest.TestCase):
         self.assertIn(f"on Face{face}", msg)
 
     def test_unsupported_element_types(self):
-        # FEM quad8 (8-node quadrilateral) faces.
-        fem = Fem.FemMesh()
+        # FEM quad8 (8-node quadrilateral) faces are taken (FreeCAD's FemMesh holds no other
+        # face type SurfMesh lacks): a square with its side nodes at the midpoints, quality 1.
         pts = [(0, 0, 0), (10, 0, 0), (10, 10, 0), (0, 10, 0), (5, 0, 0), (10, 5, 0), (5, 10, 0),
                (0, 5, 0)]
-        for k, p in enumerate(pts):
-            fem.addNode(*map(float, p), k + 1)
-        fem.addFace(list(range(1, 9)), 77)
-        self.expect_error(fem, "unsupported", "quad8", "77")
+        rep = SurfMesh.measure(make_fem(pts, [list(range(8))]), self.shape)
+        self.assertEqual(rep.element_types, ["quad8"])
+        self.assertAlmostEqual(float(rep.quality[0]), 1.0, places=12)
+        # A quad8 repeating a node and quad8 with tri3 (orders mixed): refused, naming them.
+        self.expect_error(make_fem(pts, [[0, 1, 2, 3, 4, 5, 6, 4]]), "repeat",
+                          str(FEM_ELEM_ID0), call=("measure",), collapsed="error")
+        nodes = list(map(list, self.nodes))
+        quad = [list(map(float, p)) for p in pts]
+        off = len(nodes)
+        elems = [list(t) for t in self.tris if all(self.nodes[k][2] > 0 for k in t)]
+        elems.append([off + k for k in range(8)])
+        self.expect_error(arrays(nodes + quad, elems), "mixes element orders", "quad8")
         # An invalid type code in the array input.
         data = arrays(self.nodes, self.tris, types=[9] + [0] * (len(self.tris) - 1))
         self.expect_error(data, "types", "9")
@@ -1111,8 +1119,8 @@ class BadInputCli(unittest.TestCase):
     def test_catalogue_unsupported_element_type(self):
         pts = [(0, 0, 0), (10, 0, 0), (10, 10, 0), (0, 10, 0), (5, 0, 0), (10, 5, 0),
                (5, 10, 0), (0, 5, 0)]
-        path = self.bad_msh("quad8", pts, [list(range(8))])
-        self.expect_both_fail(path, ["unsupported", "quad8"])
+        path = self.bad_msh("quad9", pts + [(5, 5, 0)], [list(range(9))], types=[10])
+        self.expect_both_fail(path, ["unsupported", "quad9"])
 
     def test_catalogue_mixed_orders(self):
         nodes, tris = box_grid()

@@ -256,3 +256,209 @@ class ResultFigures(unittest.TestCase):
         self.assertGreater(to_face[0], 1.0)  # the hole: not on the face although on its plane
         with self.assertRaises(ValueError):
             handle.distances_to_shape(pts, np.full(len(pts), len(shape.Faces)))
+
+
+# ---- quad8 (issue 41, point 1) ------------------------------------------------------------------
+
+_R = np.array([-1, 1, 1, -1, 0, 1, 0, -1], dtype=float)
+_S = np.array([-1, -1, 1, 1, -1, 0, 1, 0], dtype=float)
+
+
+def quad8_derivatives(r, s):
+    """(dN/dr, dN/ds) of the 8 serendipity functions at (r, s) ∈ [−1, 1]², from the textbook
+    formulas (Zienkiewicz), written here without SurfMesh."""
+    dr, ds = np.zeros(8), np.zeros(8)
+    for i in range(8):
+        ri, si = _R[i], _S[i]
+        if i < 4:
+            dr[i] = 0.25 * ri * (1 + s * si) * (2 * r * ri + s * si)
+            ds[i] = 0.25 * si * (1 + r * ri) * (r * ri + 2 * s * si)
+        elif ri == 0:
+            dr[i], ds[i] = -r * (1 + s * si), 0.5 * (1 - r * r) * si
+        else:
+            dr[i], ds[i] = 0.5 * ri * (1 - s * s), -(1 + r * ri) * s
+    return dr, ds
+
+
+def quad8_folded(x, normal_at, n=16):
+    """Whether the quad8 with nodes x (8, 3) folds against the surface normal anywhere on an
+    (n + 1)² grid of its square: (x_r × x_s)·normal_at(x(r, s)) ≤ 0 somewhere."""
+    for r in np.linspace(-1, 1, n + 1):
+        for s in np.linspace(-1, 1, n + 1):
+            dr, ds = quad8_derivatives(r, s)
+            xr, xs = dr @ x, ds @ x
+            # near the point x(r, s): the bilinear blend of the corners (the normals used here,
+            # a plane's and a cylinder's radial one, need no more)
+            w = 0.25 * (1 + r * _R[:4]) * (1 + s * _S[:4])
+            if float(np.dot(np.cross(xr, xs), normal_at(w @ x[:4]))) <= 0.0:
+                return True
+    return False
+
+
+def cylinder_quad8_msh(path, size=4.0):
+    """Gmsh's second-order incomplete (quad8) recombined mesh of a cylinder (r 10, h 30)."""
+    import gmsh
+
+    from SurfMesh.app import fileio
+
+    fileio._gmsh()  # initialized once, quiet
+    gmsh.clear()
+    gmsh.model.add("cyl")
+    gmsh.model.occ.addCylinder(0, 0, 0, 0, 0, 30, 10)
+    gmsh.model.occ.synchronize()
+    gmsh.option.setNumber("Mesh.MeshSizeMax", size)
+    gmsh.option.setNumber("Mesh.RecombineAll", 1)
+    gmsh.option.setNumber("Mesh.SecondOrderIncomplete", 1)
+    gmsh.option.setNumber("Mesh.ElementOrder", 2)
+    gmsh.model.mesh.generate(2)
+    gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+    gmsh.write(path)
+    for opt, v in (("Mesh.RecombineAll", 0), ("Mesh.SecondOrderIncomplete", 0),
+                   ("Mesh.ElementOrder", 1)):
+        gmsh.option.setNumber(opt, v)
+    gmsh.clear()
+    return path
+
+
+class Quad8(unittest.TestCase):
+    def setUp(self):
+        self.doc = None
+
+    def tearDown(self):
+        if self.doc is not None:
+            FreeCAD.closeDocument(self.doc.Name)
+
+    def cantilever(self):
+        from femexamples import ccx_cantilever_ele_quad8 as ex
+
+        self.doc = ex.setup()
+        self.doc.recompute()
+        mesh = [o for o in self.doc.Objects if o.isDerivedFrom("Fem::FemMeshObject")][0]
+        part = [o for o in self.doc.Objects
+                if hasattr(o, "Shape") and o.Shape.Faces and o is not mesh][0]
+        return mesh, part
+
+    def test_freecads_quad8_cantilever_is_measured_and_optimized_with_ids_kept(self):
+        mesh, part = self.cantilever()
+        fem = mesh.FemMesh
+        self.assertEqual({len(fem.getElementNodes(f)) for f in fem.Faces}, {8})
+        rep = SurfMesh.measure(mesh, part)
+        # four straight 4000 × 500 quad8: Knupp's shape of an 8:1 rectangle, 2·8/(64 + 1)
+        np.testing.assert_allclose(rep.quality, 16.0 / 65.0, rtol=1e-12)
+        self.assertEqual(rep.element_types, ["quad8"])
+        self.assertEqual(rep.stats["invalid"], 0)
+        res = SurfMesh.optimize(mesh, part)
+        before = T.fem_snapshot(fem)
+        nodes, elems = T.fem_snapshot(res.mesh)
+        self.assertEqual(elems, before[1])
+        self.assertEqual(set(nodes), set(before[0]))
+        self.assertGreaterEqual(res.after.stats["min"], rep.stats["min"] - 1e-12)
+
+    def test_a_folded_quad8_side_is_untangled_on_the_plate(self):
+        # The side node between elements 1 and 4 moved along their shared side past its end
+        # corner: both fold (an independent dense sampling says so); optimizing unfolds them
+        # with every node on the plate, and no figure hides them before.
+        import Fem
+
+        mesh, part = self.cantilever()
+        fem = mesh.FemMesh
+        shared = set(fem.getElementNodes(1)[4:]) & set(fem.getElementNodes(4)[4:])
+        self.assertEqual(len(shared), 1)
+        side = shared.pop()
+        bent = Fem.FemMesh()
+        for nid, p in fem.Nodes.items():
+            q = p + FreeCAD.Vector(0, 0, 400) if nid == side else p
+            bent.addNode(q.x, q.y, q.z, nid)
+        for f in fem.Faces:
+            bent.addFace(list(fem.getElementNodes(f)), f)
+        # the plate's normal as the mesh is wound: that of element 2 (away from the bent node)
+        x2 = np.array([tuple(fem.Nodes[n]) for n in fem.getElementNodes(2)])
+        normal = np.cross(x2[1] - x2[0], x2[3] - x2[0])
+
+        def folded(m):
+            return [f for f in m.Faces if quad8_folded(
+                np.array([tuple(m.Nodes[n]) for n in m.getElementNodes(f)]),
+                lambda p: normal)]
+
+        before = folded(bent)
+        self.assertEqual(sorted(before), [1, 4])
+        rep = SurfMesh.measure(bent, part)
+        self.assertEqual(rep.stats["invalid"], 2)
+        self.assertEqual(sorted(int(e) for e in rep.element_ids[rep.tangled | rep.across]),
+                         [1, 4])
+        res = SurfMesh.optimize(bent, part)
+        self.assertEqual(res.after.stats["invalid"], 0)
+        self.assertEqual(folded(res.mesh), [])
+        pts = np.array([tuple(p) for p in res.mesh.Nodes.values()])
+        self.assertLess(T.distance_to_shape(part.Shape, pts).max(), 1e-9)
+
+    def test_gmsh_quad8_cylinder_through_every_fem_format(self):
+        # Gmsh's quad8 mesh of a cylinder, tangled by moving side nodes along the surface,
+        # optimized by the command line to .msh, .unv, .inp and .vtk: each file read back holds
+        # the quad8 elements with their ids and nodes, every node on the cylinder (closed form),
+        # and no element folded by an independent dense sampling against the radial normal.
+        import json
+
+        import Fem
+        import Part
+
+        out = T.output_dir()
+        src = cylinder_quad8_msh(os.path.join(out, "fem41_cyl_q8.msh"))
+        shape_path = os.path.join(out, "fem41_cyl.brep")
+        Part.makeCylinder(10, 30).exportBrep(shape_path)
+        from SurfMesh.app import fileio
+
+        mf = fileio.read_mesh(src)
+        self.assertEqual(mf.data.type_names(), ["quad8"])
+        # fold: rotate a few side nodes about the axis by a quarter of an element
+        data = mf.data
+        rng = np.random.default_rng(5)
+        nodes = data.nodes.copy()
+        sides = np.unique(np.concatenate([data.element(e)[4:] for e in range(data.element_count)]))
+        for n in rng.choice(sides, 40, replace=False):
+            x, y, z = nodes[n]
+            if not 1.0 < z < 29.0:
+                continue
+            a = np.arctan2(y, x) + rng.uniform(-0.35, 0.35)
+            nodes[n] = (10 * np.cos(a), 10 * np.sin(a), z + rng.uniform(-2.5, 2.5))
+        fileio.write_mesh(os.path.join(out, "fem41_cyl_q8_bent.msh"), mf, nodes)
+        bent = os.path.join(out, "fem41_cyl_q8_bent.msh")
+
+        def radial(p):
+            return np.array([p[0], p[1], 0.0])
+
+        def folded_count(xyz, elems):  # on the cylinder's side (not the discs)
+            return sum(quad8_folded(xyz[e], radial, 8) for e in elems
+                       if np.abs(np.hypot(xyz[e][:, 0], xyz[e][:, 1]) - 10).max() < 1e-6)
+
+        conn = [data.element(e) for e in range(data.element_count)]
+        n_before = folded_count(nodes, conn)
+        self.assertGreater(n_before, 0)
+        for ext in ("msh", "unv", "inp", "vtk"):
+            result = os.path.join(out, f"fem41_cyl_q8_out.{ext}")
+            report = os.path.join(out, f"fem41_cyl_q8_{ext}.json")
+            proc = subprocess.run(
+                ["freecadcmd", T.cli_path(), "--", "optimize", shape_path, bent, "-o", result,
+                 "--report", report], capture_output=True, text=True, timeout=600)
+            self.assertEqual(proc.returncode, 0, proc.stdout[-2000:] + proc.stderr[-2000:])
+            with open(report) as f:
+                rep = json.load(f)
+            self.assertGreater(rep["before"]["invalid"], 0, ext)
+            self.assertEqual(rep["after"]["invalid"], 0, ext)
+            self.assertIn(f"{rep['before']['invalid']} invalid (", proc.stdout)
+            back = fileio.read_mesh(result)
+            d = back.data
+            self.assertEqual(d.type_names(), ["quad8"], ext)
+            self.assertEqual(d.element_count, data.element_count, ext)
+            if ext != "vtk":  # .vtk keeps the order, not the ids
+                np.testing.assert_array_equal(np.sort(d.node_ids), np.sort(data.node_ids))
+            if ext in ("msh", "inp"):  # FreeCAD's .unv writer numbers the elements from 1
+                np.testing.assert_array_equal(np.sort(d.element_ids), np.sort(data.element_ids))
+            moved = np.nonzero(np.any(d.nodes != nodes[np.argsort(np.argsort(d.node_ids))]
+                                      if ext != "vtk" else d.nodes != nodes, axis=1))[0]
+            self.assertGreater(moved.size, 0)
+            dist = T.distance_to_shape(Part.makeCylinder(10, 30), d.nodes[moved])
+            self.assertLess(dist.max(), 1e-9, ext)
+            self.assertLess(abs(dist.max() - rep["after"]["max_distance_to_shape"]), 1e-9)
+            back_conn = [d.element(e) for e in range(d.element_count)]
+            self.assertEqual(folded_count(d.nodes, back_conn), 0, ext)

@@ -617,17 +617,21 @@ class TestErrors(ApiCase):
         sphere = Part.makeSphere(5)
         self.assertValueError(lambda: SurfMesh.measure(mobj, sphere))
 
-    def test_unsupported_fem_element(self):
+    def test_quad8_fem_element_is_measured(self):
+        # FreeCAD's 8-node quadrilateral: a 2 × 1 rectangle with its side nodes at the midpoints
+        # has Knupp's shape 2·2/(4 + 1) = 0.8, the quality of the quad4 on its corners.
         import Fem
 
         fem = Fem.FemMesh()
-        for i, p in enumerate([(0, 0, 0), (2, 0, 0), (2, 2, 0), (0, 2, 0), (1, 0, 0), (2, 1, 0),
-                               (1, 2, 0), (0, 1, 0)]):
+        for i, p in enumerate([(0, 0, 0), (2, 0, 0), (2, 1, 0), (0, 1, 0), (1, 0, 0), (2, 0.5, 0),
+                               (1, 1, 0), (0, 0.5, 0)]):
             fem.addNode(float(p[0]), float(p[1]), float(p[2]), i + 1)
         fem.addFace([1, 2, 3, 4, 5, 6, 7, 8], 10)
-        plane = __import__("Part").makePlane(2, 2)
-        msg = self.assertValueError(lambda: SurfMesh.measure(fem, plane), "quad8")
-        self.assertIn("10", msg)
+        plane = __import__("Part").makePlane(2, 1)
+        rep = SurfMesh.measure(fem, plane)
+        self.assertEqual(rep.element_types, ["quad8"])
+        self.assertEqual(list(rep.element_ids), [10])
+        self.assertAlmostEqual(float(rep.quality[0]), 0.8, places=12)
 
     def test_empty_and_volume_meshes(self):
         import Fem

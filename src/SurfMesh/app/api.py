@@ -502,19 +502,20 @@ def _side_nodes_astray(data):
     corners first, then the side nodes of sides 1-2, 2-3, 3-1 (Gmsh's and FreeCAD's)."""
     out = np.zeros(data.element_count, dtype=bool)
     sizes = np.diff(data.offsets)
-    for name, order in (("tri6", 2), ("tri10", 3), ("tri15", 4), ("tri21", 5)):
+    for name, order in (("tri6", 2), ("tri10", 3), ("tri15", 4), ("tri21", 5), ("quad8", 2)):
         sel = np.nonzero(data.types == conversion.ELEMENT_TYPES[name])[0]
         if sel.size == 0:
             continue
+        nc = 4 if name == "quad8" else 3
         k = int(sizes[sel[0]])
         idx = data.offsets[sel][:, None] + np.arange(k)[None, :]
         xyz = data.nodes[data.conn[idx]]  # (n, k, 3)
-        for side in range(3):
-            a, b = xyz[:, side], xyz[:, (side + 1) % 3]
+        for side in range(nc):
+            a, b = xyz[:, side], xyz[:, (side + 1) % nc]
             ab = b - a
             length2 = np.einsum("ij,ij->i", ab, ab)
             for j in range(order - 1):
-                x = xyz[:, 3 + side * (order - 1) + j]
+                x = xyz[:, nc + side * (order - 1) + j]
                 t = np.einsum("ij,ij->i", x - a, ab) / np.where(length2 > 0, length2, 1.0)
                 foot = a + np.clip(t, 0.0, 1.0)[:, None] * ab
                 d2 = np.einsum("ij,ij->i", x - foot, x - foot)
@@ -562,7 +563,7 @@ def _flat_boundary_elements(work, handle):
     tangled = np.asarray(q["tangled"])
     out = np.zeros(work.element_count, dtype=bool)
     for e in np.nonzero(tangled)[0]:
-        nodes = work.element(e)[:3 if work.types[e] != conversion.ELEMENT_TYPES["quad4"] else 4]
+        nodes = work.element(e)[:3 if work.types[e] not in conversion.QUAD_CODES else 4]
         c = cls[nodes]
         vertices = ent[nodes][c == 0].tolist()
         if len(vertices) != len(set(vertices)):

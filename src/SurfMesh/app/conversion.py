@@ -21,8 +21,8 @@ Two kinds of FreeCAD meshes are read:
 
 ``Fem.FemMesh`` (FEM workbench)
     doubles; node and element ids are arbitrary positive integers (Gmsh meshes hold edge
-    elements first, so face ids do not start at 1).  Face elements tria3, tria6 and quad4 are
-    read; edge and volume elements are carried over untouched when the mesh is rebuilt.
+    elements first, so face ids do not start at 1).  Face elements tria3, tria6, quad4 and
+    quad8 are read; edge and volume elements are carried over untouched when the mesh is rebuilt.
 
 This module is headless: it never imports FreeCADGui.
 """
@@ -37,13 +37,17 @@ from typing import Optional
 import numpy as np
 
 # Core element type codes (surfmesh::ElementType) and node counts.
-ELEMENT_TYPES = {"tri3": 0, "quad4": 1, "tri6": 2, "tri10": 3, "tri15": 4, "tri21": 5}
+ELEMENT_TYPES = {"tri3": 0, "quad4": 1, "tri6": 2, "tri10": 3, "tri15": 4, "tri21": 5,
+                 "quad8": 6}
 ELEMENT_NAMES = {code: name for name, code in ELEMENT_TYPES.items()}
-NODES_PER_TYPE = {"tri3": 3, "quad4": 4, "tri6": 6, "tri10": 10, "tri15": 15, "tri21": 21}
+NODES_PER_TYPE = {"tri3": 3, "quad4": 4, "tri6": 6, "tri10": 10, "tri15": 15, "tri21": 21,
+                  "quad8": 8}
+#: The quadrilateral type codes (4 corners; quad8 has a side node after them on each side).
+QUAD_CODES = (ELEMENT_TYPES["quad4"], ELEMENT_TYPES["quad8"])
 
 # FEM face elements by node count (SMESH ordering equals Gmsh ordering for these).
-_FEM_FACE_TYPES = {3: "tri3", 6: "tri6", 4: "quad4"}
-_FEM_UNSUPPORTED = {8: "quad8", 9: "quad9", 7: "tria7"}
+_FEM_FACE_TYPES = {3: "tri3", 6: "tri6", 4: "quad4", 8: "quad8"}
+_FEM_UNSUPPORTED = {9: "quad9", 7: "tria7"}
 
 
 @dataclasses.dataclass
@@ -86,6 +90,10 @@ class MeshData:
         """Sorted list of the element type names present."""
         return sorted({ELEMENT_NAMES.get(int(t), str(int(t))) for t in np.unique(self.types)})
 
+    def corner_counts(self):
+        """(E,) int64: each element's corner count, 4 for quadrilaterals, 3 for triangles."""
+        return np.where(np.isin(self.types, QUAD_CODES), 4, 3).astype(np.int64)
+
     def element(self, e):
         """0-based node indices of element ``e``."""
         return self.conn[self.offsets[e] : self.offsets[e + 1]]
@@ -126,7 +134,7 @@ class MeshData:
         """Bool mask of the elements whose corner nodes are those of another element (a pair
         folded onto itself: one of the two is always inverted)."""
         out = np.zeros(self.element_count, dtype=bool)
-        corners = np.where(self.types == ELEMENT_TYPES["quad4"], 4, 3)
+        corners = self.corner_counts()
         for k in (3, 4):
             sel = np.nonzero(corners == k)[0]
             if sel.size < 2:
@@ -153,7 +161,7 @@ class MeshData:
         if not left_out.any():
             return out
         near = self.nodes_of(left_out)
-        corners = np.where(self.types == ELEMENT_TYPES["quad4"], 4, 3)
+        corners = self.corner_counts()
         a_all, b_all, e_all = [], [], []
         for k in (3, 4):
             sel = np.nonzero((corners == k) & ~left_out)[0]
@@ -192,7 +200,7 @@ class MeshData:
         left_out = np.asarray(left_out, dtype=bool)
         out = np.zeros(self.element_count, dtype=bool)
         orders = {ELEMENT_TYPES[n]: p for n, p in (("tri6", 2), ("tri10", 3), ("tri15", 4),
-                                                   ("tri21", 5))}
+                                                   ("tri21", 5), ("quad8", 2))}
         high = np.isin(self.types, list(orders)) & ~left_out
         if not left_out.any() or not high.any():
             return out
@@ -209,17 +217,18 @@ class MeshData:
             c = self.conn[idx]
             code = int(self.types[sel[0]])
             p = orders.get(code)
+            nc = 4 if code in QUAD_CODES else 3
             ones = np.ones(sel.size, dtype=np.int64)
-            for j in range(3 if p else k):  # the corners (every node of tri3 and quad4)
+            for j in range(nc if p else k):  # the corners (every node of tri3 and quad4)
                 rows.append(np.stack([c[:, j], -ones, -ones, sel], axis=1))
             if p is None:
                 continue
-            for edge in range(3):
-                a = np.minimum(c[:, edge], c[:, (edge + 1) % 3])
-                b = np.maximum(c[:, edge], c[:, (edge + 1) % 3])
-                for j in range(3 + edge * (p - 1), 3 + (edge + 1) * (p - 1)):
+            for edge in range(nc):
+                a = np.minimum(c[:, edge], c[:, (edge + 1) % nc])
+                b = np.maximum(c[:, edge], c[:, (edge + 1) % nc])
+                for j in range(nc + edge * (p - 1), nc + (edge + 1) * (p - 1)):
                     rows.append(np.stack([c[:, j], a, b, sel], axis=1))
-            for j in range(3 * p, k):
+            for j in range(nc * p, k):
                 inner = -2 - sel.astype(np.int64)
                 rows.append(np.stack([c[:, j], inner, inner, sel], axis=1))
         r = np.concatenate(rows).astype(np.int64)
@@ -399,7 +408,7 @@ def _read_fem_mesh(fem) -> MeshData:
         name = _FEM_UNSUPPORTED.get(c, f"{c}-node")
         raise ValueError(
             f"unsupported FEM element type {name}: {len(bad)} element(s), first id "
-            f"{face_ids[bad[0]]}; supported face elements: tria3, tria6, quad4"
+            f"{face_ids[bad[0]]}; supported face elements: tria3, tria6, quad4, quad8"
         )
     volume_count = int(fem.VolumeCount)
     names = [_FEM_FACE_TYPES[int(c)] for c in counts]

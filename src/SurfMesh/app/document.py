@@ -488,12 +488,11 @@ def tangled_elements(obj, shape=None, measure="shape", worst=WORST_ELEMENTS, **k
         order = np.argsort(rep.quality[measured], kind="stable")[: int(worst)]
         picked, what = measured[order], "worst"
     data = conversion.read_mesh(obj)
-    quad = conversion.ELEMENT_TYPES["quad4"]
     centers, corners = [], []
     for e in picked:
         nodes = data.nodes[data.element(int(e))]
         centers.append(tuple(float(x) for x in nodes.mean(axis=0)))
-        k = 4 if data.types[e] == quad else 3
+        k = 4 if data.types[e] in conversion.QUAD_CODES else 3
         corners.append([tuple(float(x) for x in p) for p in nodes[:k]])
     faces = rep.element_faces
     return ElementPick(

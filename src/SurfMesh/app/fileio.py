@@ -30,10 +30,11 @@ _FEM_WRITABLE = sorted(FEM_EXTS - _FEM_NO_WRITER)
 _DOUBLE_EXTS = {".vtk", ".vtu"}
 MESH_EXTS = {".stl", ".obj", ".ply", ".off", ".ast", ".bms"}
 
-# Gmsh element type codes ↔ SurfMesh element names (complete Lagrange triangles, quad4).
-GMSH_TYPES = {2: "tri3", 3: "quad4", 9: "tri6", 21: "tri10", 23: "tri15", 25: "tri21"}
+# Gmsh element type codes ↔ SurfMesh element names (complete Lagrange triangles, quad4, quad8).
+GMSH_TYPES = {2: "tri3", 3: "quad4", 9: "tri6", 21: "tri10", 23: "tri15", 25: "tri21",
+              16: "quad8"}
 GMSH_CODES = {name: code for code, name in GMSH_TYPES.items()}
-_GMSH_OTHER = {10: "quad9", 16: "quad8", 20: "tri9 (incomplete)", 22: "tri12 (incomplete)"}
+_GMSH_OTHER = {10: "quad9", 20: "tri9 (incomplete)", 22: "tri12 (incomplete)"}
 
 
 def _ext(path):
@@ -253,7 +254,7 @@ def _read_gmsh(path) -> MeshFile:
         )
         raise ValueError(
             f"{path} mixes element orders: {parts}; a mesh must have one order "
-            "(tri3 and quad4 may be mixed)"
+            "(tri3 and quad4 may be mixed, so may tri6 and quad8)"
         )
     gmsh = _gmsh()
     gmsh.clear()
@@ -323,7 +324,7 @@ def _read_gmsh(path) -> MeshFile:
     return MeshFile(path, "gmsh", data, msh_version=version)
 
 
-_MESHIO_TYPES = {"triangle": "tri3", "triangle6": "tri6", "quad": "quad4",
+_MESHIO_TYPES = {"triangle": "tri3", "triangle6": "tri6", "quad": "quad4", "quad8": "quad8",
                  "triangle10": "tri10", "triangle15": "tri15", "triangle21": "tri21"}
 
 
@@ -408,11 +409,13 @@ def check_output(out, src: MeshFile = None, what="output mesh"):
 
 def _check_format_holds(data, ext):
     """Raises ValueError when the mesh format of extension ``ext`` cannot hold ``data``'s
-    elements: FreeCAD FEM meshes hold tri3, tri6 and quad4, triangle meshes (STL/OBJ…) tri3."""
+    elements: FreeCAD FEM meshes hold tri3, tri6, quad4 and quad8, triangle meshes (STL/OBJ…)
+    tri3."""
     names = set(data.type_names())
-    if ext in FEM_EXTS and names - {"tri3", "tri6", "quad4"}:
+    fem = {"tri3", "tri6", "quad4", "quad8"}
+    if ext in FEM_EXTS and names - fem:
         raise ValueError(f"FreeCAD FEM meshes cannot hold "
-                         f"{', '.join(sorted(names - {'tri3', 'tri6', 'quad4'}))} elements: "
+                         f"{', '.join(sorted(names - fem))} elements: "
                          f"write .msh instead of {ext}")
     if ext in MESH_EXTS and names - {"tri3"}:
         raise ValueError(f"{', '.join(sorted(names))} elements cannot be written as a "

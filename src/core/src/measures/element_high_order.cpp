@@ -71,8 +71,9 @@ void restJacobians(const HighOrderTriangleRule& rule, const Vec3* x, HighOrderJa
 }
 
 const HighOrderTriangleRule& ruleOf(ElementType type) {
-  if (type == ElementType::Quad4)
-    throw std::invalid_argument("highOrderTriangleDistortion: quad4 is not a triangle");
+  if (isQuad(type))
+    throw std::invalid_argument(std::string("highOrderTriangleDistortion: ") +
+                                elementTypeName(type) + " is not a triangle");
   const HighOrderTriangleRule& rule = highOrderTriangleRule(elementOrder(type));
   if (rule.quadrature->points.size() > static_cast<std::size_t>(kMaxQuadraturePoints) ||
       rule.nodes > kMaxElementNodes)

@@ -146,6 +146,8 @@ ElementEval elementDistortion(const PlanarMeasure& m, ElementType type, const Ve
     }
     case ElementType::Quad4:
       return quadDistortion(m, x, n, delta, freeLocal, grad, hess, eta0);
+    case ElementType::Quad8:
+      return quad8Distortion(m, x, n, delta, freeLocal, grad, hess, eta0);
     default:
       return highOrderTriangleDistortion(m, type, x, n, delta, freeLocal, grad, hess, eta0);
   }
@@ -285,6 +287,9 @@ CornerSides cornerSides(ElementType type, const Vec3* x, const Vec3* cornerNorma
       c = (x[1] - x[0]).cross(x[2] - x[0]);
     } else if (type == ElementType::Quad4) {
       c = (x[(k + 1) % 4] - x[k]).cross(x[(k + 3) % 4] - x[k]);
+    } else if (type == ElementType::Quad8) {
+      const Jacobian32 J = quad8JacobianAtNode(x, k);
+      c = J.col(0).cross(J.col(1));
     } else {
       // A high-order triangle's tangent plane at a corner: its Jacobian there (the corners
       // alone, not every node and quadrature point as highOrderJacobians).

@@ -1,6 +1,7 @@
 // SurfMesh — how far an element's interior lies from the CAD surface it stands for.
 #include "surfmesh/mesh/distance_to_face.h"
 
+#include "surfmesh/measures/element_measure.h"
 #include "surfmesh/measures/lagrange_triangle.h"
 
 #include <algorithm>
@@ -68,6 +69,10 @@ void shapeValues(ElementType t, double a, double b, double* N) {
     N[3] = (1 - a) * b;
     return;
   }
+  if (t == ElementType::Quad8) {
+    quad8ShapeValues(a, b, N);
+    return;
+  }
   lagrangeTriangle(elementOrder(t)).shape(Eigen::Vector2d(a, b), N);
 }
 
@@ -86,7 +91,7 @@ std::vector<double> elementDistanceToFace(const SurfaceMesh& mesh, int divisions
     const std::int32_t* nodes = mesh.elementNodes(e);
     const Vec2* uvs = mesh.elementUV(e);
     const Surface& s = *mesh.surfaces.at(static_cast<std::size_t>(mesh.elemFace[e]));
-    const bool quad = t == ElementType::Quad4;
+    const bool quad = isQuad(t);
     double worst = 0.0;
     for (int i = 0; i <= divisions && !std::isnan(worst); ++i) {
       for (int j = 0; j <= (quad ? divisions : divisions - i); ++j) {

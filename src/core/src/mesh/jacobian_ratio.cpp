@@ -1,6 +1,7 @@
 // SurfMesh — the Jacobian ratio of curved (and straight) elements.
 #include "surfmesh/mesh/jacobian_ratio.h"
 
+#include "surfmesh/measures/element_measure.h"
 #include "surfmesh/measures/lagrange_triangle.h"
 
 #include <Eigen/Geometry>
@@ -25,6 +26,12 @@ void shapeGradients(ElementType t, double a, double b, Vec2* grad) {
     grad[3] = Vec2(-b, 1 - a);
     return;
   }
+  if (t == ElementType::Quad8) {
+    Eigen::Vector2d g[8];
+    quad8ShapeGradients(a, b, g);
+    for (int i = 0; i < 8; ++i) grad[i] = g[i];
+    return;
+  }
   lagrangeTriangle(elementOrder(t)).gradients(Vec2(a, b), grad);
 }
 
@@ -43,7 +50,7 @@ std::vector<double> elementJacobianRatio(const SurfaceMesh& mesh, int divisions)
     const int k = mesh.elementSize(e);
     const std::int32_t* nodes = mesh.elementNodes(e);
     for (int a = 0; a < k; ++a) x[a] = mesh.xyz[static_cast<std::size_t>(nodes[a])];
-    const bool quad = t == ElementType::Quad4;
+    const bool quad = isQuad(t);
     Vec3 n = quad ? Vec3((x[1] + x[2] - x[0] - x[3]).cross(x[2] + x[3] - x[0] - x[1]))
                   : Vec3((x[1] - x[0]).cross(x[2] - x[0]));
     const double len = n.norm();
@@ -56,6 +63,9 @@ std::vector<double> elementJacobianRatio(const SurfaceMesh& mesh, int divisions)
     if (quad) {
       for (double a : {0.0, 1.0})
         for (double b : {0.0, 1.0}) points.emplace_back(a, b);
+      if (t == ElementType::Quad8)  // its side nodes
+        for (const Vec2& p : {Vec2(0.5, 0.0), Vec2(1.0, 0.5), Vec2(0.5, 1.0), Vec2(0.0, 0.5)})
+          points.push_back(p);
     } else {
       const auto& ref = lagrangeTriangle(elementOrder(t)).nodes();
       points.assign(ref.begin(), ref.end());

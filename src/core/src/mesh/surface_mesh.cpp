@@ -9,7 +9,7 @@
 
 namespace surfmesh {
 
-bool isElementTypeCode(int code) { return code >= 0 && code <= 5; }
+bool isElementTypeCode(int code) { return code >= 0 && code <= 6; }
 
 int nodeCount(ElementType t) {
   switch (t) {
@@ -25,10 +25,12 @@ int nodeCount(ElementType t) {
       return 15;
     case ElementType::Tri21:
       return 21;
+    case ElementType::Quad8:
+      return 8;
   }
   throw std::invalid_argument("unsupported element type code " +
                               std::to_string(static_cast<int>(t)) +
-                              " (supported: tri3, quad4, tri6, tri10, tri15, tri21)");
+                              " (supported: tri3, quad4, tri6, tri10, tri15, tri21, quad8)");
 }
 
 int elementOrder(ElementType t) {
@@ -37,6 +39,7 @@ int elementOrder(ElementType t) {
     case ElementType::Quad4:
       return 1;
     case ElementType::Tri6:
+    case ElementType::Quad8:
       return 2;
     case ElementType::Tri10:
       return 3;
@@ -62,16 +65,19 @@ const char* elementTypeName(ElementType t) {
       return "tri15";
     case ElementType::Tri21:
       return "tri21";
+    case ElementType::Quad8:
+      return "quad8";
   }
   return "?";
 }
 
 ElementType elementTypeFromName(const std::string& name) {
-  for (ElementType t : {ElementType::Tri3, ElementType::Quad4, ElementType::Tri6,
-                        ElementType::Tri10, ElementType::Tri15, ElementType::Tri21})
+  for (ElementType t :
+       {ElementType::Tri3, ElementType::Quad4, ElementType::Tri6, ElementType::Tri10,
+        ElementType::Tri15, ElementType::Tri21, ElementType::Quad8})
     if (name == elementTypeName(t)) return t;
   throw std::invalid_argument("unknown element type '" + name +
-                              "' (known: tri3, quad4, tri6, tri10, tri15, tri21)");
+                              "' (known: tri3, quad4, tri6, tri10, tri15, tri21, quad8)");
 }
 
 ElementType triangleOfOrder(int p) {
@@ -347,7 +353,7 @@ void SurfaceMesh::validate() const {
     const int code = static_cast<int>(elemType[e]);
     if (!isElementTypeCode(code))
       fail("element " + std::to_string(e) + " has an unsupported element type (code " +
-           std::to_string(code) + "; supported: tri3, quad4, tri6, tri10, tri15, tri21)");
+           std::to_string(code) + "; supported: tri3, quad4, tri6, tri10, tri15, tri21, quad8)");
     const int n = elementSize(e);
     if (n != surfmesh::nodeCount(elemType[e]))
       fail("element " + std::to_string(e) + " has " + std::to_string(n) + " nodes, expected " +

@@ -2286,6 +2286,26 @@ bool foldHeld(const SurfaceMesh& m, const std::vector<Vec3>& xyz, std::size_t e,
     }
     return false;
   }
+  if (type == ElementType::Quad8) {
+    // A quad8's Jacobian from the unit square at its nodes and on a 5 × 5 grid: folded there
+    // with no node that may move among those it depends on.
+    auto heldAtQuad = [&](double s, double t) {
+      Eigen::Vector2d grad[8];
+      quad8ShapeGradients(s, t, grad);
+      Jacobian32 J = Jacobian32::Zero();
+      for (int i = 0; i < 8; ++i) {
+        if (grad[i].squaredNorm() <= 1e-24) continue;
+        if (movable(i)) return false;
+        J.col(0) += grad[i].x() * at(i);
+        J.col(1) += grad[i].y() * at(i);
+      }
+      return folded(J, squareCornerWinv());
+    };
+    for (int i = 0; i <= 4; ++i)
+      for (int j = 0; j <= 4; ++j)
+        if (heldAtQuad(0.25 * i, 0.25 * j)) return true;
+    return false;
+  }
   const HighOrderTriangleRule& rule = highOrderTriangleRule(elementOrder(type));
   const int nn = rule.nodes;
   auto heldAt = [&](const Eigen::Vector2d* grad) {

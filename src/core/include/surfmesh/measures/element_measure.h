@@ -96,7 +96,8 @@ ElementEval triangleDistortion(const PlanarMeasure& m, const Vec3& x0, const Vec
 ///   Quad4      — the four corner triangles with the square corner as ideal (Knupp):
 ///                η = (¼ Σ_k η_k²)^½, tangled when any corner is;
 ///   Tri6…Tri21 — paper Definition 4: η̂ = (∫ η² / |t|)^½ by quadrature over the element,
-///                tangled when det S ≤ 0 at any quadrature point.
+///                tangled when det S ≤ 0 at any quadrature point;
+///   Quad8      — the same over the unit square with the square as ideal (quad8Distortion).
 /// `eta0`, when non-null, receives the element's η with δ = 0 (+∞ when tangled), from the same
 /// Jacobians as η (one pass instead of two).
 ElementEval elementDistortion(const PlanarMeasure& m, ElementType type, const Vec3* x,
@@ -106,6 +107,20 @@ ElementEval elementDistortion(const PlanarMeasure& m, ElementType type, const Ve
 /// Quad4 implementation of elementDistortion (see above).
 ElementEval quadDistortion(const PlanarMeasure& m, const Vec3* x, const Vec3& n, double delta,
                            int freeLocal, Vec3* grad, Mat3* hess, double* eta0 = nullptr);
+/// Quad8 (serendipity quadrilateral) implementation of elementDistortion: the pointwise
+/// distortion of S = T J(ξ) W⁻¹ on the unit square (W = I, the square), η̂ = (Σ_q w_q η_q²)^½
+/// over the 3 × 3 Gauss points; tangled when det S ≤ 0 at a Gauss point or at any of its 8
+/// nodes, or when the determinant is not proven positive on the whole square (Bernstein
+/// coefficients of (J₁ × J₂)·n, refined by subdivision). A parallelogram with its side nodes at the
+/// midpoints has the quality of the quad4 on its corners (element_quad8.cpp).
+ElementEval quad8Distortion(const PlanarMeasure& m, const Vec3* x, const Vec3& n, double delta,
+                            int freeLocal, Vec3* grad, Mat3* hess, double* eta0 = nullptr);
+/// The Jacobian of the quad8 with nodes x (Gmsh order) from the unit square at its node k.
+Jacobian32 quad8JacobianAtNode(const Vec3* x, int k);
+/// The gradients (∂/∂s, ∂/∂t) of the 8 quad8 shape functions at (s, t) ∈ [0, 1]² (grad[8]).
+void quad8ShapeGradients(double s, double t, Eigen::Vector2d* grad);
+/// The values of the 8 quad8 shape functions at (s, t) ∈ [0, 1]² (N[8]).
+void quad8ShapeValues(double s, double t, double* N);
 /// High-order triangle implementation of elementDistortion (see above).
 ElementEval highOrderTriangleDistortion(const PlanarMeasure& m, ElementType type, const Vec3* x,
                                         const Vec3& n, double delta, int freeLocal, Vec3* grad,
@@ -161,9 +176,9 @@ Vec3 elementReferenceNormal(const SurfaceMesh& mesh, std::size_t e,
                             const std::vector<const Surface*>& surfaces, Vec3* cornerNormals);
 
 /// Whether an element with nodes x (Gmsh order) stands across its surface: its own plane — a
-/// linear triangle's plane, a quadrilateral's corner triangle, a high-order triangle's tangent
-/// plane at a corner node — is wound along the surface's normal cornerNormals[k] at some of its
-/// corners k and against it (c·n_k ≤ 0) at others (zero normals, at poles, are skipped). E.g. a
+/// linear triangle's plane, a quad4's corner triangle, a high-order triangle's or a quad8's
+/// tangent plane at a corner node — is wound along the surface's normal cornerNormals[k] at some of
+/// its corners k and against it (c·n_k ≤ 0) at others (zero normals, at poles, are skipped). E.g. a
 /// triangle spanning more than half the way round a thin tube, whose plane cuts through the
 /// part: a mesh coarse against the surface's curvature, or folded across it. The measure
 /// orients an element by the sum of its corner normals and takes a linear one in its own plane

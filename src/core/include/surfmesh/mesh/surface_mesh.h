@@ -28,25 +28,26 @@ enum class ElementType : std::uint8_t {
   Tri10 = 3,  ///< cubic triangle (p = 3)
   Tri15 = 4,  ///< quartic triangle (p = 4)
   Tri21 = 5,  ///< quintic triangle (p = 5)
+  Quad8 = 6,  ///< serendipity quadrilateral (p = 2): 4 corners, then the middle of each side
 };
 
 /// Nodes of the largest element type (Tri21): a bound for per-element scratch arrays.
 constexpr int kMaxElementNodes = 21;
 
-/// Whether `code` is the value of an ElementType (0…5).
+/// Whether `code` is the value of an ElementType (0…6).
 bool isElementTypeCode(int code);
 /// Number of nodes of an element type. Throws std::invalid_argument for a value outside the
 /// enumeration (e.g. a type code cast from unchecked input).
 int nodeCount(ElementType t);
-/// Polynomial order (1 for Tri3 and Quad4).
+/// Polynomial order (1 for Tri3 and Quad4, 2 for Tri6 and Quad8).
 int elementOrder(ElementType t);
+/// Whether t is a quadrilateral: Quad4 or Quad8.
+inline bool isQuad(ElementType t) { return t == ElementType::Quad4 || t == ElementType::Quad8; }
 /// Number of corner (vertex) nodes: 3 or 4.
-inline int cornerCount(ElementType t) { return t == ElementType::Quad4 ? 4 : 3; }
+inline int cornerCount(ElementType t) { return isQuad(t) ? 4 : 3; }
 /// Whether t is a curved (high-order) triangle: Tri6…Tri21.
-inline bool isHighOrderTriangle(ElementType t) {
-  return t != ElementType::Tri3 && t != ElementType::Quad4;
-}
-/// "tri3", "quad4", "tri6", "tri10", "tri15", "tri21".
+inline bool isHighOrderTriangle(ElementType t) { return t != ElementType::Tri3 && !isQuad(t); }
+/// "tri3", "quad4", "tri6", "tri10", "tri15", "tri21", "quad8".
 const char* elementTypeName(ElementType t);
 /// Inverse of elementTypeName; throws std::invalid_argument on an unknown name.
 ElementType elementTypeFromName(const std::string& name);
@@ -104,8 +105,8 @@ struct SurfaceMesh {
   ///   * finite positions, (u,v) of face nodes, t of edge nodes and corner (u,v);
   ///   * element node ids in range and not repeated within an element; the corner (u,v) of a
   ///     face node on its own face equal to the node's (u,v) up to whole periods;
-  ///   * one element order (tri3 and quad4 may be mixed; tri3 with tri6 may not: the mesh
-  ///     would not conform along the edges between them);
+  ///   * one element order (tri3 and quad4 may be mixed, so may tri6 and quad8; tri3 with tri6
+  ///     may not: the mesh would not conform along the edges between them);
   ///   * no duplicate nodes: two nodes used by elements at the same position make the mesh
   ///     non-conforming (a crack that the optimizer would open) — the error gives how many
   ///     and an example pair, merge them first;
