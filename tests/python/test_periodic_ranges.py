@@ -79,6 +79,30 @@ class TestPeriodicRanges(unittest.TestCase):
         self.assertEqual(sorted(r0 for r0, _ in ranges),
                          sorted([round(-np.pi, 6), 0.0, round(-np.pi / 2, 6), round(np.pi, 6)]))
 
+    def test_the_same_torus_from_zero_for_gmsh(self):
+        """Gmsh 4.13 refuses the Part::Torus's face (v in [π, 3π]); examples.make_gmsh_mesh
+        then meshes the same surface over [0, 2π]: the same points, placed where the part is."""
+        import Part
+
+        from SurfMesh.app import examples
+
+        feat = self.doc.addObject("Part::Torus", "Torus")
+        feat.Radius1, feat.Radius2 = R, r
+        feat.Placement.Base = FreeCAD.Vector(3, -2, 5)
+        self.doc.recompute()
+        same = examples._periodic_from_zero(feat.Shape)
+        self.assertIsNotNone(same)
+        self.assertEqual(tuple(round(x, 12) for x in same.Faces[0].ParameterRange),
+                         (0.0, round(2 * np.pi, 12), 0.0, round(2 * np.pi, 12)))
+        f = same.Faces[0]
+        for u in np.linspace(0, 2 * np.pi, 7):
+            for v in np.linspace(0, 2 * np.pi, 7):
+                p = f.valueAt(u, v)
+                self.assertLess(feat.Shape.distToShape(Part.Vertex(p))[0], 1e-9)
+        self.assertAlmostEqual(f.Area, feat.Shape.Area, places=9)
+        self.assertIsNone(examples._periodic_from_zero(Part.makeBox(1, 2, 3)))
+        self.assertIsNone(examples._periodic_from_zero(Part.makeTorus(R, r)))  # from 0 already
+
     def test_feature_sphere_and_cylinder(self):
         import MeshPart
 

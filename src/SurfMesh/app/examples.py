@@ -42,11 +42,65 @@ def make_gmsh_mesh(doc, part, size, name=None, order="1st", recombine=False):
     obj.RecombineAll = bool(recombine)
     doc.recompute()
     message = GmshTools(obj).create_mesh()
+    if obj.FemMesh.FaceCount == 0 and "periodic surface" in (message or ""):
+        # Gmsh 4.13 (FreeCAD 1.0) refuses a closed face whose period does not start at 0, such
+        # as a Part::Torus's (v in [π, 3π]): mesh the same surface over [0, period] instead
+        # (the nodes lie on the part's surface all the same), then link the part again.
+        same = _periodic_from_zero(part.Shape)
+        if same is not None:
+            helper = doc.addObject("Part::Feature", f"{part.Name}_GmshShape")
+            helper.Shape = same
+            helper.Label = f"{part.Label} (periodic range from 0, for Gmsh)"
+            compat.set_mesh_shape(obj, helper)
+            doc.recompute()
+            message = GmshTools(obj).create_mesh()
+            compat.set_mesh_shape(obj, part)
+            doc.removeObject(helper.Name)
+            doc.recompute()
     if obj.FemMesh.FaceCount == 0:
         raise RuntimeError(f"Gmsh produced no surface mesh for {part.Label}: {message}")
     obj.addProperty("App::PropertyString", "GmshMessages", "SurfMesh", "Gmsh's warnings")
     obj.GmshMessages = message or ""
     return obj
+
+
+def _periodic_from_zero(shape):
+    """A one-face ``shape`` whose surface is closed in u or v over exactly one period, made
+    again over the same surface with each such range starting at 0 (None for another shape)."""
+    import math
+
+    import Part
+
+    if len(shape.Faces) != 1:
+        return None
+    face = shape.Faces[0]
+    surf = face.Surface
+    u0, u1, v0, v1 = face.ParameterRange
+    changed = False
+    rng = [u0, u1, v0, v1]
+    for k, (periodic, period) in enumerate(((surf.isUPeriodic(), 2 * math.pi),
+                                            (surf.isVPeriodic(), 2 * math.pi))):
+        lo, hi = rng[2 * k], rng[2 * k + 1]
+        if not periodic:
+            continue
+        try:
+            period = surf.UPeriod() if k == 0 else surf.VPeriod()
+        except Exception:  # noqa: BLE001
+            pass
+        if abs((hi - lo) - period) < 1e-9 * period and abs(lo) > 1e-12:
+            rng[2 * k], rng[2 * k + 1] = 0.0, period
+            changed = True
+    if not changed:
+        return None
+    new = surf.toShape(*rng)
+    # the same surface, where the part is (face.Surface carries the part's placement)
+    if (abs(new.Area - face.Area) > 1e-9 * face.Area
+            or not new.BoundBox.isInside(face.BoundBox.Center)
+            or new.distToShape(Part.Vertex(face.valueAt(0.5 * (u0 + u1),
+                                                        0.5 * (v0 + v1))))[0]
+            > 1e-9 * shape.BoundBox.DiagonalLength):
+        return None
+    return new
 
 
 def node_parameters(data, face):

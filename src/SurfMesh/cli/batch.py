@@ -40,7 +40,7 @@ from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 _HERE = os.path.dirname(os.path.abspath(__file__))
 if _HERE not in sys.path:
     sys.path.insert(0, _HERE)
-import rowrun  # noqa: E402  (the per-row function, standard library only)
+import surfmesh_rowrun as rowrun  # noqa: E402  (the per-row function; standard library only)
 
 STATUSES = ("ok", "error", "timeout")
 COMMANDS = ("optimize", "measure")
@@ -171,7 +171,7 @@ def _abs(path, base):
 
 
 def make_task(line, row, *, manifest_dir, out_dir, program, timeout, threads, parsers):
-    """The task of one manifest row for :func:`rowrun.run_row`. Raises _RowError for a row
+    """The task of one manifest row for :func:`surfmesh_rowrun.run_row`. Raises _RowError for a row
     whose options the command refuses (the record of that row says why)."""
     rid = row["id"]
     safe = _safe(rid)
@@ -324,26 +324,37 @@ def _local_pool(tasks, jobs, sink):
 
 
 def _dask_client(address):
-    """A client of the Dask distributed scheduler at ``address`` (ManifestError if none)."""
+    """A client of the Dask distributed scheduler at ``address`` (ManifestError if none), with
+    the per-row module (surfmesh_rowrun, standard library only) sent to the cluster."""
     try:
         import cloudpickle
         from distributed import Client
     except ImportError as exc:
         raise ManifestError(f"--dask needs Dask distributed (Debian: python3-distributed): {exc}")
     try:
-        # rowrun is pickled by value: the workers need SurfMesh's command, not its modules
+        # Dask before 2024 pickles the task's function with cloudpickle: by value, the
+        # workers need SurfMesh's command only, not its modules.
         cloudpickle.register_pickle_by_value(rowrun)
     except (AttributeError, ValueError):
-        pass  # an older cloudpickle: the workers must import rowrun themselves
+        pass
     try:
-        return Client(address, timeout="30s")
+        client = Client(address, timeout="30s")
     except OSError as exc:
         raise ManifestError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
+    try:
+        # Later Dask unpickles tasks on the scheduler too, by reference: the module goes to the
+        # scheduler and every worker (also those that join later), importable there.
+        client.upload_file(rowrun.__file__)
+    except Exception as exc:  # noqa: BLE001
+        client.close()
+        raise ManifestError(f"cannot send surfmesh_rowrun.py to the Dask cluster at {address}: "
+                            f"{exc}") from None
+    return client
 
 
 def _dask(tasks, client, sink):
     """Sends the tasks to the Dask scheduler of ``client``; its workers run each row's process
-    (rowrun.run_row). sink(record) as each ends."""
+    (surfmesh_rowrun.run_row). sink(record) as each ends."""
     from distributed import as_completed
 
     futures = {}
