@@ -46,6 +46,10 @@ try:
     actions = [a for a in mw.findChildren(QtGui.QAction) if a.objectName() == "SurfMesh_Optimize"]
     check(actions, "the Optimize action exists")
     tip = actions[0].toolTip()
+    if tip.lstrip().startswith("<"):  # FreeCAD 1.x gives its tooltips as rich text
+        rich = QtGui.QTextDocument()
+        rich.setHtml(tip)
+        tip = rich.toPlainText()
     check("<name>" not in tip and '"_optimized"' in tip,
           f"the tooltip names the new mesh in words ({tip[:120]!r})")
 

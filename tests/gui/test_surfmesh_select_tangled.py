@@ -148,7 +148,9 @@ try:
 
     def selected_subs(obj):
         subs = []
-        for s in FreeCADGui.Selection.getSelectionEx(doc.Name):
+        from SurfMesh.app import compat
+
+        for s in compat.selection_with_subelements(FreeCADGui, doc.Name):
             check(s.ObjectName == obj.Name, f"only {obj.Name} selected (found {s.ObjectName})")
             subs.extend(s.SubElementNames)
         return subs

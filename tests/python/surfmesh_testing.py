@@ -104,6 +104,38 @@ def reference_across(nodes, tris, faces, shape, which=None):
     return out
 
 
+def standard_mesh_with_cracks(shape, **options):
+    """A MeshPart standard mesh of ``shape`` (``options`` as for MeshPart.meshFromShape) with
+    cracks: FreeCAD 0.20's mesher meshes some faces apart, so nodes along their CAD edges come
+    twice (twin nodes at the same position); 1.x's merges them. When the mesher left no crack,
+    every face's facets get their own copy of the nodes they use (twins along every CAD edge
+    between faces), as the 0.20 mesher does for the faces it meshes apart."""
+    import Mesh
+    import MeshPart
+
+    mesh = MeshPart.meshFromShape(Shape=shape, Segments=True, **options)
+    pts = [(p.x, p.y, p.z) for p in mesh.Points]
+    if coincident_groups(np.array(pts)):
+        return mesh
+    import FreeCAD
+
+    facets = [f.PointIndices for f in mesh.Facets]
+    new_pts, new_facets = [], []
+    for k in range(mesh.countSegments()):
+        index = {}
+        for f in mesh.getSegment(k):
+            tri = []
+            for p in facets[f]:
+                if p not in index:
+                    index[p] = len(new_pts)
+                    new_pts.append(FreeCAD.Vector(*pts[p]))
+                tri.append(index[p])
+            new_facets.append(tuple(tri))
+    out = Mesh.Mesh()
+    out.addFacets((new_pts, new_facets))  # keeps the twins (a list of triangles would merge them)
+    return out
+
+
 def coincident_groups(points):
     """Index arrays of the points that share one position exactly (groups of two or more)."""
     _, group, counts = np.unique(points, axis=0, return_inverse=True, return_counts=True)

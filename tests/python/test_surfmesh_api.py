@@ -149,7 +149,6 @@ class TestOptimize(ApiCase):
         has a twin at the same position (a crack). The twins move together, so the mesh
         stays closed (FreeCAD's own merge of coincident points gives a solid before and
         after), and every moved node stays on the part."""
-        import MeshPart
         import Part
 
         path = T.find_part("occt_housing_bottom.brep")
@@ -157,8 +156,8 @@ class TestOptimize(ApiCase):
             self.skipTest("occt_housing_bottom.brep not found")
         shape = Part.read(path)
         diag = shape.BoundBox.DiagonalLength
-        mesh = MeshPart.meshFromShape(Shape=shape, LinearDeflection=diag / 500,
-                                      AngularDeflection=0.35, Relative=False)
+        mesh = T.standard_mesh_with_cracks(shape, LinearDeflection=diag / 500,
+                                           AngularDeflection=0.35, Relative=False)
         pts0 = np.array([[p.x, p.y, p.z] for p in mesh.Points])
         groups = T.coincident_groups(pts0)
         twins = np.sort(np.concatenate(groups)) if groups else np.zeros(0, dtype=int)

@@ -64,7 +64,6 @@ class TestDocument(DocumentCase):
         """A MeshPart standard mesh of the crank arm has twin nodes along CAD edges (a crack):
         optimize_object keeps each pair together; with duplicates="error" it refuses and
         leaves the document as it was."""
-        import MeshPart
         import Part
 
         path = T.find_part("occt_crankarm.brep")
@@ -74,8 +73,8 @@ class TestDocument(DocumentCase):
         part.Shape = Part.read(path)
         diag = part.Shape.BoundBox.DiagonalLength
         mobj = self.doc.addObject("Mesh::Feature", "CrankArmMesh")
-        mobj.Mesh = MeshPart.meshFromShape(Shape=part.Shape, LinearDeflection=diag / 500,
-                                           AngularDeflection=0.35, Relative=False)
+        mobj.Mesh = T.standard_mesh_with_cracks(part.Shape, LinearDeflection=diag / 500,
+                                                AngularDeflection=0.35, Relative=False)
         self.doc.recompute()
         pts0 = np.array([[p.x, p.y, p.z] for p in mobj.Mesh.Points])
         groups = T.coincident_groups(pts0)

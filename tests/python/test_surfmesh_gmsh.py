@@ -183,12 +183,14 @@ class GmshCase(unittest.TestCase):
         skipped = res.before.skipped
         self.assertEqual(res.before.stats["skipped"], int(skipped.sum()))
         self.assertLess(int(skipped.sum()), res.before.quality.size // 5)
-        # every skipped element really is collapsed or flat: zero area in the input
+        # every skipped element really is collapsed or flat: next to no area for its longest
+        # side in the input
         data = SurfMesh.app.conversion.read_mesh(mesh)
         for e in np.nonzero(skipped)[0][:50]:
             x = data.nodes[data.element(e)]
             area = 0.5 * np.linalg.norm(np.cross(x[1] - x[0], x[2] - x[0]))
-            self.assertLess(area, 1e-2 * np.sum((x[1] - x[0]) ** 2) + 1e-12)
+            longest2 = max(np.sum((x[(k + 1) % 3] - x[k]) ** 2) for k in range(3))
+            self.assertLess(area, 1e-2 * longest2 + 1e-12)
         # optimized nodes lie on the part
         pts = res.nodes[:: max(1, len(res.nodes) // 200)]
         self.assertLess(T.distance_to_shape(part.Shape, pts).max(), 2e-3)
@@ -257,9 +259,13 @@ class GmshCase(unittest.TestCase):
                                     same_nodes_as=first)
         np.testing.assert_array_equal(again.element_faces(), fresh.element_faces())
         self.assertFalse(handle.keeps_node_search)  # the API frees it once recovered
-        # Gmsh leaves a few tangled elements there; all are untangled, on the faces.
+        # Gmsh 4.8 (FreeCAD 0.20) leaves a few tangled elements there, 4.13 (1.0) none; all
+        # are untangled, on the faces.
         res = SurfMesh.optimize(mesh, part)
-        self.assertGreater(res.before.stats["tangled"], 0)
+        import gmsh
+
+        if gmsh.__version__.startswith("4.8"):
+            self.assertGreater(res.before.stats["tangled"], 0)
         self.assertLess(res.before.stats["tangled"], 50)
         self.assertEqual(res.after.stats["tangled"], 0)
         self.assertGreater(res.after.stats["min"], 0.0)

@@ -68,3 +68,32 @@ def hide_fem_colors(view_obj):
     """The FEM mesh view's colors back to its one color (1.x: ColorMode "Overall")."""
     if "ColorMode" in getattr(view_obj, "PropertiesList", []):
         view_obj.ColorMode = "Overall"
+
+
+def set_fem_element_colors(view_obj, colors: dict):
+    """Colors a FEM mesh view per element ({element id: (r, g, b)}), shown on every release."""
+    view_obj.resetNodeColor()
+    view_obj.ElementColor = colors
+    show_fem_colors(view_obj, "element")
+
+
+def set_fem_node_colors(view_obj, colors: dict):
+    """Colors a FEM mesh view per node ({node id: (r, g, b)}), shown on every release."""
+    view_obj.ElementColor = {}
+    view_obj.NodeColor = colors
+    show_fem_colors(view_obj, "node")
+
+
+def clear_fem_colors(view_obj):
+    """A FEM mesh view back to its one color, on every release."""
+    view_obj.ElementColor = {}
+    view_obj.resetNodeColor()
+    hide_fem_colors(view_obj)
+
+
+def selection_with_subelements(gui, doc_name):
+    """The selection of document ``doc_name`` with the names of its sub-elements as picked
+    (FEM elements "Elem<id>F1", faces, …): ``gui`` is FreeCADGui. 1.x's default
+    getSelectionEx resolves FEM sub-element names away; unresolved (0) keeps them, on 0.20
+    too."""
+    return gui.Selection.getSelectionEx(doc_name, 0)

@@ -35,7 +35,7 @@ import dataclasses
 
 import numpy as np
 
-from SurfMesh.app import api, coloring, conversion, progress, shapes
+from SurfMesh.app import api, coloring, compat, conversion, progress, shapes
 
 GROUP = "SurfMesh"
 STAT_KEYS = ("min", "max", "mean", "std", "tangled", "elements", "across", "invalid")
@@ -174,14 +174,14 @@ def _color_fem_view(vo, data, rgb, quality, tangled, skipped):
     colors wrong."""
     tri3 = conversion.ELEMENT_TYPES["tri3"]
     if np.all(data.types == tri3):
-        vo.resetNodeColor()
-        vo.ElementColor = {int(e): tuple(map(float, c)) for e, c in zip(data.element_ids, rgb)}
+        compat.set_fem_element_colors(
+            vo, {int(e): tuple(map(float, c)) for e, c in zip(data.element_ids, rgb)})
     else:
-        vo.ElementColor = {}
         node_q = coloring.node_values(data, np.where(tangled, 0.0, quality), reduce="min",
                                       ignore=skipped)
         node_rgb = coloring.quality_rgb(node_q, node_q <= 0.0)
-        vo.NodeColor = {int(n): tuple(map(float, c)) for n, c in zip(data.node_ids, node_rgb)}
+        compat.set_fem_node_colors(
+            vo, {int(n): tuple(map(float, c)) for n, c in zip(data.node_ids, node_rgb)})
 
 
 def show_stored_colors(obj):
@@ -215,13 +215,13 @@ def _show_stored_metric_colors(obj, vo):
     if len(rgb) != data.element_count:
         return False
     if np.all(data.types == conversion.ELEMENT_TYPES["tri3"]):
-        vo.resetNodeColor()
-        vo.ElementColor = {int(e): tuple(map(float, c)) for e, c in zip(data.element_ids, rgb)}
+        compat.set_fem_element_colors(
+            vo, {int(e): tuple(map(float, c)) for e, c in zip(data.element_ids, rgb)})
     else:
-        vo.ElementColor = {}
         node_rgb = np.full((data.node_count, 3), 0.6)
         node_rgb[data.conn] = np.repeat(rgb, np.diff(data.offsets), axis=0)
-        vo.NodeColor = {int(n): tuple(map(float, c)) for n, c in zip(data.node_ids, node_rgb)}
+        compat.set_fem_node_colors(
+            vo, {int(n): tuple(map(float, c)) for n, c in zip(data.node_ids, node_rgb)})
     _fem_view_colored(obj, True)
     return True
 
@@ -256,8 +256,7 @@ def sync_view_colors(doc):
             if show_stored_colors(obj):
                 changed.append(obj)
         elif obj.Name in colored:
-            obj.ViewObject.ElementColor = {}
-            obj.ViewObject.resetNodeColor()
+            compat.clear_fem_colors(obj.ViewObject)
             colored.discard(obj.Name)
             changed.append(obj)
     colored.intersection_update(o.Name for o in doc.Objects)
@@ -348,8 +347,7 @@ def _clear_colors(obj, kind):
     if kind == "mesh":
         vo.Coloring = False
     else:
-        vo.ElementColor = {}
-        vo.resetNodeColor()
+        compat.clear_fem_colors(vo)
         _fem_view_colored(obj, False)
 
 

@@ -26,7 +26,7 @@ import dataclasses
 
 import numpy as np
 
-from SurfMesh.app import api, conversion, metrics
+from SurfMesh.app import api, compat, conversion, metrics
 
 #: Colors of the metric scale: the ideal value, the threshold, beyond the threshold.
 GOOD_RGB = (0.10, 0.70, 0.20)
@@ -220,19 +220,19 @@ def _color_fem_by_metric(vo, data, name, values, threshold, rgb):
     """Per element on tria3 meshes; per node elsewhere (FreeCAD 0.20 draws element colors
     wrong on tria6): the worst value of the elements around each node."""
     if np.all(data.types == conversion.ELEMENT_TYPES["tri3"]):
-        vo.resetNodeColor()
-        vo.ElementColor = {int(e): tuple(map(float, c)) for e, c in zip(data.element_ids, rgb)}
+        compat.set_fem_element_colors(
+            vo, {int(e): tuple(map(float, c)) for e, c in zip(data.element_ids, rgb)})
         return
     from SurfMesh.app import coloring
 
-    vo.ElementColor = {}
     high = metrics.METRICS[name]["worse"] == "high"
     v = np.where(np.isnan(values), -np.inf if high else np.inf, values)
     worst = coloring.node_values(data, -v if high else v, reduce="min")
     node_v = -worst if high else worst
     node_v = np.where(np.isinf(node_v), np.nan, node_v)
     node_rgb = metric_rgb(name, node_v, threshold)
-    vo.NodeColor = {int(n): tuple(map(float, c)) for n, c in zip(data.node_ids, node_rgb)}
+    compat.set_fem_node_colors(
+        vo, {int(n): tuple(map(float, c)) for n, c in zip(data.node_ids, node_rgb)})
 
 
 def colored_by(obj):

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import FreeCADGui
 
-from SurfMesh.app import api, document, shapes
+from SurfMesh.app import api, compat, document, shapes
 
 
 def is_mesh_object(obj) -> bool:
@@ -298,7 +298,7 @@ def _check_marks():
                 _marks.pop(key, None)
                 continue
             selected = set()
-            for sel in FreeCADGui.Selection.getSelectionEx(key[0]):
+            for sel in compat.selection_with_subelements(FreeCADGui, key[0]):
                 if sel.ObjectName == key[1]:
                     selected.update(sel.SubElementNames)
             if not selected & names:
