@@ -362,6 +362,27 @@ class BadInputApi(unittest.TestCase):
         data = arrays(self.nodes, self.tris, types=[9] + [0] * (len(self.tris) - 1))
         self.expect_error(data, "types", "9")
 
+    def test_edge_element_nodes(self):
+        # The box's FEM mesh with edge (beam) elements: one along a box edge, in no face element
+        # (taken: located on the shape, listed in the report), one reaching 3 above the box's
+        # top corner (off the whole shape: refused, naming the node, its distance and the
+        # nearest entity; the mesh unchanged).
+        fem = make_fem(self.nodes, self.tris)
+        top = max(range(len(self.nodes)), key=lambda k: tuple(self.nodes[k][[2, 0, 1]]))
+        corner = np.asarray(self.nodes[top], dtype=float)
+        on_edge = FEM_NODE_ID0 + len(self.nodes)
+        fem.addNode(float(corner[0]), float(corner[1]) - 1.25, float(corner[2]), on_edge)
+        fem.addEdge([FEM_NODE_ID0 + top, on_edge], 5001)
+        rep = SurfMesh.measure(fem, self.shape)
+        self.assertEqual(rep.bridge["loose_nodes"], [on_edge])
+        self.assertTrue(rep.bridge["loose_on"][0].startswith("Edge"), rep.bridge["loose_on"])
+        off = on_edge + 1
+        fem.addNode(float(corner[0]), float(corner[1]), float(corner[2]) + 3.0, off)
+        fem.addEdge([FEM_NODE_ID0 + top, off], 5002)
+        msg = self.expect_error(fem, "farther than the tolerance", f"node {off} at distance 3 ",
+                                ", the nearest")
+        self.assertRegex(msg[0], r"from (Face|Edge|Vertex)\d+, the nearest")
+
     def test_mixed_orders(self):
         # Element 0 becomes a tri6 (its mid-edge nodes added), the rest stay tri3.
         nodes = list(map(list, self.nodes))
