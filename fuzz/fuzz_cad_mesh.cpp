@@ -2,16 +2,20 @@
 // small shapes, then quality and a short optimization.
 //
 // Shapes (made once): a box and a cylinder (BRepPrimAPI), a sphere (two poles: degenerated
-// edges), a single planar face (free face, no solid) and tests/data/occt_screw.step. The input
+// edges), a single planar face (free face, no solid), a box with a free edge beside it (a
+// wire of no face: the nodes a FEM mesh's edge elements have there belong to no face element)
+// and tests/data/occt_screw.step. The input
 // bytes pick a shape and either mutate a coarse BRepMesh triangulation of it (node positions
 // moved a little, a lot, or to NaN/inf; connectivity entries; element type codes, including
-// invalid ones; offsets; hints; dropped or added elements) or build a small random mesh from
+// invalid ones; offsets; hints; dropped or added elements; nodes of no element added on a CAD
+// edge, free or not) or build a small random mesh (tri3, quad4, tri6, tri10, quad8) from
 // points on the shape. Options (tolerance, boundary mode) are fuzzed too. Contract checked:
 //   * CadMesh either succeeds or throws std::invalid_argument (anything else, a crash or a
 //     sanitizer report is a bug);
 //   * on success: the SurfaceMesh validates, the report has one entry per node, qualities are
 //     in [0, 1], and a short optimization runs with the fixed nodes untouched and the moved
-//     face nodes on their surfaces.
+//     face nodes on their surfaces; the nodes of no element are listed with where they lie
+//     (within the tolerance) and stay where they are.
 #include "surfmesh/cad/cad_bridge.h"
 #include "surfmesh/cad/cad_shape.h"
 #include "surfmesh/cad/occ_mesher.h"
@@ -19,10 +23,13 @@
 #include "surfmesh/mesh/quality.h"
 #include "surfmesh/optimize/optimizer.h"
 
+#include <BRepBuilderAPI_MakeEdge.hxx>
 #include <BRepBuilderAPI_MakeFace.hxx>
 #include <BRepPrimAPI_MakeBox.hxx>
 #include <BRepPrimAPI_MakeCylinder.hxx>
 #include <BRepPrimAPI_MakeSphere.hxx>
+#include <BRep_Builder.hxx>
+#include <TopoDS_Compound.hxx>
 #include <fuzzer/FuzzedDataProvider.h>
 #include <gp_Pln.hxx>
 
@@ -64,6 +71,14 @@ std::vector<Part> makeParts() {
   add(std::make_shared<CadShape>(
           BRepBuilderAPI_MakeFace(gp_Pln(gp_Pnt(0, 0, 0), gp_Dir(0, 0, 1)), 0, 10, 0, 6).Face()),
       0.05);
+  {
+    BRep_Builder b;
+    TopoDS_Compound c;
+    b.MakeCompound(c);
+    b.Add(c, BRepPrimAPI_MakeBox(10.0, 6.0, 4.0).Shape());
+    b.Add(c, BRepBuilderAPI_MakeEdge(gp_Pnt(0, 0, 7), gp_Pnt(10, 0, 7)).Edge());
+    add(std::make_shared<CadShape>(c), 0.05);
+  }
   try {
     add(CadShape::fromFile(std::string(SURFMESH_TEST_DATA_DIR) + "/occt_screw.step"), 0.03);
   } catch (const std::exception& e) {
@@ -94,7 +109,7 @@ void mutate(FuzzedDataProvider& fdp, MeshInput& in, const CadShape& shape) {
     const std::size_t n = fdp.ConsumeIntegralInRange<std::size_t>(0, N - 1);
     const std::size_t e = fdp.ConsumeIntegralInRange<std::size_t>(0, E - 1);
     const std::size_t c = fdp.ConsumeIntegralInRange<std::size_t>(0, C - 1);
-    switch (fdp.ConsumeIntegralInRange<int>(0, 14)) {
+    switch (fdp.ConsumeIntegralInRange<int>(0, 15)) {
       case 0:
       case 1: {  // small move (within or near the tolerance)
         const double a = diag * 1e-3 * fdp.ConsumeFloatingPointInRange<double>(-3.0, 3.0);
@@ -173,6 +188,16 @@ void mutate(FuzzedDataProvider& fdp, MeshInput& in, const CadShape& shape) {
       case 13:  // flip an element
         if (3 * e + 1 < C) std::swap(in.conn[3 * e], in.conn[3 * e + 1]);
         break;
+      case 14: {  // a node of no element on a CAD edge (a free one too): an edge element's
+        const int edge = fdp.ConsumeIntegralInRange<int>(0, shape.edgeCount() - 1);
+        const OccEdgeCurve& cv = shape.curve(edge);
+        const double t = fdp.ConsumeFloatingPointInRange<double>(0.0, 1.0);
+        in.nodes.push_back(cv.value(cv.tmin() + t * (cv.tmax() - cv.tmin())));
+        for (auto* h : {&in.hintFace, &in.hintEdge, &in.hintVertex})
+          if (!h->empty()) h->push_back(-1);
+        if (!in.leftOutNeighbour.empty()) in.leftOutNeighbour.push_back(0);
+        break;
+      }
       default:  // truncate the connectivity
         in.conn.resize(C - 1);
         break;
@@ -188,7 +213,8 @@ MeshInput randomMesh(FuzzedDataProvider& fdp, const MeshInput& pool) {
         pool.nodes[fdp.ConsumeIntegralInRange<std::size_t>(0, pool.nodes.size() - 1)]);
   const int E = fdp.ConsumeIntegralInRange<int>(0, 10);
   for (int e = 0; e < E; ++e) {
-    const int code = fdp.ConsumeIntegralInRange<int>(0, 3);  // tri3, quad4, tri6, tri10
+    const int codes[5] = {0, 1, 2, 3, 6};  // tri3, quad4, tri6, tri10, quad8
+    const int code = codes[fdp.ConsumeIntegralInRange<int>(0, 4)];
     in.types.push_back(static_cast<ElementType>(code));
     for (int j = 0; j < nodeCount(in.types.back()); ++j)
       in.conn.push_back(fdp.ConsumeIntegralInRange<std::int32_t>(0, std::max(0, N - 1)));
@@ -202,6 +228,14 @@ void checkAccepted(FuzzedDataProvider& fdp, CadMesh& cm, std::size_t N) {
   const BridgeReport& r = cm.report();
   if (r.nodeClass.size() != N || r.nodeEntity.size() != N || r.nodeDistance.size() != N)
     violated("report sizes differ from the node count");
+  const std::size_t L = r.looseNodes.size();
+  if (r.looseClass.size() != L || r.looseEntity.size() != L || r.looseDistance.size() != L ||
+      L != r.unusedNodes)
+    violated("the nodes of no element are not all listed with where they lie");
+  for (std::size_t k = 0; k < L; ++k)
+    if (!(r.looseDistance[k] <= r.tolerance) ||
+        m.nodeKind[static_cast<std::size_t>(r.looseNodes[k])] != NodeKind::Fixed)
+      violated("a node of no element is off the shape or not fixed");
   const MeshQuality q = measureQuality(m, measureByName("shape"));
   for (double v : q.quality)
     if (!(v >= 0.0 && v <= 1.0)) violated("quality outside [0, 1]");

@@ -288,8 +288,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         uv.emplace_back(lu + (hu - lu) * fdp.ConsumeIntegralInRange<int>(0, 16) / 16.0,
                         lv + (hv - lv) * fdp.ConsumeIntegralInRange<int>(0, 16) / 16.0);
       }
-      const ElementType t =
-          static_cast<ElementType>(fdp.ConsumeIntegralInRange<int>(0, 2));  // tri3/quad4/tri6
+      const int codes[4] = {0, 1, 2, 6};  // tri3, quad4, tri6, quad8
+      const ElementType t = static_cast<ElementType>(codes[fdp.ConsumeIntegralInRange<int>(0, 3)]);
       const int k = nodeCount(t);
       std::vector<std::int32_t> conn;
       const int E = fdp.ConsumeIntegralInRange<int>(0, 16);

@@ -153,6 +153,22 @@ class EdgeElementNodesCli(unittest.TestCase):
         self.assertEqual(back.EdgeCount, mesh.FemMesh.EdgeCount)
         for n in loose:
             self.assertLess((back.Nodes[n] - mesh.FemMesh.Nodes[n]).Length, 1e-12)
+        # .vtk (written through meshio) keeps the edge elements too, on the same nodes
+        import meshio
+
+        vtk = os.path.join(out, "fem41_box_wire_out.vtk")
+        proc = subprocess.run(
+            ["freecadcmd", T.cli_path(), "--", "optimize", shape_path, mesh_path, "-o", vtk],
+            capture_output=True, text=True, timeout=300)
+        self.assertEqual(proc.returncode, 0, proc.stdout + proc.stderr)
+        m = meshio.read(vtk)
+        fem = mesh.FemMesh
+        ids = sorted(fem.Nodes)
+        lines = [c.data for c in m.cells if c.type == "line"]
+        self.assertEqual(sum(len(x) for x in lines), fem.EdgeCount)
+        want = sorted(tuple(sorted(fem.getElementNodes(e))) for e in fem.Edges)
+        got = sorted(tuple(sorted(ids[int(k)] for k in c)) for x in lines for c in x)
+        self.assertEqual(got, want)
 
 
 if __name__ == "__main__":

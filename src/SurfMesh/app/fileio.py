@@ -439,7 +439,7 @@ def write_mesh(out, src: MeshFile, new_nodes, msh_version=None):
         # part of size 100): meshio writes them as double, in the same node order.
         import meshio
 
-        meshio.write(out, meshio.Mesh(new_nodes, _meshio_cells(data)))
+        meshio.write(out, meshio.Mesh(new_nodes, _meshio_cells(data) + _line_cells(src)))
     elif ext in FEM_EXTS:
         fem = conversion.rebuild(data, new_nodes) if src.fmt == "fem" else _fem_from(data, new_nodes)
         try:
@@ -529,6 +529,35 @@ def _mesh_from(data, nodes):
     pts = [vec(float(x), float(y), float(z)) for x, y, z in nodes]
     tris = [tuple(int(i) for i in data.element(e)) for e in range(data.element_count)]
     return Mesh.Mesh((pts, tris))
+
+
+def _line_cells(src):
+    """The edge (line) elements of ``src`` as meshio cells over its node order: a FEM mesh's
+    edges (beams, the edge elements of a shell mesh), a Gmsh file's 1D elements; none for other
+    inputs. So a mesh written through meshio keeps them, as the FEM and Gmsh writers do."""
+    data = src.data
+    lines = []  # (node count, node ids)
+    if src.fmt == "fem" and src.fem is not None:
+        for e in sorted(src.fem.Edges):
+            lines.append(tuple(src.fem.getElementNodes(e)))
+    elif src.fmt == "gmsh":
+        gmsh = _gmsh()
+        gmsh.clear()
+        gmsh.open(src.path)
+        types, _tags, conn = gmsh.model.mesh.getElements(1)
+        for t, c in zip(types, conn):
+            k = gmsh.model.mesh.getElementProperties(int(t))[3]  # nodes per element
+            lines.extend(tuple(int(n) for n in c[i:i + k]) for i in range(0, len(c), k))
+        gmsh.clear()
+    cells = []
+    for k, name in ((2, "line"), (3, "line3")):
+        ids = [ln for ln in lines if len(ln) == k]
+        if ids:
+            pos, missing = conversion.positions_of(
+                data.node_ids, np.asarray(ids, dtype=np.int64).reshape(-1))
+            if not missing.any():
+                cells.append((name, np.asarray(pos, dtype=np.int64).reshape(-1, k)))
+    return cells
 
 
 def _meshio_cells(data):
