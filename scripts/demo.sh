@@ -12,9 +12,8 @@
 set -euo pipefail
 REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 OUT="$(mkdir -p "${1:-$REPO/demo-output}" && cd "${1:-$REPO/demo-output}" && pwd)"
-MOD_DIR="${SURFMESH_MOD_DIR:-$HOME/.local/share/FreeCAD/Mod/SurfMesh}"
-
 bash "$REPO/scripts/install.sh"
+MOD_DIR="${SURFMESH_MOD_DIR:-$(bash "$REPO/scripts/freecad-user-mod.sh")/SurfMesh}"
 
 echo "[demo] torus example (freecadcmd)"
 freecadcmd "$MOD_DIR/SurfMesh/cli/demo.py" -- "$OUT" 2>&1 \

@@ -10,8 +10,9 @@
 #   JOBS                  parallel build jobs (default: 2)
 #   CMAKE_BUILD_TYPE      default: Release
 #   SURFMESH_SKIP_APT=1   do not check or install Debian packages
-#   SURFMESH_MOD_DIR      where the workbench goes
-#                         (default: $HOME/.local/share/FreeCAD/Mod/SurfMesh)
+#   SURFMESH_MOD_DIR      where the workbench goes (default: <FreeCAD's user Mod folder>/SurfMesh,
+#                         as FreeCAD says: ~/.local/share/FreeCAD/Mod for 0.20 and 1.0,
+#                         ~/.local/share/FreeCAD/v1-1/Mod for 1.1; scripts/freecad-user-mod.sh)
 #   SURFMESH_BIN_DIR      where the `surfmesh` command goes (a symbolic link into the workbench;
 #                         default: /usr/local/bin as root, else $HOME/.local/bin)
 set -euo pipefail
@@ -23,7 +24,6 @@ JOBS="${JOBS:-2}"
 BUILD_TYPE="${CMAKE_BUILD_TYPE:-Release}"
 HOME="${HOME:-$(getent passwd "$(id -u)" | cut -d: -f6)}"
 export HOME
-MOD_DIR="${SURFMESH_MOD_DIR:-$HOME/.local/share/FreeCAD/Mod/SurfMesh}"
 PYTHON=/usr/bin/python3  # the interpreter FreeCAD embeds
 
 say() { printf '[install] %s\n' "$*"; }
@@ -94,6 +94,7 @@ say "building in $BUILD_DIR (-j$JOBS)"
 cmake --build "$BUILD_DIR" -j "$JOBS"
 
 # ---- 3. Workbench for the current user ---------------------------------------------------
+MOD_DIR="${SURFMESH_MOD_DIR:-$(bash "$REPO/scripts/freecad-user-mod.sh")/SurfMesh}"
 # Layout:  $MOD_DIR/package.xml Init.py InitGui.py LICENSE resources/
 #          $MOD_DIR/SurfMesh/            the Python package (src/SurfMesh)
 #          $MOD_DIR/SurfMesh/_surfmesh.cpython-311-x86_64-linux-gnu.so  (from build/src/bindings)

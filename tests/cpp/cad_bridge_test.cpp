@@ -17,6 +17,7 @@
 #include <BRepPrimAPI_MakeCylinder.hxx>
 #include <BRep_Builder.hxx>
 #include <BRep_Tool.hxx>
+#include <Geom2d_Curve.hxx>
 #include <GeomAPI_ProjectPointOnCurve.hxx>
 #include <GeomAPI_ProjectPointOnSurf.hxx>
 #include <Geom_Curve.hxx>
@@ -30,6 +31,7 @@
 #include <gp_Pnt2d.hxx>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <functional>
@@ -102,6 +104,30 @@ double curveDistance(const CadShape& s, int e, const Vec3& p) {
   return pr.LowerDistance();
 }
 
+/// Largest distance between edge e's 3D curve and its pcurve on face f mapped by f's surface,
+/// sampled: how close the face's boundary in (u,v) is to the edge, whatever tolerance the
+/// edge declares (OCCT 7.8's STEP reader gives the screw a pcurve 0.002 off an edge of
+/// tolerance 3e-4).
+double pcurveDeviation(const CadShape& s, int e, int f) {
+  const TopoDS_Edge& edge = s.edge(e);
+  const TopoDS_Face& face = s.face(f);
+  double a = 0, b = 0, pa = 0, pb = 0;
+  Handle(Geom_Curve) c = BRep_Tool::Curve(edge, a, b);
+  double worst = 0.0;
+  for (TopAbs_Orientation o : {TopAbs_FORWARD, TopAbs_REVERSED}) {
+    Handle(Geom2d_Curve) pc =
+        BRep_Tool::CurveOnSurface(TopoDS::Edge(edge.Oriented(o)), face, pa, pb);
+    if (c.IsNull() || pc.IsNull()) continue;
+    Handle(Geom_Surface) surf = BRep_Tool::Surface(face);
+    for (int i = 0; i <= 64; ++i) {
+      const double t = a + (b - a) * i / 64.0;
+      const gp_Pnt2d uv = pc->Value(t);
+      worst = std::max(worst, surf->Value(uv.X(), uv.Y()).Distance(c->Value(t)));
+    }
+  }
+  return worst;
+}
+
 /// Inside the trimmed face (BRepClass_FaceClassifier, independent of our FClass2d).
 bool insideFace(const CadShape& s, int f, const Vec2& uv, double tol) {
   BRepClass_FaceClassifier c(s.face(f), gp_Pnt2d(uv.x(), uv.y()), tol);
@@ -141,12 +167,49 @@ TEST_P(CadBridgePart, RecoversBRepMeshClassification) {
             << r.summary();
 
   const std::size_t N = m.nodeCount();
-  // Class agreement with what BRepMesh knows.
-  std::size_t mismatches = 0;
-  std::vector<unsigned char> agrees(N, 1);
+  // Class agreement with what BRepMesh knows. A node BRepMesh made inside a face but within
+  // the tolerance of one of that face's edges or vertices (an independent distance; at least
+  // 1e-6·diag), or on the face across such an edge, lies on that edge or vertex as the B-rep
+  // defines it, and the bridge may put it there. BRepMesh of OCCT 7.8 and 7.9 leaves such
+  // nodes on the propeller: "inside" face 1 but 1e-5·diag off it, on the neighbouring face at a
+  // sloppy edge. Those are counted apart.
+  std::size_t mismatches = 0, onEntity = 0;
+  std::vector<unsigned char> agrees(N, 1), nearEntity(N, 0);
   for (std::size_t n = 0; n < N; ++n) {
     if (r.nodeClass[n] != om.nodeClass[n] || r.nodeEntity[n] != om.nodeEntity[n]) {
       agrees[n] = 0;
+      const Vec3& p = om.input.nodes[n];
+      if (om.nodeClass[n] == NodeClass::Face && r.nodeClass[n] != NodeClass::Face) {
+        const int f = om.nodeEntity[n], id = r.nodeEntity[n];
+        double d = INFINITY, tol = 1e-6 * diag;
+        bool bounds = false;
+        int across = -1;  // the face across the edge the node lies on
+        if (r.nodeClass[n] == NodeClass::Edge) {
+          d = curveDistance(*shape, id, p);
+          tol = std::max(tol, BRep_Tool::Tolerance(shape->edge(id)));
+          const auto& ef = shape->edgeFaces(id);
+          bounds = std::find(ef.begin(), ef.end(), f) != ef.end();
+          // A sloppy edge (the propeller's): its 3D curve 1e-5·diag from where a neighbour
+          // face's pcurve puts it; the node lies on that neighbour, at the edge as it sees it.
+          for (int g : ef)
+            if (g != f && faceDistance(*shape, g, p) <= 1e-6 * diag) across = g;
+        } else if (r.nodeClass[n] == NodeClass::Vertex) {
+          d = (shape->vertexPoint(id) - p).norm();
+          tol = std::max(tol, shape->vertexTolerance(id));
+          const auto& vf = shape->vertexFaces(id);
+          bounds = std::find(vf.begin(), vf.end(), f) != vf.end();
+        }
+        if (bounds && (d <= tol || across >= 0)) {
+          nearEntity[n] = 1;
+          ++onEntity;
+          std::cout << "  node " << n << ": BRepMesh face " << f << ", bridge "
+                    << nodeClassName(r.nodeClass[n]) << " " << id << " (" << d / diag
+                    << " diag from it";
+          if (across >= 0) std::cout << ", on face " << across << " across it";
+          std::cout << ")\n";
+          continue;
+        }
+      }
       if (mismatches < 10)
         std::cout << "  node " << n << ": bridge " << nodeClassName(r.nodeClass[n]) << " "
                   << r.nodeEntity[n] << ", BRepMesh " << nodeClassName(om.nodeClass[n]) << " "
@@ -154,9 +217,14 @@ TEST_P(CadBridgePart, RecoversBRepMeshClassification) {
       ++mismatches;
     }
   }
-  // Element faces.
+  // Element faces (an element with such a node may go on a neighbouring face).
   std::size_t wrongFace = 0;
-  for (std::size_t e = 0; e < m.elementCount(); ++e) wrongFace += m.elemFace[e] != om.elemFace[e];
+  for (std::size_t e = 0; e < m.elementCount(); ++e) {
+    bool near = false;
+    for (int k = 0; k < m.elementSize(e); ++k)
+      near = near || nearEntity[static_cast<std::size_t>(m.elementNodes(e)[k])];
+    wrongFace += m.elemFace[e] != om.elemFace[e] && !near;
+  }
   // Exact agreement, except on parts whose B-rep is sloppier than 1e-5·diag somewhere (the
   // bottle's thread: edges 0.0155 off their faces, faces 0.005 apart), where a sliver element
   // with no interior node may be ambiguous at the tolerance level.
@@ -167,7 +235,7 @@ TEST_P(CadBridgePart, RecoversBRepMeshClassification) {
   EXPECT_LE(mismatches, allowed);
   EXPECT_LE(wrongFace, allowed);
   EXPECT_TRUE(r.flippedFaces.empty());
-  if (allowed == 0) {
+  if (allowed == 0 && onEntity == 0) {
     EXPECT_TRUE(r.warnings.empty());
   }
 
@@ -226,7 +294,8 @@ TEST_P(CadBridgePart, RecoversBRepMeshClassification) {
       // than the edges' declared tolerance.
       double tolN = 1e-6 * diag;
       if (r.nodeClass[n] == NodeClass::Edge)
-        tolN += 2.0 * BRep_Tool::Tolerance(shape->edge(r.nodeEntity[n]));
+        tolN += 2.0 * std::max(BRep_Tool::Tolerance(shape->edge(r.nodeEntity[n])),
+                               pcurveDeviation(*shape, r.nodeEntity[n], m.elemFace[e]));
       else if (r.nodeClass[n] == NodeClass::Vertex)
         tolN += 2.0 * shape->vertexTolerance(r.nodeEntity[n]);
       worstCorner = std::max(worstCorner, err);
@@ -260,14 +329,22 @@ INSTANTIATE_TEST_SUITE_P(Parts, CadBridgePart, ::testing::ValuesIn(kParts),
 TEST(CadBridge, ReversedWindingOnOneFaceIsReportedFlipped) {
   auto shape = load("occt_propeller.brep");
   OccMesh om = meshWithBRepMesh(*shape, 1e-3 * shape->diagonal(), 0.5);
-  // The face with the most triangles.
+  const CadMesh before(shape, om.input);
+  // The face with the most triangles, among those whose elements all stay on it (OCCT 7.8's
+  // BRepMesh puts a few nodes of the blade's face on its neighbour at a sloppy edge: their
+  // elements go there, wound as the blade, whose flip would then show on them).
   std::map<int, int> count;
-  for (int f : om.elemFace) ++count[f];
-  int face = 0;
+  std::set<int> moved;
+  for (std::size_t e = 0; e < om.elemFace.size(); ++e) {
+    ++count[om.elemFace[e]];
+    if (before.mesh().elemFace[e] != om.elemFace[e]) moved.insert(om.elemFace[e]);
+  }
+  int face = -1;
   for (const auto& [f, c] : count)
-    if (c > count[face]) face = f;
+    if (!moved.count(f) && (face < 0 || c > count[face])) face = f;
+  ASSERT_GE(face, 0);
   const std::size_t tangledBefore =
-      measureQuality(CadMesh(shape, om.input).mesh(), measureByName("shape")).stats.tangled;
+      measureQuality(before.mesh(), measureByName("shape")).stats.tangled;
   for (std::size_t e = 0; e < om.elemFace.size(); ++e)
     if (om.elemFace[e] == face) std::swap(om.input.conn[3 * e + 1], om.input.conn[3 * e + 2]);
   CadMesh cm(shape, om.input);
