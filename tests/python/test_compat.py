@@ -76,6 +76,25 @@ class TestCompat(unittest.TestCase):
         self.assertIs(shapes.source_shape_object(plain), box)
         self.assertTrue(Part.Shape)  # Part imported: the link is to a shape object
 
+    def test_gmsh_mesher_messages(self):
+        """FEM's Gmsh mesher through compat: its messages as text on every release (1.1's
+        create_mesh returns None), the mesh on the object."""
+        import ObjectsFem
+
+        from SurfMesh.app import compat
+
+        box = self.doc.addObject("Part::Box", "Box")
+        self.doc.recompute()
+        gm = ObjectsFem.makeMeshGmsh(self.doc, "GmshMesh")
+        compat.set_mesh_shape(gm, box)
+        gm.ElementDimension = "2D"
+        gm.CharacteristicLengthMax = 4.0
+        self.doc.recompute()
+        message = compat.run_gmsh_mesher(gm)
+        self.assertIsInstance(message, str)
+        self.assertGreater(gm.FemMesh.FaceCount, 12)
+        self.assertEqual(gm.FemMesh.VolumeCount, 0)
+
     def test_fem_color_mode(self):
         """1.x draws a FEM view's colors only in the ColorMode they were set for; a view without
         that property (0.20) is left alone. (The GUI suite draws them for real.)"""

@@ -26,15 +26,16 @@ def box_with_free_edge(doc):
 
 
 def gmsh_mesh(doc, part, order="1st", size=3.0):
-    from femmesh.gmshtools import GmshTools
     import ObjectsFem
 
+    from SurfMesh.app import compat
+
     mesh = ObjectsFem.makeMeshGmsh(doc, "Mesh")
-    mesh.Part = part
+    compat.set_mesh_shape(mesh, part)  # Part (0.20) or Shape (1.x)
     mesh.ElementDimension = "2D"
     mesh.ElementOrder = order
     mesh.CharacteristicLengthMax = size
-    GmshTools(mesh).create_mesh()
+    compat.run_gmsh_mesher(mesh)
     return mesh
 
 

@@ -97,3 +97,14 @@ def selection_with_subelements(gui, doc_name):
     getSelectionEx resolves FEM sub-element names away; unresolved (0) keeps them, on 0.20
     too."""
     return gui.Selection.getSelectionEx(doc_name, 0)
+
+
+def run_gmsh_mesher(mesh_obj) -> str:
+    """Runs FreeCAD's Gmsh mesher on a FemMeshGmsh object (FEM's GmshTools) and returns Gmsh's
+    messages: 0.20 and 1.0 return them from create_mesh(), 1.1 returns None (they go to the
+    report view), then "". Whether a mesh was made is the object's FemMesh either way."""
+    from femmesh.gmshtools import GmshTools
+
+    message = GmshTools(mesh_obj).create_mesh()
+    return message if isinstance(message, str) else ""
+

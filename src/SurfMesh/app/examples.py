@@ -30,7 +30,6 @@ def make_gmsh_mesh(doc, part, size, name=None, order="1st", recombine=False):
     (``recombine``: quadrilaterals, Gmsh's RecombineAll). Returns the mesh object;
     RuntimeError when Gmsh produced no mesh."""
     import ObjectsFem
-    from femmesh.gmshtools import GmshTools
 
     from SurfMesh.app import compat
 
@@ -41,11 +40,12 @@ def make_gmsh_mesh(doc, part, size, name=None, order="1st", recombine=False):
     obj.CharacteristicLengthMax = float(size)
     obj.RecombineAll = bool(recombine)
     doc.recompute()
-    message = GmshTools(obj).create_mesh()
-    if obj.FemMesh.FaceCount == 0 and "periodic surface" in (message or ""):
-        # Gmsh 4.13 (FreeCAD 1.0) refuses a closed face whose period does not start at 0, such
-        # as a Part::Torus's (v in [π, 3π]): mesh the same surface over [0, period] instead
-        # (the nodes lie on the part's surface all the same), then link the part again.
+    message = compat.run_gmsh_mesher(obj)
+    if obj.FemMesh.FaceCount == 0:
+        # Gmsh 4.13 and 4.15 (FreeCAD 1.0, 1.1) refuse a closed face whose period does not
+        # start at 0 ("Impossible to mesh periodic surface"), such as a Part::Torus's (v in
+        # [π, 3π]): mesh the same surface over [0, period] instead (the nodes lie on the
+        # part's surface all the same), then link the part again.
         same = _periodic_from_zero(part.Shape)
         if same is not None:
             helper = doc.addObject("Part::Feature", f"{part.Name}_GmshShape")
@@ -53,7 +53,7 @@ def make_gmsh_mesh(doc, part, size, name=None, order="1st", recombine=False):
             helper.Label = f"{part.Label} (periodic range from 0, for Gmsh)"
             compat.set_mesh_shape(obj, helper)
             doc.recompute()
-            message = GmshTools(obj).create_mesh()
+            message = compat.run_gmsh_mesher(obj)
             compat.set_mesh_shape(obj, part)
             doc.removeObject(helper.Name)
             doc.recompute()
