@@ -14,6 +14,16 @@ import sys
 #: What was checked, in order (the verdict line shows the last few).
 checks = []
 
+# FreeCAD 1.x animates camera moves (fit all, standard views) by default: a view read right
+# after one would show where the animation is, not where it goes. The tests see the end.
+try:
+    import FreeCAD
+
+    FreeCAD.ParamGet("User parameter:BaseApp/Preferences/View").SetBool(
+        "UseNavigationAnimations", False)
+except ImportError:
+    pass
+
 
 def check(cond, what):
     """Records ``what`` when ``cond`` holds; raises AssertionError(what) otherwise."""

@@ -50,7 +50,8 @@ try:
         f.write(HEADLESS)
     if os.path.exists(path):
         os.remove(path)
-    p = subprocess.run(["freecadcmd", script, path], capture_output=True, text=True,
+    # "--": FreeCAD 1.x opens every further argument as a file of its own
+    p = subprocess.run(["freecadcmd", script, "--", path], capture_output=True, text=True,
                        timeout=300, stdin=subprocess.DEVNULL)
     saved = os.path.exists(path)
     check(saved, "freecadcmd saved the document" if saved else

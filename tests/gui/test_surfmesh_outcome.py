@@ -60,11 +60,21 @@ try:
         w = QtGui.QApplication.activeModalWidget()
         if w is None:
             return
-        for lw in w.findChildren(QtGui.QListWidget):
-            for i in range(lw.count()):
-                item = lw.item(i)
-                if item.text() == "SurfMesh":
-                    seen["icon"] = item.icon().pixmap(48, 48).toImage()
+        # the groups' list: a QListWidget in 0.20, a tree view in 1.x
+        for view in w.findChildren(QtGui.QAbstractItemView):
+            model = view.model()
+            if model is None:
+                continue
+            todo = [QtCore.QModelIndex()]
+            while todo:
+                parent = todo.pop()
+                for row in range(model.rowCount(parent)):
+                    index = model.index(row, 0, parent)
+                    todo.append(index)
+                    if model.data(index, QtCore.Qt.DisplayRole) == "SurfMesh":
+                        icon = model.data(index, QtCore.Qt.DecorationRole)
+                        if isinstance(icon, QtGui.QIcon):
+                            seen["icon"] = icon.pixmap(48, 48).toImage()
         w.reject()
 
     poke = QtCore.QTimer()

@@ -95,10 +95,14 @@ class TestPeriodicRanges(unittest.TestCase):
         self.assertEqual(tuple(round(x, 12) for x in same.Faces[0].ParameterRange),
                          (0.0, round(2 * np.pi, 12), 0.0, round(2 * np.pi, 12)))
         f = same.Faces[0]
+        g = feat.Shape.Faces[0]
         for u in np.linspace(0, 2 * np.pi, 7):
             for v in np.linspace(0, 2 * np.pi, 7):
                 p = f.valueAt(u, v)
                 self.assertLess(feat.Shape.distToShape(Part.Vertex(p))[0], 1e-9)
+                # the same side out: Gmsh winds the mesh by the face's normal
+                gu, gv = g.Surface.parameter(p)
+                self.assertGreater(f.normalAt(u, v).dot(g.normalAt(gu, gv)), 0.999)
         self.assertAlmostEqual(f.Area, feat.Shape.Area, places=9)
         self.assertIsNone(examples._periodic_from_zero(Part.makeBox(1, 2, 3)))
         self.assertIsNone(examples._periodic_from_zero(Part.makeTorus(R, r)))  # from 0 already

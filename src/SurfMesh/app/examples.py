@@ -93,6 +93,8 @@ def _periodic_from_zero(shape):
     if not changed:
         return None
     new = surf.toShape(*rng)
+    if face.Orientation == "Reversed":  # the same side out (the mesh's winding follows it)
+        new.reverse()
     # the same surface, where the part is (face.Surface carries the part's placement)
     if (abs(new.Area - face.Area) > 1e-9 * face.Area
             or not new.BoundBox.isInside(face.BoundBox.Center)
