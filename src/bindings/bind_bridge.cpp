@@ -58,6 +58,11 @@ py::dict reportDict(const BridgeReport& r) {
   d["loose_class"] = looseClass;
   d["loose_entity"] = toArray(r.looseEntity);
   d["loose_distance"] = toArray(r.looseDistance);
+  py::list gaps;
+  for (const auto& g : r.trimGaps)
+    gaps.append(py::dict(py::arg("face") = g.face, py::arg("edge") = g.edge, py::arg("gap") = g.gap,
+                         py::arg("tolerance") = g.tolerance));
+  d["trim_gaps"] = gaps;
   d["tolerance"] = r.tolerance;
   d["max_distance"] = r.maxDistance;
   d["worst_node"] = r.worstNode;

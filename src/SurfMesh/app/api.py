@@ -488,7 +488,7 @@ def _loose_note(report):
 _ID_LIST = r"(\d+(?:(?:, | and | )\d+(?!\d|\.\d))*)"
 _NODE_REF = re.compile(r"\b(nodes?|row) " + _ID_LIST)
 _ELEMENT_REF = re.compile(r"\b(elements?) " + _ID_LIST)
-_FACE_INDEX = re.compile(r"\b(on|from) (face|edge|vertex) (\d+)\b")
+_FACE_INDEX = re.compile(r"\b(on|from|of) (face|edge|vertex) (\d+)\b")
 
 
 #: A side node farther from the segment between its side's corners than this many times the
@@ -603,6 +603,10 @@ def _bridge_report(handle, data):
             for c, e in zip(np.asarray(out.pop("loose_class")),
                             np.asarray(out.pop("loose_entity")))]
         out["loose_distance"] = [float(d) for d in np.asarray(out["loose_distance"])]
+    if "trim_gaps" in out:  # FreeCAD's names of the faces and edges
+        out["trim_gaps"] = [dict(face=f"Face{int(g['face']) + 1}", edge=f"Edge{int(g['edge']) + 1}",
+                                 gap=float(g["gap"]), tolerance=float(g["tolerance"]))
+                            for g in out["trim_gaps"]]
     return out
 
 

@@ -114,7 +114,8 @@ def _bridge_summary(bridge, data):
     out["placed_nodes"] = [int(n) for n in bridge.get("placed_nodes", [])]
     # nodes of no face element (of edge or vertex elements alone), by the file's node ids, with
     # the vertex, edge or face each lies on and the distance to it
-    for key in ("loose_nodes", "loose_on", "loose_distance"):
+    # and the faces' trimming curves that lie off their 3D edges (FreeCAD's names, the gaps)
+    for key in ("loose_nodes", "loose_on", "loose_distance", "trim_gaps"):
         if key in bridge:
             out[key] = list(bridge[key])
     return out

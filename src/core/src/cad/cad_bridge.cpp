@@ -8,6 +8,7 @@
 #include <Extrema_ExtPC.hxx>
 #include <Extrema_GenLocateExtPS.hxx>
 #include <Extrema_POnSurf.hxx>
+#include <Geom2d_Curve.hxx>
 #include <GeomAdaptor_Surface.hxx>
 #include <Geom_Surface.hxx>
 #include <Precision.hxx>
@@ -2345,6 +2346,57 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
       M.faceOrientation[fi] = -1;
       report_.faceFlipped[fi] = 1;
       report_.flippedFaces.push_back(f);
+    }
+  }
+
+  // ---- trimming curves off their 3D edges (imported B-reps) ----------------------------------
+  // On the faces carrying elements: the largest distance from the surface's image of each
+  // edge's pcurve to the edge's 3D curve (sampled). Beyond twice the edge's tolerance (and
+  // 1e-6·diag) the face's 2D domain, which the nodes are kept in, is not the face its 3D
+  // edges bound: a node moved near such an edge may end up that far outside them.
+  {
+    std::vector<std::pair<int, int>> uses;  // (face, edge)
+    for (int f = 0; f < NF; ++f)
+      if (report_.faceElements[static_cast<std::size_t>(f)] > 0)
+        for (int e : S.faceEdges(f))
+          if (!S.isDegeneratedEdge(e) && !S.isSeam(e, f)) uses.emplace_back(f, e);
+    std::vector<double> gap(uses.size(), 0.0);
+    parallelFor(uses.size(), projectors, [&](std::size_t k, Projector& pr) {
+      const auto [f, e] = uses[k];
+      double a = 0.0, b = 0.0;
+      const Handle(Geom2d_Curve) pc = BRep_Tool::CurveOnSurface(S.edge(e), S.face(f), a, b);
+      const Handle(Geom_Surface) gs = BRep_Tool::Surface(S.face(f));
+      if (pc.IsNull() || gs.IsNull()) return;
+      constexpr int kSamples = 7;
+      for (int i = 0; i < kSamples; ++i) {
+        try {
+          const gp_Pnt2d uv = pc->Value(a + (b - a) * (i + 0.5) / kSamples);
+          const gp_Pnt p = gs->Value(uv.X(), uv.Y());
+          double t = 0.0;
+          gap[k] = std::max(gap[k], pr.edgeDistance(e, Vec3(p.X(), p.Y(), p.Z()), &t));
+        } catch (const Standard_Failure&) {
+        }
+      }
+    });
+    std::size_t worst = 0;
+    for (std::size_t k = 0; k < uses.size(); ++k) {
+      const double tolE = BRep_Tool::Tolerance(S.edge(uses[k].second));
+      if (!(gap[k] > std::max(2.0 * tolE, 1e-6 * diag))) continue;
+      report_.trimGaps.push_back({uses[k].first, uses[k].second, gap[k], tolE});
+      if (gap[k] > report_.trimGaps[worst].gap) worst = report_.trimGaps.size() - 1;
+    }
+    if (!report_.trimGaps.empty()) {
+      const BridgeReport::TrimGap& w = report_.trimGaps[worst];
+      std::ostringstream os;
+      os << report_.trimGaps.size()
+         << " trimming curve(s) of faces with elements lie off their 3D edges by more than twice "
+            "the edges' tolerance (an imported B-rep whose 2D and 3D boundaries disagree): up "
+            "to "
+         << w.gap << " (" << w.gap / diag << " x diagonal), the trimming curve of edge " << w.edge
+         << " on face " << w.face << " (tolerance " << w.tolerance
+         << "). Nodes are kept inside the 2D boundary: one moved next to such an edge may end "
+            "up that far outside the face's 3D edges";
+      report_.warnings.push_back(os.str());
     }
   }
 

@@ -172,6 +172,16 @@ struct BridgeReport {
   std::vector<NodeClass> looseClass;
   std::vector<std::int32_t> looseEntity;
   std::vector<double> looseDistance;
+  /// Trimming curves (pcurves) of the faces carrying elements whose image on the face's surface
+  /// lies off the edge's 3D curve by more than twice the edge's tolerance (and 1e-6·diag),
+  /// sampled at 7 points: an imported B-rep whose 2D and 3D boundaries disagree. Nodes are kept
+  /// inside the 2D boundary, so a node moved next to such an edge may end up `gap` outside the
+  /// face's 3D edges; a warning says so.
+  struct TrimGap {
+    int face = -1, edge = -1;
+    double gap = 0.0, tolerance = 0.0;
+  };
+  std::vector<TrimGap> trimGaps;
   // ---- totals -----------------------------------------------------------------------------
   double tolerance = 0.0;    ///< the tolerance used
   double maxDistance = 0.0;  ///< largest node distance to the shape
