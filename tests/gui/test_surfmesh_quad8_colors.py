@@ -33,6 +33,7 @@ try:
     import FreeCAD
     import FreeCADGui
     import Fem
+    import Part
 
     assert FreeCAD.GuiUp
     FreeCAD.ParamGet("User parameter:BaseApp/Preferences/View").SetBool(
@@ -46,7 +47,8 @@ try:
     doc = ex.setup()
     doc.recompute()
     mesh = [o for o in doc.Objects if o.isDerivedFrom("Fem::FemMeshObject")][0]
-    part = [o for o in doc.Objects if hasattr(o, "Shape") and o.Shape.Faces and o is not mesh][0]
+    part = [o for o in doc.Objects if isinstance(getattr(o, "Shape", None), Part.Shape)
+            and o.Shape.Faces and o is not mesh][0]  # (in 1.x some FEM objects' Shape is none)
     fem = mesh.FemMesh
     side = (set(fem.getElementNodes(1)[4:]) & set(fem.getElementNodes(4)[4:])).pop()
     bent = Fem.FemMesh()
