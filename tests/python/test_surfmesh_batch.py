@@ -290,6 +290,7 @@ class TestSurfmeshBatch(unittest.TestCase):
             self.assertEqual(rec["before"], single_rep["before"])
             self.assertEqual(rec["after"], single_rep["after"])
             self.assertEqual(rec["after"]["tangled"], 0)
+            self.assertEqual(rec["after"]["invalid"], 0)
             # an independent look at the output: no triangle flipped against the torus normal
             xyz, tris = msh_nodes_and_triangles(rec["output"])
             q, tangled = T.reference_tri_quality(xyz, tris, self.face)

@@ -240,6 +240,15 @@ def read_results(path):
     return done
 
 
+def _invalid(stats):
+    """"N invalid (T tangled, A standing across)" of a report's statistics (older reports:
+    "T tangled")."""
+    if "invalid" in stats:
+        return (f"{stats['invalid']} invalid ({stats.get('tangled')} tangled, "
+                f"{stats.get('across', 0)} standing across)")
+    return f"{stats.get('tangled')} tangled"
+
+
 class _Progress:
     """A bar on a terminal (stderr), a line per row otherwise (stdout)."""
 
@@ -289,11 +298,11 @@ class _Progress:
                 msg = f"[{n}/{self.total}] {rec['id']}: {rec['status']}"
                 if rec["status"] == "ok" and rec.get("after"):
                     a, b = rec["after"], rec.get("before") or {}
-                    msg += (f", tangled {b.get('tangled')} -> {a.get('tangled')}, "
+                    msg += (f", {_invalid(b)} -> {_invalid(a)}, "
                             f"min {b.get('min', float('nan')):.3g} -> {a.get('min', float('nan')):.3g}")
                 elif rec["status"] == "ok" and rec.get("before"):
                     b = rec["before"]
-                    msg += f", tangled {b.get('tangled')}, min {b.get('min', float('nan')):.3g}"
+                    msg += f", {_invalid(b)}, min {b.get('min', float('nan')):.3g}"
                 elif rec.get("error"):
                     msg += f": {rec['error']}"
                 self.stream.write(f"{msg} ({rec.get('seconds', 0):.1f} s)\n")
