@@ -57,6 +57,24 @@ def set_mesh_shape(mesh_obj, shape_obj):
     return name
 
 
+#: The properties a FEM mesh view keeps its colors in on FreeCAD 1.x (0.20 has none of them:
+#: its colors are no properties).
+FEM_COLOR_PROPERTIES = ("ColorMode", "ElementColorArray", "NodeColorArray")
+
+
+def _colors_leave_document_unmodified(view_obj):
+    """On 1.x a FEM view's colors are view properties: changing them would mark the document
+    modified, although they are only shown (SurfMesh keeps the qualities in the object's own
+    properties and shows them again on opening). Their NoModify status says so."""
+    props = getattr(view_obj, "PropertiesList", [])
+    for name in FEM_COLOR_PROPERTIES:
+        if name in props:
+            try:
+                view_obj.setPropertyStatus(name, "NoModify")
+            except Exception:  # noqa: BLE001  (a FreeCAD without that status: modified)
+                pass
+
+
 def show_fem_colors(view_obj, by: str):
     """After ElementColor / NodeColor were set on a FEM mesh view: FreeCAD 1.x draws them only
     when ``ColorMode`` says so (``by`` is "element" or "node"); 0.20 has no such property."""
@@ -71,21 +89,27 @@ def hide_fem_colors(view_obj):
 
 
 def set_fem_element_colors(view_obj, colors: dict):
-    """Colors a FEM mesh view per element ({element id: (r, g, b)}), shown on every release."""
+    """Colors a FEM mesh view per element ({element id: (r, g, b)}), shown on every release,
+    without marking the document modified."""
+    _colors_leave_document_unmodified(view_obj)
     view_obj.resetNodeColor()
     view_obj.ElementColor = colors
     show_fem_colors(view_obj, "element")
 
 
 def set_fem_node_colors(view_obj, colors: dict):
-    """Colors a FEM mesh view per node ({node id: (r, g, b)}), shown on every release."""
+    """Colors a FEM mesh view per node ({node id: (r, g, b)}), shown on every release, without
+    marking the document modified."""
+    _colors_leave_document_unmodified(view_obj)
     view_obj.ElementColor = {}
     view_obj.NodeColor = colors
     show_fem_colors(view_obj, "node")
 
 
 def clear_fem_colors(view_obj):
-    """A FEM mesh view back to its one color, on every release."""
+    """A FEM mesh view back to its one color, on every release, without marking the document
+    modified."""
+    _colors_leave_document_unmodified(view_obj)
     view_obj.ElementColor = {}
     view_obj.resetNodeColor()
     hide_fem_colors(view_obj)
