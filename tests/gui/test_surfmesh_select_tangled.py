@@ -114,6 +114,9 @@ try:
                     props[p] = "?"
             vo = o.ViewObject
             vprops = {p: repr(getattr(vo, p)) for p in vo.PropertiesList if p != "Proxy"}
+            # a value whose repr is its address (1.x's ShapeMaterial) says nothing of a change
+            props = {k: v for k, v in props.items() if " at 0x" not in v}
+            vprops = {k: v for k, v in vprops.items() if " at 0x" not in v}
             objs[o.Name] = (props, vprops, list(o.State))
         return {
             "objects": objs,
@@ -125,6 +128,17 @@ try:
             "clean": fem_state(clean),
             "tri": T.mesh_snapshot(tri.Mesh),
         }
+
+    def snapshot_diff(a, b):
+        """What differs between two snapshots (for the message of a failed check)."""
+        out = [k for k in a if k != "objects" and a[k] != b.get(k)]
+        for name, (props, vprops, state) in a["objects"].items():
+            p2, v2, s2 = b["objects"].get(name, ({}, {}, []))
+            out += [f"{name}.{k}" for k in props if props[k] != p2.get(k)]
+            out += [f"{name}.ViewObject.{k}" for k in vprops if vprops[k] != v2.get(k)]
+            if state != s2:
+                out.append(f"{name}.State {state} -> {s2}")
+        return out
 
     def baseline():
         """The state the command must leave as it is, after the test's own changes (which
@@ -209,8 +223,9 @@ try:
     img1 = shot("select_tangled_fem.png")
     n1 = outline_pixels(img1)
     check(n1 > 50, f"FEM: outlines visible in the view ({n1} pixels)")
-    check(snapshot() == before, "FEM: document unchanged (objects, properties, nodes, undo, "
-                                "modified flag)")
+    now = snapshot()
+    check(now == before, "FEM: document unchanged (objects, properties, nodes, undo, "
+                         f"modified flag): {snapshot_diff(before, now)}")
     fem.ViewObject.Visibility = False  # the outlines are drawn with the mesh only
     FreeCADGui.updateGui()
     n_hidden = outline_pixels(shot("select_tangled_fem_hidden.png"))
