@@ -37,6 +37,14 @@ case "$ROOT/" in
   "$REPO"/*) echo "scripts/debian-root.sh: $ROOTS is inside the repository; choose another SURFMESH_ROOTS_DIR" >&2; exit 2 ;;
 esac
 
+# One run per root at a time (two would stack their mounts and race on the packages).
+mkdir -p "$ROOTS"
+exec 9>"$ROOTS/.$SUITE.lock"
+if ! flock -n 9; then
+  say "another run uses this root: waiting for it"
+  flock 9
+fi
+
 # ---- 1. the root -------------------------------------------------------------------------
 if [ ! -x "$ROOT/usr/bin/apt-get" ] || [ ! -f "$ROOT/.surfmesh-root-ok" ]; then
   command -v debootstrap >/dev/null 2>&1 || {
