@@ -95,6 +95,42 @@ class TestCompat(unittest.TestCase):
         self.assertGreater(gm.FemMesh.FaceCount, 12)
         self.assertEqual(gm.FemMesh.VolumeCount, 0)
 
+    def test_view_material_flattened_and_restored(self):
+        """1.x's default FEM view material lightens per-node colors (ambient 0.33, specular
+        0.53): flattened while SurfMesh's colors show, given back after; 0.20's views have no
+        ShapeAppearance and are left alone."""
+        from SurfMesh.app import compat
+
+        class View:
+            def __init__(self):
+                m = FreeCAD.Material()
+                m.AmbientColor = (0.333, 0.333, 0.333)
+                m.SpecularColor = (0.533, 0.533, 0.533)
+                m.DiffuseColor = (1.0, 0.7, 0.0)
+                self.PropertiesList = ["ShapeAppearance"]
+                self.ShapeAppearance = [m]
+                self.status = []
+
+            def setPropertyStatus(self, name, status):
+                self.status.append((name, status))
+
+        v = View()
+        saved = compat.flatten_view_material(v)
+        m = v.ShapeAppearance[0]
+        self.assertEqual(tuple(m.AmbientColor)[:3], (0.0, 0.0, 0.0))
+        self.assertEqual(tuple(m.SpecularColor)[:3], (0.0, 0.0, 0.0))
+        self.assertAlmostEqual(tuple(m.DiffuseColor)[1], 0.7, places=6)  # its own color stays
+        self.assertIn(("ShapeAppearance", "NoModify"), v.status)
+        self.assertIsNone(compat.flatten_view_material(v))  # already flat: nothing to record
+        compat.restore_view_material(v, saved)
+        self.assertAlmostEqual(tuple(v.ShapeAppearance[0].AmbientColor)[0], 0.333, places=6)
+        self.assertAlmostEqual(tuple(v.ShapeAppearance[0].SpecularColor)[0], 0.533, places=6)
+
+        class OldView:
+            PropertiesList = []
+
+        self.assertIsNone(compat.flatten_view_material(OldView()))
+
     def test_fem_color_mode(self):
         """1.x draws a FEM view's colors only in the ColorMode they were set for; a view without
         that property (0.20) is left alone. (The GUI suite draws them for real.)"""

@@ -75,6 +75,49 @@ def _colors_leave_document_unmodified(view_obj):
                 pass
 
 
+#: The parts of a view's material that light its colors up: FreeCAD 1.x's default appearance of
+#: a FEM mesh view has an ambient 0.33 and a specular 0.53, which wash out per-node and
+#: per-element colors (a pure red drawn as (1, 0.6, 0.6), far from the legend's red).
+_LIGHTING = ("AmbientColor", "SpecularColor", "EmissiveColor")
+
+
+def flatten_view_material(view_obj):
+    """Takes the ambient, specular and emissive parts out of a view's ShapeAppearance (1.x) so
+    that the colors it shows are drawn as given; returns what they were, as text for
+    restore_view_material, or None when there is nothing to change (0.20: no ShapeAppearance;
+    already flat)."""
+    if "ShapeAppearance" not in getattr(view_obj, "PropertiesList", []):
+        return None
+    mats = list(view_obj.ShapeAppearance)
+    if not mats:
+        return None
+    black = (0.0, 0.0, 0.0, 0.0)
+    old = [tuple(getattr(mats[0], k)) for k in _LIGHTING]
+    if all(tuple(c[:3]) == black[:3] for c in old):
+        return None
+    for m in mats:
+        for k in _LIGHTING:
+            setattr(m, k, black)
+    try:
+        view_obj.setPropertyStatus("ShapeAppearance", "NoModify")
+    except Exception:  # noqa: BLE001
+        pass
+    view_obj.ShapeAppearance = mats
+    return ";".join(",".join(repr(float(x)) for x in c) for c in old)
+
+
+def restore_view_material(view_obj, saved: str):
+    """Gives a view's ShapeAppearance back the parts flatten_view_material took out."""
+    if not saved or "ShapeAppearance" not in getattr(view_obj, "PropertiesList", []):
+        return
+    colors = [tuple(float(x) for x in c.split(",")) for c in saved.split(";")]
+    mats = list(view_obj.ShapeAppearance)
+    for m in mats:
+        for k, c in zip(_LIGHTING, colors):
+            setattr(m, k, c)
+    view_obj.ShapeAppearance = mats
+
+
 def show_fem_colors(view_obj, by: str):
     """After ElementColor / NodeColor were set on a FEM mesh view: FreeCAD 1.x draws them only
     when ``ColorMode`` says so (``by`` is "element" or "node"); 0.20 has no such property."""

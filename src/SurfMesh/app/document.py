@@ -164,6 +164,7 @@ def apply_colors(obj, report=None):
         vo.Coloring = True
         return rgb
     _color_fem_view(vo, data, rgb, quality, tangled, skipped)
+    _true_colors(obj, vo)
     _fem_view_colored(obj, True)
     return rgb
 
@@ -203,6 +204,7 @@ def show_stored_colors(obj):
         return False
     _color_fem_view(vo, data, coloring.quality_rgb(quality, tangled, skipped), quality,
                     tangled, skipped)
+    _true_colors(obj, vo)
     _fem_view_colored(obj, True)
     return True
 
@@ -222,6 +224,7 @@ def _show_stored_metric_colors(obj, vo):
         node_rgb[data.conn] = np.repeat(rgb, np.diff(data.offsets), axis=0)
         compat.set_fem_node_colors(
             vo, {int(n): tuple(map(float, c)) for n, c in zip(data.node_ids, node_rgb)})
+    _true_colors(obj, vo)
     _fem_view_colored(obj, True)
     return True
 
@@ -266,6 +269,23 @@ def sync_view_colors(doc):
 _VIEW_SAVED = "SurfMeshViewSaved"
 
 
+def _true_colors(obj, vo):
+    """A FEM view draws its element or node colors as given (FreeCAD 1.x's default material
+    lightens them, see compat.flatten_view_material); the material's own parts are recorded on
+    the object the first time, for _restore_view."""
+    old = compat.flatten_view_material(vo)
+    if old is None:
+        return
+    saved = dict(getattr(obj, _VIEW_SAVED)) if _VIEW_SAVED in obj.PropertiesList else {}
+    if "ShapeAppearance" not in saved:
+        saved["ShapeAppearance"] = old
+        if _VIEW_SAVED not in obj.PropertiesList:
+            obj.addProperty("App::PropertyMap", _VIEW_SAVED, GROUP,
+                            "The view's own settings, given back when the colors are cleared")
+            obj.setEditorMode(_VIEW_SAVED, 2)
+        setattr(obj, _VIEW_SAVED, saved)
+
+
 def _set_view(obj, vo, prop, value):
     """Sets view property ``prop`` while SurfMesh's colors are shown, recording the view's own
     value on the object (hidden map SurfMeshViewSaved) the first time, for _restore_view."""
@@ -289,7 +309,9 @@ def _restore_view(obj, vo, props=None):
     saved = dict(getattr(obj, _VIEW_SAVED))
     for prop in list(saved) if props is None else [p for p in props if p in saved]:
         value = saved.pop(prop)
-        if prop in vo.PropertiesList:
+        if prop == "ShapeAppearance":
+            compat.restore_view_material(vo, value)
+        elif prop in vo.PropertiesList:
             setattr(vo, prop, value == "True" if prop == "BackfaceCulling" else value)
     if saved:
         setattr(obj, _VIEW_SAVED, saved)
