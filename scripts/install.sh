@@ -73,6 +73,12 @@ else
     # work without them); if FreeCAD turns out broken without them, install them below.
     apt_install --no-install-recommends "${missing[@]}"
   fi
+  # FreeCAD built with Qt 6 (Debian sid) draws SVG icons, SurfMesh's included, only with
+  # Qt 6's SVG plugins, which are a recommendation of its packages, not a dependency.
+  if is_installed libqt6core6t64 && ! is_installed qt6-svg-plugins; then
+    say "installing qt6-svg-plugins (SVG icons in a Qt 6 FreeCAD)"
+    apt_install --no-install-recommends qt6-svg-plugins || say "  (not available here)"
+  fi
   if ! freecad_works; then
     say "freecadcmd cannot import FreeCAD/Part/Mesh/Fem: reinstalling freecad with recommends"
     "${SUDO[@]}" env DEBIAN_FRONTEND=noninteractive apt-get update -q

@@ -20,7 +20,7 @@ import sys
 import traceback
 
 sys.path.insert(0, os.path.join(os.environ.get("SURFMESH_REPO", os.getcwd()), "tests", "gui"))
-from gui_testing import check, finish, MessageBoxCloser  # noqa: E402
+from gui_testing import check, finish, MessageBoxCloser, show_task_panel  # noqa: E402
 
 code = 1
 
@@ -83,6 +83,8 @@ try:
         if shape_obj is not None:
             FreeCADGui.Selection.addSelection(shape_obj)
         FreeCADGui.runCommand("SurfMesh_Optimize")
+        FreeCADGui.updateGui()
+        show_task_panel(mw)
         FreeCADGui.updateGui()
         form = panel_form()
         check(form is not None and FreeCADGui.Control.activeDialog(),

@@ -131,6 +131,19 @@ class TestCompat(unittest.TestCase):
 
         self.assertIsNone(compat.flatten_view_material(OldView()))
 
+    def test_qt_flags(self):
+        from SurfMesh.app import compat
+
+        self.assertEqual(compat.qt_flags(0x400 | 0x400000), 0x400400)
+
+        class Flag:  # PySide6's enums: no int(), a value
+            value = 0x400400
+
+            def __int__(self):
+                raise TypeError("int() argument must be ... not 'StandardButton'")
+
+        self.assertEqual(compat.qt_flags(Flag()), 0x400400)
+
     def test_fem_color_mode(self):
         """1.x draws a FEM view's colors only in the ColorMode they were set for; a view without
         that property (0.20) is left alone. (The GUI suite draws them for real.)"""

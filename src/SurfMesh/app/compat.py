@@ -75,6 +75,16 @@ def _colors_leave_document_unmodified(view_obj):
                 pass
 
 
+def qt_flags(value) -> int:
+    """The integer of a combination of Qt flags (a task panel's standard buttons): PySide2
+    (FreeCAD 0.20, 1.0) converts its flags with int(); PySide6's (1.1) are enums whose number
+    is their value."""
+    try:
+        return int(value)
+    except TypeError:
+        return int(value.value)
+
+
 #: The parts of a view's material that light its colors up: FreeCAD 1.x's default appearance of
 #: a FEM mesh view has an ambient 0.33 and a specular 0.53, which wash out per-node and
 #: per-element colors (a pure red drawn as (1, 0.6, 0.6), far from the legend's red).

@@ -270,7 +270,7 @@ _VIEW_SAVED = "SurfMeshViewSaved"
 
 
 def _true_colors(obj, vo):
-    """A FEM view draws its element or node colors as given (FreeCAD 1.x's default material
+    """A view draws its element or node colors as given (FreeCAD 1.x's default material
     lightens them, see compat.flatten_view_material); the material's own parts are recorded on
     the object the first time, for _restore_view."""
     old = compat.flatten_view_material(vo)
@@ -330,6 +330,7 @@ def _show_colors_in_view(obj, vo, kind, tangled):
     The view's own settings are given back by clear_colors (and the back-face one by colors
     without tangled elements)."""
     _set_view(obj, vo, "SelectionStyle", "BoundBox")
+    _true_colors(obj, vo)  # FreeCAD 1.x's default material lightens colors (Mesh and FEM)
     back = "BackfaceCulling" if kind == "fem" else "Lighting"
     if tangled:
         _set_view(obj, vo, back, False if kind == "fem" else "Two side")

@@ -22,7 +22,7 @@ class OptimizeCommand:
         }
 
     def IsActive(self):
-        return selection.one_mesh_selected() and FreeCADGui.Control.activeDialog() is False
+        return selection.one_mesh_selected() and not FreeCADGui.Control.activeDialog()
 
     def Activated(self):
         mesh, shape = selection.selected_mesh_or_say()

@@ -18,7 +18,7 @@ import FreeCADGui
 from PySide import QtCore, QtGui
 
 from SurfMesh import paths
-from SurfMesh.app import api, document, progress, reports
+from SurfMesh.app import api, compat, document, progress, reports
 from SurfMesh.gui import preferences, runner, selection
 
 
@@ -278,7 +278,7 @@ class OptimizePanel:
 
     # ---- task dialog protocol --------------------------------------------------------------
     def getStandardButtons(self):
-        return int(QtGui.QDialogButtonBox.Ok | QtGui.QDialogButtonBox.Cancel)
+        return compat.qt_flags(QtGui.QDialogButtonBox.Ok | QtGui.QDialogButtonBox.Cancel)
 
     def _gone(self):
         """What of the panel's mesh and shape was deleted (or its document closed), or None."""
