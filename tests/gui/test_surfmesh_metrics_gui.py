@@ -26,7 +26,8 @@ try:
     assert FreeCAD.GuiUp
     FreeCAD.ParamGet("User parameter:BaseApp/Preferences/View").SetBool(
         "UseNavigationAnimations", False)
-    out = os.environ.get("SURFMESH_TEST_OUTPUT_DIR", ".")
+    out = os.environ.get("SURFMESH_TEST_OUTPUT_DIR") or os.path.abspath("build/test-output")
+    os.makedirs(out, exist_ok=True)
     os.makedirs(out, exist_ok=True)
     FreeCADGui.activateWorkbench("SurfMeshWorkbench")
     mw = FreeCADGui.getMainWindow()
