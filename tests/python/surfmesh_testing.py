@@ -165,6 +165,20 @@ def distance_to_shape(shape, points):
                      for p in points])
 
 
+def perturbed_on_torus(points, seed, du, dv, R=10.0, r=4.0):
+    """Points of the torus of radii R, r around z moved in its own angles (closed form, not a
+    face's parameters): u by ``du`` and v by ``dv`` times standard normal draws of a generator
+    seeded with ``seed`` (all u draws first, then all v). Used to tangle test meshes."""
+    xyz = np.asarray(points, dtype=float).reshape(-1, 3)
+    u = np.arctan2(xyz[:, 1], xyz[:, 0])
+    v = np.arctan2(xyz[:, 2], np.hypot(xyz[:, 0], xyz[:, 1]) - R)
+    rng = np.random.default_rng(seed)
+    u = u + du * rng.standard_normal(len(u))
+    v = v + dv * rng.standard_normal(len(v))
+    return np.stack([(R + r * np.cos(v)) * np.cos(u), (R + r * np.cos(v)) * np.sin(u),
+                     r * np.sin(v)], axis=1)
+
+
 def torus_distance(points, R=10.0, r=4.0):
     """Exact distance of points to the torus of radii R, r around z (closed form)."""
     p = np.asarray(points, dtype=float)

@@ -128,15 +128,8 @@ class HighOrderGmshFiles(unittest.TestCase):
                 gmsh.model.mesh.setOrder(order)
             # tangle: move the face's own nodes (not those on the seam circles) in (u, v)
             tags, coords, _ = gmsh.model.mesh.getNodes(2, -1, includeBoundary=False)
-            xyz = np.asarray(coords).reshape(-1, 3)
-            u = np.arctan2(xyz[:, 1], xyz[:, 0])
-            v = np.arctan2(xyz[:, 2], np.hypot(xyz[:, 0], xyz[:, 1]) - R)
-            rng = np.random.default_rng(11)
             amp = 0.35 / order**2  # high-order nodes are far more sensitive
-            u = u + amp * 0.3 * rng.standard_normal(len(u))
-            v = v + amp * rng.standard_normal(len(v))
-            new = np.stack([(R + r * np.cos(v)) * np.cos(u), (R + r * np.cos(v)) * np.sin(u),
-                            r * np.sin(v)], axis=1)
+            new = T.perturbed_on_torus(coords, 11, amp * 0.3, amp, R, r)
             for t, p in zip(tags, new):
                 gmsh.model.mesh.setNode(int(t), p.tolist(), [])
             gmsh.option.setNumber("Mesh.SaveAll", 1)

@@ -38,13 +38,7 @@ def tangled_torus_mesh(shape, seed):
     m = MeshPart.meshFromShape(Shape=shape, MaxLength=1.5)
     xyz = np.array([[p.x, p.y, p.z] for p in m.Points])
     tris = np.array([f.PointIndices for f in m.Facets], dtype=np.int64)
-    u = np.arctan2(xyz[:, 1], xyz[:, 0])
-    v = np.arctan2(xyz[:, 2], np.hypot(xyz[:, 0], xyz[:, 1]) - R)
-    rng = np.random.default_rng(seed)
-    u = u + 0.04 * rng.standard_normal(len(u))
-    v = v + 0.12 * rng.standard_normal(len(v))
-    new = np.stack([(R + r * np.cos(v)) * np.cos(u), (R + r * np.cos(v)) * np.sin(u),
-                    r * np.sin(v)], axis=1)
+    new = T.perturbed_on_torus(xyz, seed, 0.04, 0.12, R, r)
     return conversion.from_arrays(new, tris), new, tris
 
 

@@ -119,14 +119,7 @@ class TestSurfmeshBatch(unittest.TestCase):
             gmsh.model.mesh.generate(2)
             # tangle it: the free nodes moved in (u, v) on the torus, with a fixed seed
             tags, coords, _ = gmsh.model.mesh.getNodes(2, -1, includeBoundary=False)
-            xyz = np.asarray(coords).reshape(-1, 3)
-            u = np.arctan2(xyz[:, 1], xyz[:, 0])
-            v = np.arctan2(xyz[:, 2], np.hypot(xyz[:, 0], xyz[:, 1]) - R)
-            rng = np.random.default_rng(seed)
-            u = u + 0.045 * rng.standard_normal(len(u))
-            v = v + 0.13 * rng.standard_normal(len(v))
-            new = np.stack([(R + r * np.cos(v)) * np.cos(u), (R + r * np.cos(v)) * np.sin(u),
-                            r * np.sin(v)], axis=1)
+            new = T.perturbed_on_torus(coords, seed, 0.045, 0.13, R, r)
             for t, p in zip(tags, new):
                 gmsh.model.mesh.setNode(int(t), p.tolist(), [])
             gmsh.option.setNumber("Mesh.SaveAll", 1)
