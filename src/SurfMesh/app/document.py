@@ -164,7 +164,6 @@ def apply_colors(obj, report=None):
         vo.Coloring = True
         return rgb
     _color_fem_view(vo, data, rgb, quality, tangled, skipped)
-    _true_colors(obj, vo)
     _fem_view_colored(obj, True)
     return rgb
 

@@ -208,7 +208,6 @@ def color_by_metric(obj, name, threshold=None, shape=None, values=None):
                 vo.Coloring = True
             else:
                 _color_fem_by_metric(vo, data, name, values, t, rgb)
-                document._true_colors(obj, vo)
                 document._fem_view_colored(obj, True)
     except Exception:
         doc.abortTransaction()

@@ -110,13 +110,13 @@ def _safe(text):
     return re.sub(r"[^A-Za-z0-9._-]+", "_", text).strip("._") or "row"
 
 
-def read_manifest(path):
-    """[(line number, {column: value})] of the manifest's data rows. Raises ManifestError when
-    the file cannot be read, has no ``shape``/``mesh`` column, an unknown column or ids twice."""
+def read_manifest(path, columns):
+    """[(line number, {column: value})] of the manifest's data rows; ``columns`` are the
+    commands' options (option_columns). Raises ManifestError when the file cannot be read, has
+    no ``shape``/``mesh`` column, an unknown column or ids twice."""
     if not os.path.isfile(path):
         raise ManifestError(f"manifest {path} does not exist")
-    parsers = command_parsers()
-    known = set(BASE_COLUMNS) | set(option_columns(parsers))
+    known = set(BASE_COLUMNS) | set(columns)
     try:
         with open(path, newline="", encoding="utf-8-sig") as fh:
             lines = [(n, ln) for n, ln in enumerate(fh, 1)
@@ -170,7 +170,7 @@ def _abs(path, base):
     return os.path.normpath(path if os.path.isabs(path) else os.path.join(base, path))
 
 
-def make_task(line, row, *, manifest_dir, out_dir, program, timeout, threads, parsers):
+def make_task(line, row, *, manifest_dir, out_dir, program, timeout, threads, parsers, cols):
     """The task of one manifest row for :func:`surfmesh_rowrun.run_row`. Raises _RowError for a row
     whose options the command refuses (the record of that row says why)."""
     rid = row["id"]
@@ -202,7 +202,6 @@ def make_task(line, row, *, manifest_dir, out_dir, program, timeout, threads, pa
         os.makedirs(os.path.dirname(output), exist_ok=True)
         argv += ["-o", output]
     argv += ["--report", report]
-    cols = option_columns(parsers)
     for col, value in row.items():
         if col in BASE_COLUMNS or value == "":
             continue
@@ -422,7 +421,9 @@ def run(argv, program):
         raise ManifestError("--jobs sets the local pool: with --dask, the cluster's workers "
                             "decide how many rows run at once")
     manifest = os.path.abspath(args.manifest)
-    rows = read_manifest(manifest)
+    parsers = command_parsers()
+    cols = option_columns(parsers)
+    rows = read_manifest(manifest, cols)
     out_dir = os.path.abspath(args.out)
     os.makedirs(out_dir, exist_ok=True)
     results = os.path.join(out_dir, "results.jsonl")
@@ -438,7 +439,6 @@ def run(argv, program):
     jobs = args.jobs or cores
     # The optimizer's result does not depend on its thread count: share the cores out.
     threads = None if args.dask else max(1, cores // jobs)
-    parsers = command_parsers()
     for sub in ("reports", "logs"):
         os.makedirs(os.path.join(out_dir, sub), exist_ok=True)
     tasks, bad = [], []
@@ -449,7 +449,7 @@ def run(argv, program):
         try:
             tasks.append(make_task(line, row, manifest_dir=mdir,
                                    out_dir=out_dir, program=program, timeout=args.timeout,
-                                   threads=threads, parsers=parsers))
+                                   threads=threads, parsers=parsers, cols=cols))
         except _RowError as exc:
             bad.append(_failed({"id": row["id"], "row": line,
                                 "shape": _abs(row.get("shape"), mdir),

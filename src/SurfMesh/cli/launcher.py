@@ -56,7 +56,7 @@ def _import_freecad():
     # sys.path, not those of its resource folder (Debian: /usr/share/freecad/Mod), which hold the
     # workbenches' Python parts: FEM's readers (Fem.read of an .inp asks feminout), its objects,
     # Gmsh tools. freecadcmd puts every one of them there; so does this.
-    for base in {FreeCAD.getResourceDir(), FreeCAD.getHomePath()}:
+    for base in dict.fromkeys((FreeCAD.getResourceDir(), FreeCAD.getHomePath())):
         mods = os.path.join(base, "Mod")
         if not os.path.isdir(mods):
             continue
