@@ -160,7 +160,16 @@ try:
     FreeCADGui.updateGui()
     new = doc.getObject("TorusMesh_optimized")
     check(new is not None, "OK after the cancellations creates TorusMesh_optimized")
-    check(not FreeCADGui.Control.activeDialog(), "panel closed after a successful run")
+    check(panel_form() is form and FreeCADGui.Control.activeDialog(),
+          "the panel stays open after a successful run, with its outcome")
+    check(form.findChild(QtGui.QGroupBox, "result").isVisible(), "its Result table shown")
+    check(ok.text() == "Close" and ok.isVisible(), f"OK now reads Close ({ok.text()!r})")
+    cancel_after = task_button(QtGui.QDialogButtonBox.Cancel)
+    check(cancel_after is None or not cancel_after.isVisible(), "Cancel gone after the run")
+    ok.click()  # Close
+    FreeCADGui.updateGui()
+    check(not FreeCADGui.Control.activeDialog(), "Close closes the panel")
+    check(doc.getObject("TorusMesh_optimized") is new, "the result stays")
     check(doc.UndoCount == before["undo"][0] + 1 and doc.UndoNames[0] == "SurfMesh optimize",
           "one undo step 'SurfMesh optimize'")
     sweeps = int(new.SurfMeshRun["sweeps"])
@@ -223,6 +232,9 @@ try:
     check(new is not None and SurfMesh.stats_of(new)["tangled"] == 0,
           "OK after the fault completes the run in the same panel")
     check(doc.UndoCount == 1, "exactly one undo step after the faults and the good run")
+    check(ok.text() == "Close", "OK reads Close after the good run")
+    ok.click()
+    FreeCADGui.updateGui()
     check(not FreeCADGui.Control.activeDialog(), "panel closed")
 
     # The other commands still work after all this.

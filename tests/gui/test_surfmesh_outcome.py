@@ -6,10 +6,14 @@ Checks, in the real FreeCAD GUI on a tangled Gmsh FEM mesh of a torus:
   its pixels equal those of resources/icons/preferences-surfmesh.svg;
 - the Optimize panel names measures and edge modes in words (no raw "oddy"/"slide"), gives the
   distance to the part in mm, keeps its expert settings in an "Advanced" group, disables its
-  inputs while a run lasts (and enables them after), and its progress bar ends near 100 %
-  when the run converges long before the sweep limit;
-- after the run: the report view and the status bar say "tangled N → 0, …" with the counts
-  measured independently of the run;
+  inputs while a run lasts, and its progress bar ends near 100 % when the run converges long
+  before the sweep limit;
+- after the run the panel stays open with its outcome: a "Result" table whose before and after
+  cells are the counts and qualities measured independently of the run (the invalid count
+  green at 0), sweeps and time; the result selected; OK reads "Close", Cancel is gone, the
+  inputs keep the run's settings, disabled; a screenshot of the panel shows the green cell;
+  "Close" closes it;
+- the report view and the status bar say "tangled N → 0, …" with the same counts;
 - a run that leaves tangled elements (one sweep) opens a warning dialog that says so, with the
   outcome and the run's warnings as details;
 - the color scale stands on a light panel: on a black screenshot the legend's area is mostly
@@ -144,21 +148,56 @@ try:
         return go
 
     panel._hook = watching_hook
-    enabled_after = []
-    orig_run = panel.run
-
-    def run_and_look():  # the panel closes once the run is applied: look before
-        new = orig_run()
-        enabled_after.append(all(w.isEnabled() for w in panel.inputs))
-        enabled_after.append(panel.status.text())
-        return new
-
-    panel.run = run_and_look
-    check(panel.accept() is True, "the run applies")
+    check(panel.accept() is False and FreeCADGui.Control.activeDialog(),
+          "the run applies and the panel stays open")
     new = doc.getObject("TorusMesh_optimized")
-    check(new is not None, "the optimized mesh exists")
+    check(new is not None and panel.result is new, "the optimized mesh exists")
     check(during and all(d[0] for d in during), "inputs disabled while the run lasts")
-    check(enabled_after[0] is True, "inputs enabled again after it")
+    check(not any(w.isEnabled() for w in panel.inputs) and panel.measure.currentData() ==
+          "shape", "after it the inputs keep the run's settings, disabled")
+    FreeCADGui.updateGui()
+    box = panel.form.findChild(QtGui.QGroupBox, "result")
+    check(box is not None and box.isVisible(), "the panel shows a Result table")
+
+    def cell(name):
+        w = panel.form.findChild(QtGui.QLabel, name)
+        return w.text() if w is not None else None
+
+    after_m = SurfMesh.measure(new, tor)  # measured here, independently of the run
+    counts = {k: (cell("before_" + k), cell("after_" + k)) for k in
+              ("invalid", "tangled", "across")}
+    check(counts["invalid"] == (str(before.stats["invalid"]), "0")
+          and counts["tangled"] == (str(before.stats["tangled"]),
+                                    str(after_m.stats["tangled"]))
+          and counts["across"] == (str(before.stats["across"]), str(after_m.stats["across"]))
+          and after_m.stats["invalid"] == 0,
+          f"its counts are the measured ones (invalid, tangled, across: {counts})")
+    check(cell("before_mean") == reports.format_value(before.stats["mean"])
+          and cell("after_mean") == reports.format_value(after_m.stats["mean"]),
+          f"mean quality {cell('before_mean')} → {cell('after_mean')}")
+    check(cell("after_min") == reports.format_value(after_m.stats["min"]),
+          f"min quality {cell('before_min')} → {cell('after_min')}")
+    check(cell("resultObject") == new.Label and "sweep" in (cell("resultRun") or "")
+          and " s (" in cell("resultRun"), f"with the result's name and {cell('resultRun')!r}")
+    sel = FreeCADGui.Selection.getSelection()
+    check(sel == [new], "the result is selected")
+    check(panel.buttons is not None, "FreeCAD handed the panel its buttons")
+    ok = panel.buttons.button(QtGui.QDialogButtonBox.Ok)
+    cancel = panel.buttons.button(QtGui.QDialogButtonBox.Cancel)
+    check(ok is not None and ok.text() == "Close" and ok.isVisible(), "OK reads Close")
+    check(cancel is None or not cancel.isVisible(), "Cancel is gone (Undo takes the run back)")
+    panel.form.grab().save(os.path.join(out, "gui_outcome_panel_whole.png"))  # (to look at)
+    green = panel.form.findChild(QtGui.QLabel, "after_invalid")
+    shot = os.path.join(out, "gui_outcome_panel.png")
+    green.grab().save(shot)  # the cell as drawn: its text pixels are green
+    img = pixels(shot)
+    ink = img[img.sum(axis=2) < 2.4]  # not the background
+    greenish = ((ink[:, 1] > ink[:, 0] + 0.15) & (ink[:, 1] > ink[:, 2] + 0.15)).mean() \
+        if len(ink) else 0.0
+    check(len(ink) > 20 and greenish > 0.5,
+          f"the 0-invalid cell is drawn green ({greenish:.2f} of {len(ink)} text pixels)")
+    status_text = panel.status.text()
+    check(status_text == f"Done: {new.Label} (below)", f"the status line ({status_text!r})")
     last_sweep, total = during[-1][2], during[-1][3]
     check(last_sweep < total / 2 and during[-1][1] >= 90,
           f"progress ends near 100 % at sweep {last_sweep} of {total} ({during[-1][1]} %; the "
@@ -171,11 +210,12 @@ try:
         before.stats, after.stats, int(run["sweeps"]), float(run["seconds"]), run["reason"])
     check(f"{before.stats['tangled']} tangled" in line and "0 tangled" in line, line)
     check(line in text, f"the report view says what the run did ({line!r})")
-    check(enabled_after[1].startswith(line[len("SurfMesh: "):]),
-          f"so does the panel ({enabled_after[1][:100]!r})")
     # (FreeCAD's status bar elides a long message in its middle: its start is kept)
     check(mw.statusBar().currentMessage().startswith(line[:50]),
           f"so does the status bar ({mw.statusBar().currentMessage()[:100]!r})")
+    check(panel.accept() is True and not FreeCADGui.Control.activeDialog(),
+          "Close closes the panel")
+    check(doc.getObject("TorusMesh_optimized") is new, "and the result stays")
 
     # ---- a run that leaves tangled elements: a warning dialog -------------------------------
     boxes = []
@@ -194,9 +234,13 @@ try:
     FreeCADGui.Control.showDialog(panel2)
     panel2.max_sweeps.setValue(1)
     panel2.monotone.setChecked(True)
-    check(panel2.accept() is True, "a one-sweep run applies")
+    check(panel2.accept() is False and panel2.result is not None, "a one-sweep run applies")
     catcher.stop()
     short = doc.Objects[-1]
+    red = panel2.form.findChild(QtGui.QLabel, "after_invalid")
+    check(red is not None and "c00000" in red.styleSheet() and red.text() != "0",
+          f"the panel's invalid count stays red ({red.text() if red else None})")
+    check(panel2.accept() is True, "and Close closes it")
     left = SurfMesh.measure(short, tor).stats["tangled"]
     check(left > 0, f"one sweep leaves {left} tangled elements")
     check(len(boxes) == 1 and boxes[0][0] == "SurfMeshTangledLeft"
@@ -245,7 +289,9 @@ try:
     check("replace_in_analysis=False" in panel3.command(), "unchecked, the call says so")
     box.setChecked(True)
     undo0 = doc.UndoCount
-    check(panel3.accept() is True, "the run in the analysis applies")
+    check(panel3.accept() is False and panel3.result is not None,
+          "the run in the analysis applies")
+    panel3.accept()
     result = doc.getObject("AnalysisMesh_optimized")
     check(analysis.Group == [result] and result.Part == tor,
           "the result is the analysis' mesh, linked to the shape")

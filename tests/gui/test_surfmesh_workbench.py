@@ -169,7 +169,10 @@ try:
 
     stages = []
     with _progress.stage_hook(stages.append):
-        check(panel.accept() is True, "apply runs and closes the panel")
+        check(panel.accept() is False and panel.result is not None,
+              "OK runs, the panel stays open with the outcome")
+    check(panel.accept() is True and not FreeCADGui.Control.activeDialog(),
+          "then OK (Close) closes it")
     check(stages == ["reading the mesh", "placing the nodes on the shape's faces and edges",
                      "optimizing", "measuring the result"],
           f"the run names its stages ({stages})")
@@ -256,7 +259,8 @@ try:
     fpanel = shown[0]
     check("faces=['Face1']" in fpanel.command(), f"the run is limited to it ({fpanel.command()})")
     FreeCADGui.Control.showDialog(fpanel)
-    check(fpanel.accept() is True, "the run on Face1 applies")
+    check(fpanel.accept() is False and fpanel.result is not None, "the run on Face1 applies")
+    fpanel.accept()
     FreeCADGui.updateGui()
     cnew = doc.getObject("CylMesh_optimized")
     check(cnew is not None, "CylMesh_optimized created")

@@ -170,6 +170,36 @@ REASONS = {
 }
 
 
+def run_text(sweeps, seconds, reason):
+    """How a run went: "48 sweeps, 5.5 s (converged)"."""
+    return (f"{int(sweeps)} sweep{'s' if int(sweeps) != 1 else ''}, "
+            f"{float(seconds):.2g} s ({REASONS.get(reason, reason)})")
+
+
+def _invalid_count(stats):
+    """The invalid count of :func:`validity_text` as text ("unknown" for statistics stored
+    before it was counted, where elements stand across)."""
+    invalid = stats.get("invalid")
+    if invalid is None and int(stats.get("across", 0)) == 0:
+        invalid = stats.get("tangled", 0)
+    return "unknown" if invalid is None else str(int(invalid))
+
+
+def outcome_rows(before, after):
+    """What an optimization did as rows (key, label, before, after): the invalid elements, of
+    them the tangled ones and those standing across, the minimum and the mean quality (the
+    Optimize panel's Result table; the numbers of :func:`outcome_text`)."""
+    return [
+        ("invalid", "Invalid elements", _invalid_count(before), _invalid_count(after)),
+        ("tangled", "    tangled", str(int(before.get("tangled", 0))),
+         str(int(after.get("tangled", 0)))),
+        ("across", "    standing across", str(int(before.get("across", 0))),
+         str(int(after.get("across", 0)))),
+        ("min", "Min. quality", format_value(before["min"]), format_value(after["min"])),
+        ("mean", "Mean quality", format_value(before["mean"]), format_value(after["mean"])),
+    ]
+
+
 def outcome_text(before, after, sweeps, seconds, reason):
     """One line saying what an optimization did, from the statistics before and after it:
     "49 invalid (49 tangled, 0 standing across) → 0 invalid (0 tangled, 0 standing across),
@@ -177,10 +207,9 @@ def outcome_text(before, after, sweeps, seconds, reason):
     def arrow(key, fmt):
         return f"{fmt(before[key])} → {fmt(after[key])}"
 
-    text = (f"{validity_text(before)} → {validity_text(after)}, "
-            f"min quality {arrow('min', format_value)}, mean {arrow('mean', format_value)}")
-    return (f"{text}; {int(sweeps)} sweep{'s' if int(sweeps) != 1 else ''}, "
-            f"{float(seconds):.2g} s ({REASONS.get(reason, reason)})")
+    return (f"{validity_text(before)} → {validity_text(after)}, "
+            f"min quality {arrow('min', format_value)}, mean {arrow('mean', format_value)}; "
+            f"{run_text(sweeps, seconds, reason)}")
 
 
 def measure_text(stats, measure):

@@ -4,11 +4,13 @@ sweep limit and the monotone mode; for a FEM mesh in an analysis, whether the re
 it there; in an "Advanced" group the distance to the part, the stopping tolerance,
 over-relaxation and threads (the panel opens with the settings of the last run applied).
 
-OK (Apply) runs SurfMesh.optimize_object through FreeCADGui.doCommand with a progress hook
-that drives the panel's progress bar (against the run's stopping rule) while its inputs are
+OK runs SurfMesh.optimize_object through FreeCADGui.doCommand with a progress hook that
+drives the panel's progress bar (against the run's stopping rule) while its inputs are
 disabled; Cancel (or Stop) during a run stops it and leaves the document unchanged; Cancel
-when idle closes the panel. After a run the report view, the panel and the status bar say
-what it did, and a dialog warns when elements stay tangled.
+when idle closes the panel. After a run the panel stays open with its outcome: a "Result"
+table (before → after: invalid elements, minimum and mean quality; sweeps and time), the
+result selected, OK renamed "Close" and Cancel gone (Edit → Undo takes the run back). The
+report view and the status bar say the same, and a dialog warns when elements stay tangled.
 """
 
 from __future__ import annotations
@@ -30,6 +32,8 @@ class OptimizePanel:
         self.running = False
         self.stop_requested = False
         self.result = None
+        self.outcome = None
+        self.buttons = None  # the task dialog's button box (modifyStandardButtons)
         self.form = self._build_form()
 
     # ---- form ------------------------------------------------------------------------------
@@ -159,7 +163,57 @@ class OptimizePanel:
         self.stop.setEnabled(False)
         self.stop.clicked.connect(self.request_stop)
         lay.addRow(self.stop)
+        self.result_box = QtGui.QGroupBox("Result")
+        self.result_box.setObjectName("result")
+        self.result_grid = QtGui.QGridLayout(self.result_box)
+        self.result_box.setVisible(False)
+        lay.addRow(self.result_box)
         return w
+
+    def _show_result(self, new):
+        """Fills the "Result" table with what the run that made ``new`` did: before → after
+        for the validity counts and the quality, the sweeps and the time; the "After" of the
+        validity row in red when invalid elements remain, in green when none do."""
+        before, after = document.stats_of(new, before=True), document.stats_of(new)
+        run = dict(new.SurfMeshRun)
+        grid = self.result_grid
+        while grid.count():
+            item = grid.takeAt(0)
+            if item.widget() is not None:
+                item.widget().deleteLater()
+
+        def cell(text, row, col, name=None, bold=False):
+            label = QtGui.QLabel(text)
+            label.setWordWrap(True)
+            if name:
+                label.setObjectName(name)
+            if bold:
+                label.setStyleSheet("font-weight: bold")
+            grid.addWidget(label, row, col)
+            return label
+
+        head = cell(f"{new.Label}", 0, 0, "resultObject", bold=True)
+        head.setToolTip("The optimized mesh (selected); the original stays unchanged")
+        cell("Before", 0, 1, bold=True)
+        cell("After", 0, 2, bold=True)
+        rows = reports.outcome_rows(before, after)
+        for i, (key, label, b, a) in enumerate(rows, start=1):
+            cell(label, i, 0)
+            cell(b, i, 1, f"before_{key}")
+            done = cell(a, i, 2, f"after_{key}")
+            if key == "invalid":
+                done.setStyleSheet("color: #008000; font-weight: bold" if a == "0"
+                                   else "color: #c00000; font-weight: bold")
+        run_label = QtGui.QLabel(reports.run_text(int(run.get("sweeps", 0)),
+                                                  float(run.get("seconds", 0.0)),
+                                                  run.get("reason", "")))
+        run_label.setObjectName("resultRun")
+        run_label.setToolTip("Sweeps over the nodes, the run's time and why it stopped")
+        grid.addWidget(run_label, len(rows) + 1, 0, 1, 3)
+        undo = QtGui.QLabel("Edit → Undo takes the run back.")
+        undo.setObjectName("resultUndo")
+        grid.addWidget(undo, len(rows) + 2, 0, 1, 3)
+        self.result_box.setVisible(True)
 
     def face_names(self):
         """The faces of the "Only faces" field ("Face3, 7" → ["Face3", "Face7"]); empty: all."""
@@ -253,11 +307,37 @@ class OptimizePanel:
         self.bar.setRange(0, 100)
         self.bar.setValue(100)
         self.outcome = document.outcome_of(new)
-        self.status.setText(f"{new.Label}: {self.outcome}")
+        self.status.setText(f"Done: {new.Label} (below)")
+        self._done(new)
         left = (document.stats_of(new) or {}).get("tangled", 0)
         if left:
             self._warn_left_tangled(new, int(left))
         return new
+
+    def _done(self, new):
+        """The panel after a run: its outcome shown, the result selected, the inputs kept as
+        the run used them, OK renamed "Close" and Cancel gone (the run is in the document;
+        Edit → Undo takes it back)."""
+        for w in self.inputs:
+            w.setEnabled(False)
+        self.stop.setVisible(False)
+        self._show_result(new)
+        new.Document.recompute()
+        FreeCADGui.Selection.clearSelection()
+        FreeCADGui.Selection.addSelection(new)
+        FreeCADGui.getMainWindow().statusBar().showMessage(
+            f"SurfMesh: {new.Label}: {self.outcome}", 60000)
+        if self.buttons is not None:
+            try:
+                ok = self.buttons.button(QtGui.QDialogButtonBox.Ok)
+                cancel = self.buttons.button(QtGui.QDialogButtonBox.Cancel)
+                if ok is not None:
+                    ok.setText("Close")
+                    ok.setToolTip("Close this panel (the optimized mesh stays)")
+                if cancel is not None:
+                    cancel.setVisible(False)
+            except RuntimeError:  # the box was deleted with its dialog
+                self.buttons = None
 
     def _warn_left_tangled(self, new, left):
         """The dialog a run that left tangled elements shows: the outcome, and the run's
@@ -280,6 +360,13 @@ class OptimizePanel:
     def getStandardButtons(self):
         return compat.qt_flags(QtGui.QDialogButtonBox.Ok | QtGui.QDialogButtonBox.Cancel)
 
+    def modifyStandardButtons(self, box):
+        """FreeCAD hands over the dialog's button box: kept to rename OK after the run."""
+        self.buttons = box
+        ok = box.button(QtGui.QDialogButtonBox.Ok)
+        if ok is not None:
+            ok.setToolTip("Optimize the mesh with these settings")
+
     def _gone(self):
         """What of the panel's mesh and shape was deleted (or its document closed), or None."""
         for what, obj in (("mesh", self.mesh), ("shape", self.shape)):
@@ -293,6 +380,9 @@ class OptimizePanel:
     def accept(self):
         if self.running:
             return False
+        if self.result is not None:  # "Close" after the run
+            FreeCADGui.Control.closeDialog()
+            return True
         gone = self._gone()
         if gone is not None:
             runner.show_error("SurfMesh: optimize", ValueError(
@@ -303,16 +393,8 @@ class OptimizePanel:
         if self.shape is None:
             self.status.setText("no shape: close, select the mesh and its shape, try again")
             return False
-        new = self.run()
-        if new is None:
-            return False  # keep the panel open (cancelled or error shown)
-        FreeCADGui.Control.closeDialog()
-        new.Document.recompute()
-        FreeCADGui.Selection.clearSelection()
-        FreeCADGui.Selection.addSelection(new)
-        FreeCADGui.getMainWindow().statusBar().showMessage(
-            f"SurfMesh: {new.Label}: {self.outcome}", 60000)
-        return True
+        self.run()
+        return False  # open: with the outcome after a run, or after a cancel or an error
 
     def reject(self):
         if self.running:
