@@ -1,11 +1,12 @@
 """Reading shapes and meshes from files and writing optimized meshes, with existing readers:
 
 * shapes: STEP / IGES / BREP through FreeCAD's Part; FCStd through FreeCAD documents;
-* meshes: Gmsh .msh (v2 and v4) through Gmsh's own API (node and element tags, entities and
-  physical groups are kept on write-back); .unv / .inp / .vtk / .vtu / .med / .z88 through
-  FreeCAD's FEM readers and writers, Nastran .bdf read only and .dat written only (FreeCAD 0.20
-  has no writer, resp. no reader, for them); .stl / .obj / .ply / .off / .ast / .bms through FreeCAD's
-  Mesh; anything else meshio reads, through meshio.
+* meshes: Gmsh .msh (v2 and v4) through Gmsh's own API, run in a process of its own
+  (gmsh_worker.py: Gmsh can end the process it runs in on some inputs; node and element tags,
+  entities and physical groups are kept on write-back); .unv / .inp / .vtk / .vtu / .med / .z88
+  through FreeCAD's FEM readers and writers, Nastran .bdf read only and .dat written only
+  (FreeCAD 0.20 has no writer, resp. no reader, for them); .stl / .obj / .ply / .off / .ast /
+  .bms through FreeCAD's Mesh; anything else meshio reads, through meshio.
 
 Headless: never imports FreeCADGui.
 """
@@ -13,7 +14,14 @@ Headless: never imports FreeCADGui.
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
 
 import numpy as np
 
@@ -181,7 +189,9 @@ _gmsh_ready = False
 
 
 def _gmsh():
-    """Gmsh's Python API, initialized once (quiet, no user configuration files)."""
+    """Gmsh's Python API in *this* process, initialized once (quiet, no user configuration
+    files). Not used by this module's readers and writers (they run Gmsh in a process of its own,
+    :func:`_run_gmsh`): left for the test suites that build meshes with Gmsh."""
     global _gmsh_ready
     import gmsh
 
@@ -193,6 +203,135 @@ def _gmsh():
         gmsh.option.setNumber("General.Terminal", 0)
         _gmsh_ready = True
     return gmsh
+
+
+# ---- Gmsh in a process of its own -------------------------------------------------------------
+# Gmsh's C++ code can end the process it runs in on some inputs (an uncaught exception: abort),
+# and FreeCAD with it. Every Gmsh call of this module runs in a child process (gmsh_worker.py,
+# under a Python that can import gmsh), which exchanges files with this one in a temporary folder.
+
+_WORKER = os.path.join(os.path.dirname(os.path.abspath(__file__)), "gmsh_worker.py")
+_GMSH_TIMEOUT = 1800.0  # seconds (SURFMESH_GMSH_TIMEOUT)
+_gmsh_python = None  # the interpreter that ran the worker last
+
+
+class GmshProcessError(ValueError):
+    """Gmsh failed on a file in its own process (an error, an abort, a timeout), or no Python
+    here can run Gmsh. The process that asked (a FreeCAD session) is unaffected."""
+
+
+def _python_candidates():
+    """Interpreters to run the worker with, best first. FreeCAD's ``sys.executable`` may be
+    freecadcmd or FreeCAD itself: only a Python is taken. ``SURFMESH_GMSH_PYTHON`` names one."""
+    given = os.environ.get("SURFMESH_GMSH_PYTHON")
+    if given:
+        return [given]
+    version = f"python{sys.version_info[0]}.{sys.version_info[1]}"
+    cands = [_gmsh_python] if _gmsh_python else []
+    if re.fullmatch(r"python[0-9.]*", os.path.basename(sys.executable or "")):
+        cands.append(sys.executable)
+    cands += [os.path.join(sys.prefix, "bin", "python3"), os.path.join(sys.prefix, "bin", version),
+              "/usr/bin/python3", shutil.which("python3")]
+    return [c for c in dict.fromkeys(cands) if c and os.path.isfile(c) and os.access(c, os.X_OK)]
+
+
+def _gmsh_timeout():
+    try:
+        value = float(os.environ.get("SURFMESH_GMSH_TIMEOUT", _GMSH_TIMEOUT))
+    except ValueError:
+        return _GMSH_TIMEOUT
+    return value if value > 0 else _GMSH_TIMEOUT
+
+
+def _log_tail(path, lines=8, chars=1500):
+    """The last lines Gmsh (and the worker) printed, joined on one line."""
+    try:
+        with open(path, "rb") as fh:
+            fh.seek(max(0, os.path.getsize(path) - 64 * 1024))
+            text = fh.read().decode("utf-8", "replace")
+    except OSError:
+        return ""
+    tail = " | ".join([ln.strip() for ln in text.splitlines() if ln.strip()][-lines:])
+    return tail if len(tail) <= chars else "…" + tail[-chars:]
+
+
+def _how_it_ended(code, timed_out, timeout):
+    if timed_out:
+        return (f"it did not finish within {timeout:g} s and was stopped "
+                "(SURFMESH_GMSH_TIMEOUT sets the limit, in seconds)")
+    if code < 0:
+        try:
+            name = signal.Signals(-code).name
+        except ValueError:
+            name = f"signal {-code}"
+        return f"its process was killed by {name}" + (" (Gmsh aborted)" if name == "SIGABRT"
+                                                      else "")
+    if code:
+        return f"its process exited with status {code}"
+    return "its process gave no answer"
+
+
+def _run_gmsh(op, what, request, arrays=None):
+    """Runs gmsh_worker.py ``op`` with ``request`` (JSON) and ``arrays`` (npz); returns its
+    (result dict, arrays dict). ``what`` names the work for messages ("reading x.msh").
+    Raises GmshProcessError when the worker fails, is killed or times out."""
+    global _gmsh_python
+    if not os.path.isfile(_WORKER):
+        raise GmshProcessError(f"cannot run Gmsh for {what}: {_WORKER} is missing (reinstall "
+                               "SurfMesh: scripts/install.sh)")
+    timeout = _gmsh_timeout()
+    with tempfile.TemporaryDirectory(prefix="surfmesh-gmsh-") as tmp:
+        with open(os.path.join(tmp, "request.json"), "w") as fh:
+            json.dump(request, fh)
+        if arrays is not None:
+            np.savez(os.path.join(tmp, "request.npz"), **arrays)
+        log = os.path.join(tmp, "gmsh.log")
+        started = os.path.join(tmp, "started")
+        tried = []
+        for python in _python_candidates():
+            timed_out = False
+            with open(log, "wb") as out:
+                try:
+                    proc = subprocess.Popen([python, _WORKER, op, tmp], cwd=tmp,
+                                            stdin=subprocess.DEVNULL, stdout=out,
+                                            stderr=subprocess.STDOUT)
+                except OSError as exc:
+                    tried.append(f"{python}: {exc}")
+                    continue
+                try:
+                    code = proc.wait(timeout=timeout)
+                except subprocess.TimeoutExpired:
+                    proc.kill()
+                    code = proc.wait()
+                    timed_out = True
+                except BaseException:  # interrupted: leave no Gmsh behind
+                    proc.kill()
+                    proc.wait()
+                    raise
+            if os.path.exists(started):
+                _gmsh_python = python
+                break
+            # This Python cannot run Gmsh (no gmsh or numpy module): try the next one.
+            tried.append(f"{python}: {_log_tail(log, lines=1, chars=300) or f'exit {code}'}")
+        else:
+            raise GmshProcessError(
+                f"cannot run Gmsh for {what}: no Python here imports Gmsh's Python module "
+                f"({'; '.join(tried) or 'no Python interpreter found'}); install python3-gmsh, "
+                "or set SURFMESH_GMSH_PYTHON to a Python that imports gmsh and numpy")
+        result_path = os.path.join(tmp, "result.json")
+        if code != 0 or timed_out or not os.path.exists(result_path):
+            said = _log_tail(log)
+            raise GmshProcessError(
+                f"Gmsh failed {what}: {_how_it_ended(code, timed_out, timeout)}; the FreeCAD "
+                "session is unaffected (Gmsh runs in a process of its own). "
+                + (f"Gmsh said: {said}" if said else "Gmsh said nothing."))
+        with open(result_path) as fh:
+            result = json.load(fh)
+        got = {}
+        if os.path.exists(os.path.join(tmp, "result.npz")):
+            with np.load(os.path.join(tmp, "result.npz")) as npz:
+                got = {k: npz[k] for k in npz.files}
+        return result, got
 
 
 def _msh_version(path):
@@ -256,25 +395,24 @@ def _read_gmsh(path) -> MeshFile:
             f"{path} mixes element orders: {parts}; a mesh must have one order "
             "(tri3 and quad4 may be mixed, so may tri6 and quad8)"
         )
-    gmsh = _gmsh()
-    gmsh.clear()
-    try:
-        gmsh.open(path)
-    except Exception as exc:
-        raise ValueError(f"Gmsh cannot read {path}: {exc}") from exc
-    node_tags, coords, _ = gmsh.model.mesh.getNodes()
+    res, got = _run_gmsh("read", f"reading {path}", {"path": os.path.abspath(path)})
+    if "open_error" in res:
+        raise ValueError(f"Gmsh cannot read {path}: {res['open_error']}")
+    node_tags, coords = got["node_tags"], got["coords"]
     if len(node_tags) == 0:
         raise ValueError(f"{path} holds no nodes")
     node_tags = np.asarray(node_tags, dtype=np.int64)
     nodes = np.asarray(coords, dtype=np.float64).reshape(-1, 3)
     order = np.argsort(node_tags)
     node_tags, nodes = node_tags[order], nodes[order]
-    types, tags, conn_tags = gmsh.model.mesh.getElements(2)
+    types = res["types"]
+    tags = [got[f"etags_{i}"] for i in range(len(types))]
+    conn_tags = [got[f"conn_{i}"] for i in range(len(types))]
     el_types, el_ids, flat = [], [], []
     for t, etags, ntags in zip(types, tags, conn_tags):
         t = int(t)
         if t not in GMSH_TYPES:
-            name = _GMSH_OTHER.get(t, gmsh.model.mesh.getElementProperties(t)[0])
+            name = _GMSH_OTHER.get(t, res["names"][types.index(t)])
             raise ValueError(
                 f"{path}: unsupported element type {name} ({len(etags)} elements); supported: "
                 + ", ".join(GMSH_TYPES.values())
@@ -307,7 +445,6 @@ def _read_gmsh(path) -> MeshFile:
         raise ValueError(f"{path}: an element references an unknown node")
     offsets = np.zeros(len(el_types) + 1, dtype=np.int64)
     np.cumsum(sizes, out=offsets[1:])
-    vol_types, vol_tags, _ = gmsh.model.mesh.getElements(3)
     data = conversion.MeshData(
         kind="arrays",
         nodes=nodes,
@@ -316,10 +453,8 @@ def _read_gmsh(path) -> MeshFile:
         conn=pos.astype(np.int64),
         node_ids=node_tags,
         element_ids=el_ids,
-        volume_elements=int(sum(len(t) for t in vol_tags)),
-        volume_types=", ".join(
-            f"{gmsh.model.mesh.getElementProperties(int(t))[0]} ({len(tags)})"
-            for t, tags in zip(vol_types, vol_tags)),
+        volume_elements=int(sum(n for _, n in res["volumes"])),
+        volume_types=", ".join(f"{name} ({n})" for name, n in res["volumes"]),
     )
     return MeshFile(path, "gmsh", data, msh_version=version)
 
@@ -480,32 +615,35 @@ def _z88_full_precision(path, node_ids, nodes):
 
 
 def _write_gmsh(out, src, new_nodes, version):
-    gmsh = _gmsh()
+    """Gmsh writes ``out`` (in its own process): ``src``'s .msh with its nodes moved, or a new
+    model of one discrete surface for other inputs. Written in a temporary folder, then moved:
+    a Gmsh that fails leaves no partial ``out``."""
     data = src.data
+    arrays = {"nodes": np.ascontiguousarray(new_nodes, dtype=np.float64)}
+    request = {"version": version, "out": None}
     if src.fmt == "gmsh":
-        gmsh.clear()
-        gmsh.open(src.path)
-        for tag, xyz in zip(data.node_ids.tolist(), new_nodes.tolist()):
-            gmsh.model.mesh.setNode(int(tag), xyz, [])
+        request["source"] = os.path.abspath(src.path)
+        arrays["node_tags"] = np.asarray(data.node_ids, dtype=np.int64)
     else:
-        gmsh.clear()
-        gmsh.model.add("surfmesh")
-        gmsh.model.addDiscreteEntity(2, 1)
         # Gmsh tags start at 1: 0-based ids (STL/OBJ inputs, arrays) are shifted by one.
         tags = data.node_ids + 1 if data.node_ids.min() == 0 else data.node_ids
-        gmsh.model.mesh.addNodes(2, 1, tags.tolist(), new_nodes.reshape(-1).tolist())
-        for code in np.unique(data.types):
+        arrays["node_tags"] = np.asarray(tags, dtype=np.int64)
+        request["codes"] = []
+        for i, code in enumerate(np.unique(data.types)):
             name = conversion.ELEMENT_NAMES[int(code)]
             sel = np.nonzero(data.types == code)[0]
-            conn = np.concatenate([tags[data.element(e)] for e in sel])
-            gmsh.model.mesh.addElementsByType(
-                1, GMSH_CODES[name], (data.element_ids[sel] + 1 if data.element_ids.min() == 0
-                                      else data.element_ids[sel]).tolist(), conn.tolist()
-            )
-    gmsh.option.setNumber("Mesh.MshFileVersion", version)
-    gmsh.option.setNumber("Mesh.SaveAll", 1)
-    gmsh.option.setNumber("Mesh.Binary", 0)
-    gmsh.write(out)
+            request["codes"].append(GMSH_CODES[name])
+            arrays[f"conn_{i}"] = np.concatenate([tags[data.element(e)] for e in sel])
+            arrays[f"etags_{i}"] = (data.element_ids[sel] + 1 if data.element_ids.min() == 0
+                                    else data.element_ids[sel])
+    with tempfile.TemporaryDirectory(prefix="surfmesh-msh-") as tmp:
+        request["out"] = os.path.join(tmp, os.path.basename(out))
+        res, _ = _run_gmsh("write", f"writing {out}", request, arrays)
+        if "open_error" in res:
+            raise ValueError(f"Gmsh cannot read {src.path}: {res['open_error']}")
+        if not os.path.exists(request["out"]):
+            raise ValueError(f"Gmsh wrote nothing for {out}")
+        shutil.move(request["out"], out)
 
 
 def _fem_from(data, nodes):
@@ -541,14 +679,13 @@ def _line_cells(src):
         for e in sorted(src.fem.Edges):
             lines.append(tuple(src.fem.getElementNodes(e)))
     elif src.fmt == "gmsh":
-        gmsh = _gmsh()
-        gmsh.clear()
-        gmsh.open(src.path)
-        types, _tags, conn = gmsh.model.mesh.getElements(1)
-        for t, c in zip(types, conn):
-            k = gmsh.model.mesh.getElementProperties(int(t))[3]  # nodes per element
+        res, got = _run_gmsh("lines", f"reading the 1D elements of {src.path}",
+                             {"path": os.path.abspath(src.path)})
+        if "open_error" in res:
+            raise ValueError(f"Gmsh cannot read {src.path}: {res['open_error']}")
+        for j, k in enumerate(res["sizes"]):
+            c = got[f"conn_{j}"]
             lines.extend(tuple(int(n) for n in c[i:i + k]) for i in range(0, len(c), k))
-        gmsh.clear()
     cells = []
     for k, name in ((2, "line"), (3, "line3")):
         ids = [ln for ln in lines if len(ln) == k]
