@@ -50,8 +50,8 @@ class _SurfMeshViewObserver:
     - FreeCAD does not save the colors of a FEM mesh's view: when a document is opened, the
       FEM meshes SurfMesh colored (SurfMeshColors) get them back from their stored quality
       (SurfMesh.app.document.show_stored_colors), once the document is restored;
-    - the color scale (SurfMesh.gui.legend) is shown while a visible mesh of the document
-      shows SurfMesh's colors.
+    - the color scales (SurfMesh.gui.legend) are shown while visible meshes of the document
+      show SurfMesh's colors, one per coloring, naming its meshes.
     SurfMesh is imported only for documents that have such meshes."""
 
     def __init__(self):
@@ -72,12 +72,17 @@ class _SurfMeshViewObserver:
     def slotRedoDocument(self, doc):
         self._later(doc.Name, "undone")
 
+    # What the color scales show: the colors, what they are by (measure, metric, threshold),
+    # which meshes are shown, and their names.
+    _SHOWN = ("SurfMeshColors", "SurfMeshColorBy", "SurfMeshThreshold", "SurfMeshMeasure",
+              "Visibility", "Label")
+
     def slotChangedObject(self, obj, prop):
-        if prop in ("SurfMeshColors", "Visibility"):
+        if prop in self._SHOWN:
             self._touched(obj)
 
     def slotRemoveDynamicProperty(self, obj, prop):
-        if prop == "SurfMeshColors":
+        if prop in ("SurfMeshColors", "SurfMeshColorBy", "SurfMeshThreshold"):
             self._touched(obj, colored=True)
 
     def slotDeletedObject(self, obj):

@@ -35,6 +35,60 @@ class Scale(unittest.TestCase):
         np.testing.assert_allclose(rgb[3], MR.BEYOND_RGB)
 
 
+class NodeColors(unittest.TestCase):
+    """Second-order meshes are colored per node: each node in the color of the worst element
+    around it, the same from the values (color_by_metric) as from the stored colors (a
+    document opened again)."""
+
+    def mesh(self):
+        import Fem
+
+        from SurfMesh.app import conversion
+
+        # three tria6 in a row: 1 and 2 share the side 2-3, 2 and 3 the side 2-4
+        fm = Fem.FemMesh()
+        xy = {1: (0, 0), 2: (2, 0), 3: (1, 2), 4: (3, 2), 5: (4, 0)}
+        for n, (x, y) in xy.items():
+            fm.addNode(float(x), float(y), 0.0, n)
+        corners = {1: (1, 2, 3), 2: (2, 4, 3), 3: (2, 5, 4)}
+        mid = {}
+        for e, c in corners.items():
+            for a, b in zip(c, c[1:] + c[:1]):
+                if (b, a) not in mid:
+                    mid[a, b] = 100 + len(mid)
+                    pa, pb = np.array(xy[a]), np.array(xy[b])
+                    fm.addNode(*map(float, (pa + pb) / 2), 0.0, mid[a, b])
+        for e, c in corners.items():
+            sides = [mid.get((a, b), mid.get((b, a))) for a, b in zip(c, c[1:] + c[:1])]
+            fm.addFace(list(c) + sides, e)
+        return conversion.read_mesh(fm), mid
+
+    def test_worst_element_colors_each_node(self):
+        data, mid = self.mesh()
+        values = np.array([3.0, 1.5, math.nan])  # aspect ratios: beyond 2, within, n/a
+        rgb = MR.metric_rgb("aspect_ratio", values, 2.0)
+        nodes = MR.node_rgb(data, rgb, MR.badness("aspect_ratio", values))
+        color = {int(n): tuple(c) for n, c in zip(data.node_ids, nodes)}
+        for n in (1, 2, 3, mid[1, 2], mid[2, 3], mid[3, 1]):  # element 1's: red all over
+            np.testing.assert_allclose(color[n], MR.BEYOND_RGB)
+        for n in (4, mid[4, 3], mid[2, 4]):  # element 2's own, beside n/a element 3
+            np.testing.assert_allclose(color[n], rgb[1])
+        for n in (5, mid[2, 5], mid[5, 4]):  # element 3's alone: n/a
+            np.testing.assert_allclose(color[n], MR.NA_RGB)
+        # from the stored colors, as saved (8 bits a channel): the same
+        saved = np.round(rgb * 255) / 255
+        again = MR.node_rgb(data, saved, MR.color_rank(saved))
+        np.testing.assert_allclose(again, nodes, atol=1 / 255)
+
+    def test_color_rank_orders_as_the_values(self):
+        values = np.array([61.0, 55.0, 40.0, 30.0, 29.0, 10.0, math.nan])  # smallest angles
+        rgb = np.round(MR.metric_rgb("min_angle", values, 30.0) * 255) / 255
+        rank = MR.color_rank(rgb)
+        self.assertEqual(list(np.argsort(-rank, kind="stable")[:5]), [4, 5, 3, 2, 1])
+        self.assertEqual(rank[-1], -1.0)
+        self.assertAlmostEqual(rank[0], 0.0, places=2)  # green: the best value
+
+
 class Document(unittest.TestCase):
     def setUp(self):
         self.doc = App.newDocument("SurfMeshMetricReport")

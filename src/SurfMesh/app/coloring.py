@@ -62,3 +62,20 @@ def node_values(data, element_values, reduce="min", ignore=None):
         np.add.at(counts, conn, 1.0)
         out = np.where(counts > 0, out / np.maximum(counts, 1), 1.0)
     return out
+
+
+def worst_element_per_node(data, rank):
+    """For each node, the index of the element around it with the highest ``rank`` (a float
+    per element, larger: worse; NaN: lowest), for node coloring by "the color of the worst
+    element around the node"; -1 for a node in no element. Elements of equal rank around a
+    node must have the same color (any of them is taken)."""
+    sizes = np.diff(data.offsets)
+    elem = np.repeat(np.arange(len(sizes)), sizes)
+    r = np.asarray(rank, dtype=float)
+    r = np.where(np.isnan(r), -np.inf, r)[elem]
+    best = np.full(data.node_count, -np.inf)
+    np.maximum.at(best, data.conn, r)
+    out = np.full(data.node_count, -1, dtype=np.int64)
+    top = r == best[data.conn]
+    out[data.conn[top]] = elem[top]
+    return out

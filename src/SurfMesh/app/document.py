@@ -210,7 +210,10 @@ def show_stored_colors(obj):
 
 def _show_stored_metric_colors(obj, vo):
     """A FEM mesh colored by a metric (SurfMesh.app.metric_report) gets its stored colors
-    back: per element on tria3 meshes, else per node (the color of an element around it)."""
+    back: per element on tria3 meshes, else per node as color_by_metric gave them (the color
+    of the worst element around each node, the colors telling which is worst)."""
+    from SurfMesh.app import metric_report
+
     data = conversion.read_mesh(obj.FemMesh)
     rgb = np.array([tuple(c)[:3] for c in obj.SurfMeshColors], dtype=float)
     if len(rgb) != data.element_count:
@@ -219,8 +222,7 @@ def _show_stored_metric_colors(obj, vo):
         compat.set_fem_element_colors(
             vo, {int(e): tuple(map(float, c)) for e, c in zip(data.element_ids, rgb)})
     else:
-        node_rgb = np.full((data.node_count, 3), 0.6)
-        node_rgb[data.conn] = np.repeat(rgb, np.diff(data.offsets), axis=0)
+        node_rgb = metric_report.node_rgb(data, rgb, metric_report.color_rank(rgb))
         compat.set_fem_node_colors(
             vo, {int(n): tuple(map(float, c)) for n, c in zip(data.node_ids, node_rgb)})
     _true_colors(obj, vo)

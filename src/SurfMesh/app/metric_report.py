@@ -26,7 +26,7 @@ import dataclasses
 
 import numpy as np
 
-from SurfMesh.app import api, compat, conversion, metrics
+from SurfMesh.app import api, coloring, compat, conversion, metrics
 
 #: Colors of the metric scale: the ideal value, the threshold, beyond the threshold.
 GOOD_RGB = (0.10, 0.70, 0.20)
@@ -216,23 +216,47 @@ def color_by_metric(obj, name, threshold=None, shape=None, values=None):
     return int(metrics.beyond(name, values, t).sum())
 
 
+def badness(name, values):
+    """How bad ``values`` of metric ``name`` are, larger: worse (the value, or its negative for
+    a metric that gets worse as it falls); NaN (the metric does not apply) lowest."""
+    v = np.asarray(values, dtype=float)
+    b = v if metrics.METRICS[name]["worse"] == "high" else -v
+    return np.where(np.isnan(b), -np.inf, b)
+
+
+def color_rank(rgb):
+    """How bad the elements are that metric colors ``rgb`` (as stored in SurfMeshColors, 8 bits
+    per channel once saved) show, larger: worse: red (beyond the threshold) highest, then from
+    yellow (the threshold, 1) to green (0), grey (n/a) lowest. The colors of a metric order
+    its elements as their values do (see badness)."""
+    rgb = np.asarray(rgb, dtype=float)[:, :3]
+    rank = np.clip((rgb[:, 0] - GOOD_RGB[0]) / (LIMIT_RGB[0] - GOOD_RGB[0]), 0.0, 1.0)
+    rank[np.all(np.abs(rgb - np.array(BEYOND_RGB)) < 0.02, axis=1)] = 2.0
+    rank[np.all(np.abs(rgb - np.array(NA_RGB)) < 0.02, axis=1)] = -1.0
+    return rank
+
+
+def node_rgb(data, rgb, rank):
+    """Per-node colors of a mesh colored per element by a metric (``rgb``; ``rank``: larger
+    worse, see badness and color_rank): each node takes the color of the worst element around
+    it, so that an element beyond the threshold is red all over."""
+    rgb = np.asarray(rgb, dtype=float)[:, :3]
+    worst = coloring.worst_element_per_node(data, rank)
+    out = np.tile(np.array(NA_RGB, dtype=float), (data.node_count, 1))
+    out[worst >= 0] = rgb[worst[worst >= 0]]
+    return out
+
+
 def _color_fem_by_metric(vo, data, name, values, threshold, rgb):
     """Per element on tria3 meshes; per node elsewhere (FreeCAD 0.20 draws element colors
-    wrong on tria6): the worst value of the elements around each node."""
+    wrong on tria6): the color of the worst element around each node (node_rgb)."""
     if np.all(data.types == conversion.ELEMENT_TYPES["tri3"]):
         compat.set_fem_element_colors(
             vo, {int(e): tuple(map(float, c)) for e, c in zip(data.element_ids, rgb)})
         return
-    from SurfMesh.app import coloring
-
-    high = metrics.METRICS[name]["worse"] == "high"
-    v = np.where(np.isnan(values), -np.inf if high else np.inf, values)
-    worst = coloring.node_values(data, -v if high else v, reduce="min")
-    node_v = -worst if high else worst
-    node_v = np.where(np.isinf(node_v), np.nan, node_v)
-    node_rgb = metric_rgb(name, node_v, threshold)
+    colors = node_rgb(data, rgb, badness(name, values))
     compat.set_fem_node_colors(
-        vo, {int(n): tuple(map(float, c)) for n, c in zip(data.node_ids, node_rgb)})
+        vo, {int(n): tuple(map(float, c)) for n, c in zip(data.node_ids, colors)})
 
 
 def colored_by(obj):
