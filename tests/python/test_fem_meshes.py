@@ -485,8 +485,10 @@ class Quad8(unittest.TestCase):
 
 
 class TrimmingCurves(unittest.TestCase):
-    """Issue 41, point 3 (reported, not repaired): the 2D trimming curves of an imported face
-    that lie off its 3D edges are named in the report, with gaps FreeCAD's own geometry gives."""
+    """The 2D trimming curves of an imported face that lie off its 3D edges are named in the
+    report, with gaps FreeCAD's own geometry gives; moves keep the nodes inside the face's 3D
+    boundary there (judged on their own by which side of the 3D edge FreeCAD's face
+    classifier puts the inside), on the STEP file and on the same part written as IGES."""
 
     def setUp(self):
         self.doc = FreeCAD.newDocument("SurfMeshTrims")
@@ -524,3 +526,141 @@ class TrimmingCurves(unittest.TestCase):
                 worst = max(worst, edge.distToShape(Part.Vertex(p))[0])
             self.assertAlmostEqual(g["gap"], worst, delta=1e-9 * shape.BoundBox.DiagonalLength)
             self.assertGreater(g["gap"], 2 * edge.Tolerance)
+
+    # ---- moves stay inside the 3D boundary ----------------------------------------------------
+    GRADED_MESH = """
+import sys, gmsh
+brep, out, smin = sys.argv[1], sys.argv[2], float(sys.argv[3])
+gmsh.initialize()
+gmsh.option.setNumber("General.Terminal", 0)
+gmsh.model.occ.importShapes(brep)
+gmsh.model.occ.synchronize()
+f = gmsh.model.mesh.field
+f.add("Distance", 1)
+f.setNumbers(1, "CurvesList", [t for d, t in gmsh.model.getEntities(1)])
+f.setNumber(1, "NumPointsPerCurve", 400)
+f.add("Threshold", 2)
+for k, v in (("InField", 1), ("SizeMin", smin), ("SizeMax", 0.8), ("DistMin", 2 * smin),
+             ("DistMax", 3.0)):
+    f.setNumber(2, k, v)
+f.setAsBackgroundMesh(2)
+for k in ("MeshSizeExtendFromBoundary", "MeshSizeFromPoints", "MeshSizeFromCurvature"):
+    gmsh.option.setNumber("Mesh." + k, 0)
+gmsh.model.mesh.generate(2)
+gmsh.write(out)
+gmsh.finalize()
+"""
+
+    @staticmethod
+    def _pcurve_gap(face, edge, samples=64):
+        c2d, a, b = face.curveOnSurface(edge)
+        worst = 0.0
+        for i in range(samples):
+            uv = c2d.value(a + (b - a) * (i + 0.5) / samples)
+            worst = max(worst, edge.distToShape(
+                __import__("Part").Vertex(face.Surface.value(uv.x, uv.y)))[0])
+        return worst
+
+    @staticmethod
+    def _side_of_3d_edge(face, edge, point, reach):
+        """+1 when ``point`` (on the face's surface) lies on the inner side of the 3D edge,
+        −1 on the outer side, 0 when no side can be told (beyond the curve's ends, near a
+        corner); and its distance to the 3D curve. The inner side is where FreeCAD's face
+        classifier (isInside) puts the points ``reach`` away across the curve."""
+        P = FreeCAD.Vector(*map(float, point))
+        t = edge.Curve.parameter(P)
+        if not edge.FirstParameter < t < edge.LastParameter:
+            return 0, 0.0
+        Q = edge.valueAt(t)
+        T = edge.tangentAt(t)
+        uq = np.array(face.Surface.parameter(Q))
+        du, dv = face.derivative1At(*uq)
+        A = np.array([[du.x, dv.x], [du.y, dv.y], [du.z, dv.z]])
+        tuv = np.linalg.lstsq(A, np.array([T.x, T.y, T.z]), rcond=None)[0]
+        nuv = np.array([-tuv[1], tuv[0]])
+        nuv /= np.linalg.norm(A @ nuv)
+        ins = [face.isInside(face.valueAt(*map(float, uq + s * reach * nuv)), 1e-9, True)
+               for s in (1.0, -1.0)]
+        if ins[0] == ins[1]:
+            return 0, (P - Q).Length
+        inward = nuv if ins[0] else -nuv
+        up = np.array(face.Surface.parameter(P))
+        return (1 if (up - uq) @ inward > 0 else -1), (P - Q).Length
+
+    def _moves_stay_inside(self, shape, face_name, seed):
+        import Part
+
+        from SurfMesh.app import api, conversion, examples, fileio
+
+        part = self.doc.addObject("Part::Feature", "Part")
+        part.Shape = shape
+        F = shape.getElement(face_name)
+        # the edge of the face whose trimming curve is farthest off its 3D curve
+        gaps = sorted((self._pcurve_gap(F, e), i) for i, e in enumerate(F.Edges))
+        gap, k = gaps[-1]
+        E = F.Edges[k]
+        self.assertGreater(gap, 1e-3, "the face's trimming curve lies off its 3D edge")
+        # Gmsh, in a process of its own, meshes the face with elements of 2.5 gaps along its
+        # edges, so that nodes come to the strip between trimming curve and 3D edge
+        out = T.output_dir()
+        brep, msh = os.path.join(out, "trim_face.brep"), os.path.join(out, "trim_face.msh")
+        F.exportBrep(brep)
+        subprocess.run(["/usr/bin/python3", "-c", self.GRADED_MESH, brep, msh, str(2.5 * gap)],
+                       check=True, timeout=900)
+        data = fileio.read_mesh(msh).data
+        diag = shape.BoundBox.DiagonalLength
+        _, handle = api.prepare(data, part, tolerance=diag / 200)
+        movable = np.asarray(handle.node_kinds()) != 0
+        moved = examples.perturb_on_surface(data, F, 1.5 * gap, seed=seed, movable=movable)
+        nodes = data.nodes.copy()
+        for i in np.nonzero(movable)[0]:  # kept inside the face's 2D boundary
+            if F.isInside(FreeCAD.Vector(*moved[i]), 1e-9, True):
+                nodes[i] = moved[i]
+        trial = conversion.MeshData(**{**data.__dict__, "nodes": nodes})
+        before = SurfMesh.measure(trial, part, tolerance=diag / 200)
+        res = SurfMesh.optimize(trial, part, tolerance=diag / 200)
+        self.assertGreater(before.stats["tangled"], 100)
+        self.assertEqual(res.after.stats["invalid"], 0)
+        poly = np.array([tuple(v) for v in E.discretize(2000)])
+        near_edge = []
+        for lo in range(0, len(nodes), 2000):  # the nodes within 3 gaps of the 3D edge
+            chunk = res.nodes[lo:lo + 2000]
+            dmin = np.sqrt(((chunk[:, None, :] - poly[None, :, :]) ** 2).sum(axis=2)).min(axis=1)
+            near_edge.extend(lo + np.nonzero(dmin < 3 * gap + E.Length / 2000)[0])
+        moved_idx = [i for i in near_edge
+                     if movable[i] and np.any(res.nodes[i] != nodes[i])]
+        sides = [self._side_of_3d_edge(F, E, res.nodes[i], 20 * gap) for i in moved_idx]
+        outside = [(int(data.node_ids[i]), d) for i, (s, d) in zip(moved_idx, sides)
+                   if s < 0 and d > E.Tolerance]
+        judged = sum(1 for s, _ in sides if s != 0)
+        print(f"{face_name}: gap {gap:.3g}, {len(data.nodes)} nodes, {before.stats['tangled']} "
+              f"tangled -> {res.after.stats['invalid']} invalid; {len(moved_idx)} moved nodes "
+              f"within 3 gaps of the 3D edge ({judged} judged), {len(outside)} outside it")
+        self.assertGreater(judged, 100)  # the check is not vacuous
+        self.assertEqual(outside, [], "moved nodes outside the face's 3D boundary")
+        # and on the face's surface
+        d = T.distance_to_surface(F, res.nodes[np.nonzero(movable)[0]])
+        self.assertLess(float(np.max(d)), 1e-9 * diag)
+
+    def test_moves_stay_inside_the_3d_boundary_on_the_step_part(self):
+        import Part
+
+        path = T.find_part("nist_pmi_2.step")
+        if path is None:
+            self.skipTest("nist_pmi_2.step not available")
+        self._moves_stay_inside(Part.read(path), "Face207", seed=1)
+
+    def test_moves_stay_inside_the_3d_boundary_on_the_part_as_iges(self):
+        import Part
+
+        path = T.find_part("nist_pmi_2.step")
+        if path is None:
+            self.skipTest("nist_pmi_2.step not available")
+        iges = os.path.join(T.output_dir(), "nist_pmi_2.igs")
+        Part.read(path).exportIges(iges)
+        shape = Part.read(iges)
+        # the STEP part's Face207 (the IGES file numbers its faces its own way)
+        ref = Part.read(path).getElement("Face207").BoundBox.Center
+        name = min(((f.BoundBox.Center - ref).Length, f"Face{i + 1}")
+                   for i, f in enumerate(shape.Faces))[1]
+        self._moves_stay_inside(shape, name, seed=2)

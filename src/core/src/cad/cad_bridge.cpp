@@ -2351,9 +2351,9 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
 
   // ---- trimming curves off their 3D edges (imported B-reps) ----------------------------------
   // On the faces carrying elements: the largest distance from the surface's image of each
-  // edge's pcurve to the edge's 3D curve (sampled). Beyond twice the edge's tolerance (and
-  // 1e-6·diag) the face's 2D domain, which the nodes are kept in, is not the face its 3D
-  // edges bound: a node moved near such an edge may end up that far outside them.
+  // edge's pcurve to the edge's 3D curve (trimCurveGap). Beyond twice the edge's tolerance
+  // (and 1e-6·diag: isTrimGap) the face's 2D domain is not the face its 3D edges bound; the
+  // face's contains() keeps moves out of the strip between them (OccFaceSurface).
   {
     std::vector<std::pair<int, int>> uses;  // (face, edge)
     for (int f = 0; f < NF; ++f)
@@ -2361,27 +2361,14 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
         for (int e : S.faceEdges(f))
           if (!S.isDegeneratedEdge(e) && !S.isSeam(e, f)) uses.emplace_back(f, e);
     std::vector<double> gap(uses.size(), 0.0);
-    parallelFor(uses.size(), projectors, [&](std::size_t k, Projector& pr) {
+    parallelFor(uses.size(), projectors, [&](std::size_t k, Projector&) {
       const auto [f, e] = uses[k];
-      double a = 0.0, b = 0.0;
-      const Handle(Geom2d_Curve) pc = BRep_Tool::CurveOnSurface(S.edge(e), S.face(f), a, b);
-      const Handle(Geom_Surface) gs = BRep_Tool::Surface(S.face(f));
-      if (pc.IsNull() || gs.IsNull()) return;
-      constexpr int kSamples = 7;
-      for (int i = 0; i < kSamples; ++i) {
-        try {
-          const gp_Pnt2d uv = pc->Value(a + (b - a) * (i + 0.5) / kSamples);
-          const gp_Pnt p = gs->Value(uv.X(), uv.Y());
-          double t = 0.0;
-          gap[k] = std::max(gap[k], pr.edgeDistance(e, Vec3(p.X(), p.Y(), p.Z()), &t));
-        } catch (const Standard_Failure&) {
-        }
-      }
+      gap[k] = trimCurveGap(S.edge(e), S.face(f), kTrimGapSamples);
     });
     std::size_t worst = 0;
     for (std::size_t k = 0; k < uses.size(); ++k) {
       const double tolE = BRep_Tool::Tolerance(S.edge(uses[k].second));
-      if (!(gap[k] > std::max(2.0 * tolE, 1e-6 * diag))) continue;
+      if (!isTrimGap(gap[k], tolE, diag)) continue;
       report_.trimGaps.push_back({uses[k].first, uses[k].second, gap[k], tolE});
       if (gap[k] > report_.trimGaps[worst].gap) worst = report_.trimGaps.size() - 1;
     }
@@ -2394,8 +2381,9 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
             "to "
          << w.gap << " (" << w.gap / diag << " x diagonal), the trimming curve of edge " << w.edge
          << " on face " << w.face << " (tolerance " << w.tolerance
-         << "). Nodes are kept inside the 2D boundary: one moved next to such an edge may end "
-            "up that far outside the face's 3D edges";
+         << "). Moves keep nodes out of the strip between such a trimming curve and its 3D "
+            "edge, so they stay inside the face's 3D boundary (nodes the mesh put in that "
+            "strip move only out of it)";
       report_.warnings.push_back(os.str());
     }
   }

@@ -115,6 +115,7 @@ CadShape::CadShape(const TopoDS_Shape& shape) : shape_(shape) {
   // the scale of every tolerance, is the shape's (unchanged where OCC's box holds them).
   if (!surfacePoints.IsVoid()) bbox_.Add(surfacePoints);
   if (!bbox_.IsVoid()) diagonal_ = std::sqrt(bbox_.SquareExtent());
+  for (auto& s : surfaces_) s->setShapeDiagonal(diagonal_);
 
   // Adjacency.
   edgeFaces_.assign(static_cast<std::size_t>(ne), {});

@@ -1,13 +1,16 @@
 // SurfMesh — OpenCASCADE face and edge adapters (see occ_surface.h).
 #include "surfmesh/cad/occ_surface.h"
 
+#include <BRepBndLib.hxx>
 #include <BRepTools.hxx>
 #include <BRepTopAdaptor_FClass2d.hxx>
 #include <BRep_Tool.hxx>
+#include <Bnd_Box.hxx>
 #include <Extrema_ExtPC.hxx>
 #include <Extrema_LocateExtPC.hxx>
 #include <Geom2dAdaptor_Curve.hxx>
 #include <Geom2d_Curve.hxx>
+#include <GeomAPI_ProjectPointOnSurf.hxx>
 #include <Geom_Surface.hxx>
 #include <Precision.hxx>
 #include <Standard_Failure.hxx>
@@ -491,7 +494,15 @@ struct OccFaceSurface::ToleranceZones {
   static constexpr std::size_t kChunk = 8;
   struct Edge {
     TopoDS_Edge edge;
-    double tol = 0.0, dev = 0.0;
+    double tol = 0.0, dev = 0.0;  // tol: the tolerance zone's radius (0: the edge has none)
+    /// A trimming curve off its 3D edge (isTrimGap): the points of the surface within
+    /// `strip` of the 3D curve on its outer side (inward: per polyline point, the unit vector
+    /// tangent to the surface, across the curve, into the face) are outside the face's 3D
+    /// boundary; every move keeps out of them, the untangling's too. With no inward side
+    /// found (inward empty), the whole band within `strip` is kept out of.
+    bool trim = false;
+    double strip = 0.0, edgeTol = 0.0;
+    std::vector<Vec3> inward;
     Box3 box = kEmptyBox;
     std::vector<double> t;         // the polyline's points: curve parameters …
     std::vector<Vec3> x;           // … and positions, in the curve's order
@@ -500,6 +511,7 @@ struct OccFaceSurface::ToleranceZones {
   std::vector<Edge> edges;
   std::vector<std::pair<Vec3, double>> vertices;  // point, tolerance
   bool empty() const { return edges.empty() && vertices.empty(); }
+  bool hasTrim = false;  // some edge is a trim zone
 };
 
 /// Per copy: the edges' curve adaptors of the zones (OCC adaptors are not thread-safe).
@@ -512,6 +524,9 @@ struct OccFaceSurface::ZoneCurves {
 /// needs it (the CAD recovery's included).
 struct OccFaceSurface::TrimShared {
   std::once_flag classifierOnce, gridOnce, zonesOnce;
+  /// The shape's diagonal, the scale of isTrimGap (set by CadShape before any query; 0: the
+  /// face's own box diagonal).
+  double shapeDiagonal = 0.0;
   std::unique_ptr<BRepTopAdaptor_FClass2d> classifier;
   std::unique_ptr<TrimGrid> grid;  // null: not usable (a missing or pathological pcurve)
   std::unique_ptr<ToleranceZones> zones;
@@ -645,13 +660,68 @@ double segmentDistance2(const Vec3& a, const Vec3& b, const Vec3& p) {
 /// there are none). An edge's polyline: its curve
 /// cut in 8 pieces, halved until the curve at a quarter, half and three quarters of a piece
 /// is within dev = max(tolerance / 10, 1e-4 × the diagonal of the edge's box) of its chord.
-std::unique_ptr<OccFaceSurface::ToleranceZones> buildToleranceZones(const TopoDS_Face& face) {
+/// For the polyline of trimming-curve zone `ze` on `face`: the unit vectors N × T (the
+/// surface's normal by the curve's tangent) at its points, turned to point into the face as
+/// an independent classifier (BRepTopAdaptor_FClass2d) says 20 strips away on either side, by
+/// majority (an edge's side of its face does not change along it); none when no point
+/// decides (then the whole band counts as outside).
+void findInwardSide(OccFaceSurface::ToleranceZones::Edge& ze, const TopoDS_Face& face,
+                    const BRepAdaptor_Curve& c, double uvTol) {
+  const Handle(Geom_Surface) gs = BRep_Tool::Surface(face);
+  if (gs.IsNull()) return;
+  BRepTopAdaptor_FClass2d cls(face, uvTol);
+  std::vector<Vec3> m(ze.x.size(), Vec3::Zero());
+  int votes = 0;
+  const double r = 20.0 * ze.strip;
+  for (std::size_t k = 0; k < ze.x.size(); ++k) {
+    try {
+      const gp_Pnt X(ze.x[k].x(), ze.x[k].y(), ze.x[k].z());
+      GeomAPI_ProjectPointOnSurf pr(X, gs);
+      if (pr.NbPoints() == 0) continue;
+      double u = 0.0, v = 0.0;
+      pr.LowerDistanceParameters(u, v);
+      gp_Pnt p;
+      gp_Vec du, dv, T;
+      gs->D1(u, v, p, du, dv);
+      c.D1(ze.t[k], p, T);
+      const gp_Vec n = du.Crossed(dv).Crossed(T);
+      if (!(n.Magnitude() > 0.0)) continue;
+      const gp_Vec mk = n.Normalized();
+      m[k] = Vec3(mk.X(), mk.Y(), mk.Z());
+      if (k == 0 || k + 1 == ze.x.size()) continue;  // the ends: a corner's other edge
+      const double E = du.Dot(du), F = du.Dot(dv), G = dv.Dot(dv), det = E * G - F * F;
+      if (!(det > 0.0)) continue;
+      const double a = (G * mk.Dot(du) - F * mk.Dot(dv)) / det;
+      const double b = (E * mk.Dot(dv) - F * mk.Dot(du)) / det;
+      const bool plus = cls.Perform(gp_Pnt2d(u + r * a, v + r * b)) == TopAbs_IN;
+      const bool minus = cls.Perform(gp_Pnt2d(u - r * a, v - r * b)) == TopAbs_IN;
+      votes += plus && !minus ? 1 : !plus && minus ? -1 : 0;
+    } catch (const Standard_Failure&) {
+    }
+  }
+  if (votes == 0) return;
+  for (std::size_t k = 0; k < m.size(); ++k)  // a point without a normal: its neighbour's
+    if (m[k].squaredNorm() == 0.0 && k > 0) m[k] = m[k - 1];
+  for (std::size_t k = m.size(); k-- > 1;)
+    if (m[k - 1].squaredNorm() == 0.0) m[k - 1] = m[k];
+  if (m.front().squaredNorm() == 0.0) return;
+  ze.inward.resize(m.size());
+  for (std::size_t k = 0; k < m.size(); ++k) ze.inward[k] = votes > 0 ? m[k] : Vec3(-m[k]);
+}
+
+std::unique_ptr<OccFaceSurface::ToleranceZones> buildToleranceZones(const TopoDS_Face& face,
+                                                                    double diag, double uvTol) {
   using Zones = OccFaceSurface::ToleranceZones;
   auto z = std::make_unique<Zones>();
   TopTools_IndexedMapOfShape vertices, edges;
   TopExp::MapShapes(face, TopAbs_VERTEX, vertices);
   TopExp::MapShapes(face, TopAbs_EDGE, edges);
   const double wide = 2.0 * BRep_Tool::Tolerance(face);
+  if (!(diag > 0.0)) {
+    Bnd_Box b;
+    BRepBndLib::Add(face, b, Standard_False);
+    diag = b.IsVoid() ? 0.0 : std::sqrt(b.SquareExtent());
+  }
   for (int k = 1; k <= vertices.Extent(); ++k) {
     const TopoDS_Vertex& v = TopoDS::Vertex(vertices(k));
     if (BRep_Tool::Tolerance(v) > wide)
@@ -660,10 +730,22 @@ std::unique_ptr<OccFaceSurface::ToleranceZones> buildToleranceZones(const TopoDS
   for (int k = 1; k <= edges.Extent(); ++k) {
     const TopoDS_Edge& e = TopoDS::Edge(edges(k));
     if (BRep_Tool::Degenerated(e)) continue;  // its vertex's zone covers it
-    if (!(BRep_Tool::Tolerance(e) > wide)) continue;
     Zones::Edge ze;
     ze.edge = e;
-    ze.tol = BRep_Tool::Tolerance(e);
+    ze.tol = BRep_Tool::Tolerance(e) > wide ? BRep_Tool::Tolerance(e) : 0.0;
+    // A trimming curve off its 3D edge: between the curve's image and the 3D edge lies a
+    // strip that the 2D boundary counts in and the 3D boundary out. Every point of it is
+    // within the local gap of the 3D curve, so the points within 1.25 × the largest gap a
+    // dense sampling finds (plus the edge's tolerance) on the curve's outer side hold it.
+    if (!BRep_Tool::IsClosed(e, face)) {
+      const double gap = trimCurveGap(e, face, kTrimGapSamples);
+      if (isTrimGap(gap, BRep_Tool::Tolerance(e), diag)) {
+        ze.trim = true;
+        ze.edgeTol = BRep_Tool::Tolerance(e);
+        ze.strip = 1.25 * std::max(gap, trimCurveGap(e, face, 64, true)) + ze.edgeTol;
+      }
+    }
+    if (!(ze.tol > 0.0) && !ze.trim) continue;
     try {
       const BRepAdaptor_Curve c(e);
       const double f = c.FirstParameter(), l = c.LastParameter();
@@ -680,7 +762,7 @@ std::unique_ptr<OccFaceSurface::ToleranceZones> buildToleranceZones(const TopoDS
       }
       const double size = std::sqrt((b[3] - b[0]) * (b[3] - b[0]) + (b[4] - b[1]) * (b[4] - b[1]) +
                                     (b[5] - b[2]) * (b[5] - b[2]));
-      ze.dev = std::max(0.1 * ze.tol, 1e-4 * size);
+      ze.dev = std::max(0.1 * std::max(ze.tol, ze.strip), 1e-4 * size);
       const double dev2 = ze.dev * ze.dev;
       ze.x.push_back(xs[0]);
       ze.t.push_back(ts[0]);
@@ -712,7 +794,8 @@ std::unique_ptr<OccFaceSurface::ToleranceZones> buildToleranceZones(const TopoDS
         ze.t.push_back(pc.t1);
       }
       if (!ok) continue;
-      const double grow = ze.tol + ze.dev;
+      if (ze.trim) findInwardSide(ze, face, c, uvTol);
+      const double grow = std::max(ze.tol, ze.strip) + ze.dev;
       const std::size_t segments = ze.x.size() - 1, K = Zones::kChunk;
       for (std::size_t c = 0; c * K < segments; ++c) {
         Box3 cb = kEmptyBox;
@@ -724,6 +807,7 @@ std::unique_ptr<OccFaceSurface::ToleranceZones> buildToleranceZones(const TopoDS
     } catch (const Standard_Failure&) {
       continue;  // no usable 3D curve
     }
+    z->hasTrim |= ze.trim;
     z->edges.push_back(std::move(ze));
   }
   return z;
@@ -748,19 +832,51 @@ double curveDistance(const BRepAdaptor_Curve& c, const gp_Pnt& P, double fallbac
 
 }  // namespace
 
+double trimCurveGap(const TopoDS_Edge& edge, const TopoDS_Face& face, int samples, bool ends) {
+  double gap = 0.0;
+  try {
+    double a = 0.0, b = 0.0;
+    const Handle(Geom2d_Curve) pc = BRep_Tool::CurveOnSurface(edge, face, a, b);
+    const Handle(Geom_Surface) gs = BRep_Tool::Surface(face);
+    if (pc.IsNull() || gs.IsNull() || BRep_Tool::Degenerated(edge)) return 0.0;
+    const BRepAdaptor_Curve c(edge);
+    for (int i = ends ? -1 : 0; i < samples + (ends ? 1 : 0); ++i) {
+      try {
+        const double t = i < 0 ? a : i >= samples ? b : a + (b - a) * (i + 0.5) / samples;
+        const gp_Pnt2d uv = pc->Value(t);
+        gap = std::max(gap, curveDistance(c, gs->Value(uv.X(), uv.Y()), 0.0));
+      } catch (const Standard_Failure&) {
+      }
+    }
+  } catch (const Standard_Failure&) {
+  }
+  return gap;
+}
+
+bool isTrimGap(double gap, double edgeTolerance, double diag) {
+  return gap > std::max(2.0 * edgeTolerance, 1e-6 * diag);
+}
+
 const OccFaceSurface::ToleranceZones& OccFaceSurface::zones() const {
   TrimShared& t = *trim_;
-  std::call_once(t.zonesOnce, [&]() { t.zones = buildToleranceZones(face_); });
+  std::call_once(t.zonesOnce,
+                 [&]() { t.zones = buildToleranceZones(face_, t.shapeDiagonal, uvTol_); });
   return *t.zones;
 }
 
-bool OccFaceSurface::inBoundaryTolerance(const Vec3& p) const {
+void OccFaceSurface::setShapeDiagonal(double diag) { trim_->shapeDiagonal = diag; }
+
+bool OccFaceSurface::hasTrimGaps() const { return zones().hasTrim; }
+
+bool OccFaceSurface::inBoundaryTolerance(const Vec3& p, bool trimOnly) const {
   const ToleranceZones& z = zones();
-  for (const auto& [x, tol] : z.vertices)
-    if ((x - p).squaredNorm() <= tol * tol) return true;
+  if (!trimOnly)
+    for (const auto& [x, tol] : z.vertices)
+      if ((x - p).squaredNorm() <= tol * tol) return true;
   constexpr std::size_t K = ToleranceZones::kChunk;
   for (std::size_t ei = 0; ei < z.edges.size(); ++ei) {
     const ToleranceZones::Edge& e = z.edges[ei];
+    if (trimOnly && !e.trim) continue;
     if (boxDistance2(e.box, p) > 0.0) continue;
     // The nearest polyline segment.
     double best2 = kInf;
@@ -776,10 +892,11 @@ bool OccFaceSurface::inBoundaryTolerance(const Vec3& p) const {
         }
       }
     }
-    const double reach = e.tol + e.dev;
-    if (best2 > reach * reach) continue;  // farther than tol from the curve
+    const double tolZone = trimOnly ? 0.0 : e.tol;  // the tolerance zone's radius asked
+    const double reach = std::max(tolZone, e.strip) + e.dev;
+    if (best2 > reach * reach) continue;  // farther than tol (and the strip) from the curve
     const double dp = std::sqrt(best2);
-    if (dp + e.dev <= e.tol) return true;  // nearer than tol
+    if (dp + e.dev <= tolZone) return true;  // nearer than tol
     // In between: the curve decides, by a local search from the nearest segment (the curve
     // is within dev of the polyline there), the segment's ends (points of the curve) bound
     // it; the whole curve (the hints' distance) when the local search fails.
@@ -791,24 +908,37 @@ bool OccFaceSurface::inBoundaryTolerance(const Vec3& p) const {
     const gp_Pnt P(p.x(), p.y(), p.z());
     double d = std::sqrt(std::min((e.x[seg] - p).squaredNorm(), (e.x[seg + 1] - p).squaredNorm()));
     bool located = false;
+    double tl = 0.0, s = 0.0;
+    gp_Pnt Q;
     try {
       const Vec3 a = e.x[seg], ab = e.x[seg + 1] - e.x[seg];
       const double l2 = ab.squaredNorm();
-      const double s = l2 > 0.0 ? std::clamp((p - a).dot(ab) / l2, 0.0, 1.0) : 0.0;
+      s = l2 > 0.0 ? std::clamp((p - a).dot(ab) / l2, 0.0, 1.0) : 0.0;
       const double t0 = e.t[seg] + s * (e.t[seg + 1] - e.t[seg]);
       Extrema_LocateExtPC loc(P, c, t0, Precision::PConfusion());
       if (loc.IsDone() && loc.IsMin()) {
-        const double tl = loc.Point().Parameter();
+        tl = loc.Point().Parameter();
         if (tl >= e.t[seg] - (e.t[seg + 1] - e.t[seg]) &&
             tl <= e.t[seg + 1] + (e.t[seg + 1] - e.t[seg])) {
           d = std::min(d, std::sqrt(loc.SquareDistance()));
+          Q = loc.Point().Value();
           located = true;
         }
       }
     } catch (const Standard_Failure&) {
     }
     if (!located) d = std::min(d, curveDistance(c, P, dp));
-    if (d <= e.tol) return true;
+    if (d <= tolZone) return true;
+    if (!e.trim || !(d <= e.strip)) continue;
+    // The strip: outside when p lies on the curve's outer side, farther than the edge's
+    // tolerance from it; beyond the curve's ends the neighbouring edges and the 2D boundary
+    // judge. Without an inward side (or a located nearest point) the whole band is out.
+    if (e.inward.empty() || !located) return true;
+    const double f = c.FirstParameter(), l = c.LastParameter(), eps = 1e-9 * (l - f);
+    if (tl <= f + eps || tl >= l - eps) continue;
+    const Vec3 m = ((1.0 - s) * e.inward[seg] + s * e.inward[seg + 1]).normalized();
+    const Vec3 q(Q.X(), Q.Y(), Q.Z());
+    if ((p - q).dot(m) < 0.0 && d > e.edgeTol) return true;
   }
   return false;
 }
@@ -851,9 +981,13 @@ bool OccFaceSurface::containsNearBoundary(double u, double v) const {
         v <= surfaceBounds_.vmax))
     return false;  // NaN too
   const int known = containsFast(u, v);
-  if (known >= 0) return known == 1;
+  if (known >= 0) return known == 1 && !inTrimStrip(u, v);
   const Vec2 w = wrap(Vec2(u, v));
-  return classifyWithClassifier(w.x(), w.y(), false, true);
+  return classifyWithClassifier(w.x(), w.y(), false, true) && !inTrimStrip(u, v);
+}
+
+bool OccFaceSurface::inTrimStrip(double u, double v) const {
+  return zones().hasTrim && inBoundaryTolerance(value(u, v), true);
 }
 
 bool OccFaceSurface::contains(double u, double v) const {

@@ -72,6 +72,18 @@ double boxDistance2(const Box3& b, const Vec3& p);
 /// Distance from p to box b (0 inside; +inf for an empty box).
 double boxDistance(const Box3& b, const Vec3& p);
 
+/// How far the trimming curve of `edge` on `face` lies off the edge's 3D curve: the largest
+/// distance from the surface's image of the pcurve, at `samples` parameters (a + (b − a)(i +
+/// ½)/samples; with `ends` also a and b), to the 3D curve (its ends and Extrema_ExtPC's
+/// minima). 0 for a degenerated edge or when OCC has no pcurve.
+double trimCurveGap(const TopoDS_Edge& edge, const TopoDS_Face& face, int samples,
+                    bool ends = false);
+/// The samples trimCurveGap takes where a gap is reported (CadMesh's trim_gaps).
+constexpr int kTrimGapSamples = 7;
+/// Whether a trimming curve `gap` off its edge makes the face's 2D and 3D boundaries
+/// disagree: beyond twice the edge's tolerance and 1e-6 × the shape's diagonal.
+bool isTrimGap(double gap, double edgeTolerance, double diag);
+
 /// A TopoDS_Face as a Surface (see the file comment for the conventions).
 class OccFaceSurface final : public Surface {
  public:
@@ -100,15 +112,29 @@ class OccFaceSurface final : public Surface {
   /// node there is read back as an edge (vertex) node by the CAD recovery's tolerance hints
   /// and by FreeCAD's getNodesByEdge — at up to the edge's tolerance from its 3D curve, which
   /// on imported parts (1e-3 and more) lies that far from the loop its pcurve draws.
+  ///
+  /// Where a trimming curve lies off its 3D edge (isTrimGap: an imported B-rep whose 2D and
+  /// 3D boundaries disagree), φ(u,v) on the 3D curve's outer side, within 1.25 × the gap
+  /// (plus the edge's tolerance) of it, counts as outside too (inTrimStrip), so that no move
+  /// takes a node outside the face's 3D boundary while its 2D boundary says inside.
   bool contains(double u, double v) const override;
-  /// contains() without the tolerance zones (the trimming loops and the classifier's band).
+  /// contains() without the tolerance zones of tolerant edges and vertices (the trimming
+  /// loops, the classifier's band and the strips of trimming curves off their 3D edges).
   bool containsNearBoundary(double u, double v) const override;
+  /// Whether φ(u,v) lies in the strip along a trimming curve off its 3D edge (see contains()).
+  bool inTrimStrip(double u, double v) const;
+  /// Whether a trimming curve of the face lies off its 3D edge (isTrimGap).
+  bool hasTrimGaps() const;
+  /// The shape's diagonal, the scale of isTrimGap for this face and its copies (CadShape sets
+  /// it before any query; unset, the face's own box diagonal is taken).
+  void setShapeDiagonal(double diag);
   /// Whether point p is within the tolerance of a vertex of the face (BRep_Tool::Tolerance)
   /// or within the tolerance of a non-degenerated edge of the face from its 3D curve (the
   /// distance the CAD recovery's tolerance hints take: Extrema_ExtPC and the ends), for the
   /// vertices and edges more than twice as tolerant as the face (the classifier's band keeps
-  /// contains() off the others). The zones are built on first use and shared by the copies.
-  bool inBoundaryTolerance(const Vec3& p) const;
+  /// contains() off the others), or within the strip of a trimming curve off its 3D edge
+  /// (with `trimOnly`, only those). The zones are built on first use and shared by the copies.
+  bool inBoundaryTolerance(const Vec3& p, bool trimOnly = false) const;
   /// The trimming-loop part of contains() where it needs no classifier query at (u,v)
   /// itself: 1 inside, 0 outside (outside the face's parameter box, in a periodic direction
   /// modulo the period; in a sub-cell no trimming loop passes through; or, in one that a loop
