@@ -3,8 +3,9 @@
 //
 // Shapes (made once): a box and a cylinder (BRepPrimAPI), a sphere (two poles: degenerated
 // edges), a single planar face (free face, no solid), a box with a free edge beside it (a
-// wire of no face: the nodes a FEM mesh's edge elements have there belong to no face element)
-// and tests/data/occt_screw.step. The input
+// wire of no face: the nodes a FEM mesh's edge elements have there belong to no face element),
+// tests/data/occt_screw.step, and the face of tests/data/nist_pmi_2.step (a STEP file of
+// another CAD system) whose trimming curve lies farthest off its 3D edge. The input
 // bytes pick a shape and either mutate a coarse BRepMesh triangulation of it (node positions
 // moved a little, a lot, or to NaN/inf; connectivity entries; element type codes, including
 // invalid ones; offsets; hints; dropped or added elements; nodes of no element added on a CAD
@@ -14,11 +15,13 @@
 //     sanitizer report is a bug);
 //   * on success: the SurfaceMesh validates, the report has one entry per node, qualities are
 //     in [0, 1], and a short optimization runs with the fixed nodes untouched and the moved
-//     face nodes on their surfaces; the nodes of no element are listed with where they lie
-//     (within the tolerance) and stay where they are.
+//     face nodes on their surfaces and inside their faces' 3D boundaries (out of the strips
+//     between trimming curves and their 3D edges); the nodes of no element are listed with
+//     where they lie (within the tolerance) and stay where they are.
 #include "surfmesh/cad/cad_bridge.h"
 #include "surfmesh/cad/cad_shape.h"
 #include "surfmesh/cad/occ_mesher.h"
+#include "surfmesh/cad/occ_surface.h"
 #include "surfmesh/measures/measure.h"
 #include "surfmesh/mesh/quality.h"
 #include "surfmesh/optimize/optimizer.h"
@@ -83,6 +86,22 @@ std::vector<Part> makeParts() {
     add(CadShape::fromFile(std::string(SURFMESH_TEST_DATA_DIR) + "/occt_screw.step"), 0.03);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "fuzz_cad_mesh: screw not loaded: %s\n", e.what());
+  }
+  try {  // a face whose 2D and 3D boundaries disagree, on its own
+    const auto pmi = CadShape::fromFile(std::string(SURFMESH_TEST_DATA_DIR) + "/nist_pmi_2.step");
+    int best = -1;
+    double worst = 0.0;
+    for (int f = 0; f < pmi->faceCount(); ++f)
+      for (int e : pmi->faceEdges(f)) {
+        const double gap = trimCurveGap(pmi->edge(e), pmi->face(f), kTrimGapSamples);
+        if (gap > worst) {
+          worst = gap;
+          best = f;
+        }
+      }
+    if (best >= 0) add(std::make_shared<CadShape>(pmi->face(best)), 0.03);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "fuzz_cad_mesh: nist_pmi_2 not loaded: %s\n", e.what());
   }
   return parts;
 }
@@ -255,6 +274,9 @@ void checkAccepted(FuzzedDataProvider& fdp, CadMesh& cm, std::size_t N) {
       const Surface& s = *m.surfaces[static_cast<std::size_t>(m.nodeFace[i])];
       if ((s.value(m.uv[i].x(), m.uv[i].y()) - m.xyz[i]).norm() > 1e-9 * cm.shape().diagonal())
         violated("a moved face node is off its surface");
+      const auto* os = dynamic_cast<const OccFaceSurface*>(&s);
+      if (os != nullptr && os->inTrimStrip(m.uv[i].x(), m.uv[i].y()))
+        violated("a moved face node is outside its face's 3D boundary");
     }
   }
 }
