@@ -976,14 +976,18 @@ bool OccFaceSurface::classifyWithClassifier(double u, double v, bool band, bool 
   return st == TopAbs_IN || (st == TopAbs_ON && !strict);
 }
 
-bool OccFaceSurface::containsNearBoundary(double u, double v) const {
+bool OccFaceSurface::insideTrimmingLoops(double u, double v) const {
   if (!(u >= surfaceBounds_.umin && u <= surfaceBounds_.umax && v >= surfaceBounds_.vmin &&
         v <= surfaceBounds_.vmax))
     return false;  // NaN too
   const int known = containsFast(u, v);
-  if (known >= 0) return known == 1 && !inTrimStrip(u, v);
+  if (known >= 0) return known == 1;
   const Vec2 w = wrap(Vec2(u, v));
-  return classifyWithClassifier(w.x(), w.y(), false, true) && !inTrimStrip(u, v);
+  return classifyWithClassifier(w.x(), w.y(), false, true);
+}
+
+bool OccFaceSurface::containsNearBoundary(double u, double v) const {
+  return insideTrimmingLoops(u, v) && !inTrimStrip(u, v);
 }
 
 bool OccFaceSurface::inTrimStrip(double u, double v) const {
@@ -991,7 +995,8 @@ bool OccFaceSurface::inTrimStrip(double u, double v) const {
 }
 
 bool OccFaceSurface::contains(double u, double v) const {
-  return containsNearBoundary(u, v) && (zones().empty() || !inBoundaryTolerance(value(u, v)));
+  // (every zone: the tolerance zones and the strips, φ(u,v) evaluated once)
+  return insideTrimmingLoops(u, v) && (zones().empty() || !inBoundaryTolerance(value(u, v)));
 }
 
 int OccFaceSurface::containsFast(double u, double v) const {

@@ -202,6 +202,9 @@ class OccFaceSurface final : public Surface {
   /// use, shared by the copies, its queries serialized) at a wrapped (u,v): Perform, or with
   /// `band` TestOnRestriction. IN counts as inside, and ON too unless `strict`.
   bool classifyWithClassifier(double u, double v, bool band, bool strict = false) const;
+  /// The trimming loops' part of contains(): (u,v) in the underlying surface's range and
+  /// strictly inside the loops (containsFast, else the classifier; ON counts as outside).
+  bool insideTrimmingLoops(double u, double v) const;
 };
 
 /// One face adjacent to an edge, with the edge's pcurve(s) on it.
