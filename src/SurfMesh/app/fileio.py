@@ -271,10 +271,11 @@ def _how_it_ended(code, timed_out, timeout):
     return "its process gave no answer"
 
 
-def _run_gmsh(op, what, request, arrays=None):
+def _run_gmsh(op, what, request, arrays=None, source=None):
     """Runs gmsh_worker.py ``op`` with ``request`` (JSON) and ``arrays`` (npz); returns its
     (result dict, arrays dict). ``what`` names the work for messages ("reading x.msh").
-    Raises GmshProcessError when the worker fails, is killed or times out."""
+    Raises GmshProcessError when the worker fails, is killed or times out, and ValueError
+    "Gmsh cannot read ``source``" when Gmsh refused to open that .msh."""
     global _gmsh_python
     if not os.path.isfile(_WORKER):
         raise GmshProcessError(f"cannot run Gmsh for {what}: {_WORKER} is missing (reinstall "
@@ -327,6 +328,8 @@ def _run_gmsh(op, what, request, arrays=None):
                 + (f"Gmsh said: {said}" if said else "Gmsh said nothing."))
         with open(result_path) as fh:
             result = json.load(fh)
+        if "open_error" in result:
+            raise ValueError(f"Gmsh cannot read {source}: {result['open_error']}")
         got = {}
         if os.path.exists(os.path.join(tmp, "result.npz")):
             with np.load(os.path.join(tmp, "result.npz")) as npz:
@@ -395,9 +398,8 @@ def _read_gmsh(path) -> MeshFile:
             f"{path} mixes element orders: {parts}; a mesh must have one order "
             "(tri3 and quad4 may be mixed, so may tri6 and quad8)"
         )
-    res, got = _run_gmsh("read", f"reading {path}", {"path": os.path.abspath(path)})
-    if "open_error" in res:
-        raise ValueError(f"Gmsh cannot read {path}: {res['open_error']}")
+    res, got = _run_gmsh("read", f"reading {path}", {"path": os.path.abspath(path)},
+                         source=path)
     node_tags, coords = got["node_tags"], got["coords"]
     if len(node_tags) == 0:
         raise ValueError(f"{path} holds no nodes")
@@ -638,9 +640,7 @@ def _write_gmsh(out, src, new_nodes, version):
                                     else data.element_ids[sel])
     with tempfile.TemporaryDirectory(prefix="surfmesh-msh-") as tmp:
         request["out"] = os.path.join(tmp, os.path.basename(out))
-        res, _ = _run_gmsh("write", f"writing {out}", request, arrays)
-        if "open_error" in res:
-            raise ValueError(f"Gmsh cannot read {src.path}: {res['open_error']}")
+        _run_gmsh("write", f"writing {out}", request, arrays, source=src.path)
         if not os.path.exists(request["out"]):
             raise ValueError(f"Gmsh wrote nothing for {out}")
         shutil.move(request["out"], out)
@@ -680,9 +680,7 @@ def _line_cells(src):
             lines.append(tuple(src.fem.getElementNodes(e)))
     elif src.fmt == "gmsh":
         res, got = _run_gmsh("lines", f"reading the 1D elements of {src.path}",
-                             {"path": os.path.abspath(src.path)})
-        if "open_error" in res:
-            raise ValueError(f"Gmsh cannot read {src.path}: {res['open_error']}")
+                             {"path": os.path.abspath(src.path)}, source=src.path)
         for j, k in enumerate(res["sizes"]):
             c = got[f"conn_{j}"]
             lines.extend(tuple(int(n) for n in c[i:i + k]) for i in range(0, len(c), k))

@@ -33,18 +33,25 @@ def stats_row(stats):
     ]
 
 
+def invalid_count(stats):
+    """The invalid count of :func:`validity_text` as text: the tangled count for statistics
+    stored before it was counted where nothing stands across, else "unknown" there."""
+    invalid = stats.get("invalid")
+    if invalid is None and int(stats.get("across", 0)) == 0:
+        invalid = stats.get("tangled", 0)
+    return "unknown" if invalid is None else str(int(invalid))
+
+
 def validity_text(stats):
     """"N invalid (T tangled, A standing across)": an element is invalid when it is tangled or
     stands across its surface (wound along the face's normal at some corners and against it at
     others), so that no invalid element hides behind a count of 0 tangled. Statistics stored
     before ``invalid`` was counted give it only where nothing stands across."""
     tangled, across = int(stats.get("tangled", 0)), int(stats.get("across", 0))
-    invalid = stats.get("invalid")
-    if invalid is None and across == 0:
-        invalid = tangled
+    invalid = invalid_count(stats)
     counts = f"{tangled} tangled, {across} standing across"
-    return f"{counts} (invalid: unknown)" if invalid is None else \
-        f"{int(invalid)} invalid ({counts})"
+    return f"{counts} (invalid: unknown)" if invalid == "unknown" else \
+        f"{invalid} invalid ({counts})"
 
 
 def format_table(rows, title=None, digits=2):
@@ -176,21 +183,12 @@ def run_text(sweeps, seconds, reason):
             f"{float(seconds):.2g} s ({REASONS.get(reason, reason)})")
 
 
-def _invalid_count(stats):
-    """The invalid count of :func:`validity_text` as text ("unknown" for statistics stored
-    before it was counted, where elements stand across)."""
-    invalid = stats.get("invalid")
-    if invalid is None and int(stats.get("across", 0)) == 0:
-        invalid = stats.get("tangled", 0)
-    return "unknown" if invalid is None else str(int(invalid))
-
-
 def outcome_rows(before, after):
     """What an optimization did as rows (key, label, before, after): the invalid elements, of
     them the tangled ones and those standing across, the minimum and the mean quality (the
     Optimize panel's Result table; the numbers of :func:`outcome_text`)."""
     return [
-        ("invalid", "Invalid elements", _invalid_count(before), _invalid_count(after)),
+        ("invalid", "Invalid elements", invalid_count(before), invalid_count(after)),
         ("tangled", "    tangled", str(int(before.get("tangled", 0))),
          str(int(after.get("tangled", 0)))),
         ("across", "    standing across", str(int(before.get("across", 0))),

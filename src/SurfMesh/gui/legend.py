@@ -99,12 +99,6 @@ def scales(objects):
             for key, (title, metric, labels) in groups.items()]
 
 
-def title(objects) -> str:
-    """What shown() says for ``objects``: the title of their scale; several scales: their
-    titles, one a line."""
-    return "\n".join(s.title for s in scales(objects))
-
-
 def names_line(labels, width=_NAMES_WIDTH) -> str:
     """The line under a scale's title that names its meshes, within ``width`` characters:
     "Mesh: A" / "Meshes: A, B", then "+N more" for those that do not fit."""

@@ -171,16 +171,13 @@ class OptimizePanel:
         return w
 
     def _show_result(self, new):
-        """Fills the "Result" table with what the run that made ``new`` did: before → after
-        for the validity counts and the quality, the sweeps and the time; the "After" of the
-        validity row in red when invalid elements remain, in green when none do."""
+        """Fills the "Result" table (once: the panel closes after its run) with what the run
+        that made ``new`` did: before → after for the validity counts and the quality, the
+        sweeps and the time; the "After" of the validity row in red when invalid elements
+        remain, in green when none do."""
         before, after = document.stats_of(new, before=True), document.stats_of(new)
         run = dict(new.SurfMeshRun)
         grid = self.result_grid
-        while grid.count():
-            item = grid.takeAt(0)
-            if item.widget() is not None:
-                item.widget().deleteLater()
 
         def cell(text, row, col, name=None, bold=False):
             label = QtGui.QLabel(text)
