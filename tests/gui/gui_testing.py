@@ -52,6 +52,20 @@ def show_task_panel(mw):
             dock.raise_()
 
 
+def reopen(doc, path):
+    """Saves ``doc`` as ``path``, closes it and opens it again (the GUI given time to show it);
+    returns the document opened."""
+    import FreeCAD
+    import FreeCADGui
+
+    doc.saveAs(path)
+    FreeCAD.closeDocument(doc.Name)
+    doc = FreeCAD.openDocument(path)
+    for _ in range(5):
+        FreeCADGui.updateGui()
+    return doc
+
+
 def report_text(mw):
     """Everything the report view of main window ``mw`` shows (its messages arrive as posted
     events: the GUI is updated first)."""

@@ -31,7 +31,7 @@ import sys
 import traceback
 
 sys.path.insert(0, os.path.join(os.environ.get("SURFMESH_REPO", os.getcwd()), "tests", "gui"))
-from gui_testing import check, finish, pixels  # noqa: E402
+from gui_testing import check, finish, pixels, reopen  # noqa: E402
 
 code = 1
 W, H = 800, 600  # the screenshots' size
@@ -221,11 +221,7 @@ try:
 
     # ---- saved and opened again: the stored colors shown again ---------------------------------
     path = os.path.join(out, "tria6_metric_colors.FCStd")
-    doc.saveAs(path)
-    FreeCAD.closeDocument(doc.Name)
-    doc = FreeCAD.openDocument(path)
-    for _ in range(5):
-        FreeCADGui.updateGui()
+    doc = reopen(doc, path)
     wall = doc.getObject("WallMesh")
     img = wall_view("tria6_metric_colors_reopened.png")
     centroid_colors(img, "opened again")

@@ -7,7 +7,7 @@ import sys
 import traceback
 
 sys.path.insert(0, os.path.join(os.environ.get("SURFMESH_REPO", os.getcwd()), "tests", "gui"))
-from gui_testing import check, finish, pixels  # noqa: E402
+from gui_testing import check, finish, pixels, reopen  # noqa: E402
 
 code = 1
 
@@ -435,11 +435,7 @@ try:
     view.saveImage(shot6, 800, 600, "White")
     g6, y6, p6 = shares(pixels(shot6))
     path = os.path.join(out, "surfmesh_reopen.FCStd")
-    doc.saveAs(path)
-    FreeCAD.closeDocument(doc.Name)
-    doc = FreeCAD.openDocument(path)
-    for _ in range(5):
-        FreeCADGui.updateGui()
+    doc = reopen(doc, path)
     view = FreeCADGui.ActiveDocument.ActiveView
     view.viewIsometric()
     view.fitAll()

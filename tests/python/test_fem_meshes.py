@@ -518,12 +518,7 @@ class TrimmingCurves(unittest.TestCase):
         self.assertRegex(note[0], r"of Edge\d+ on Face\d+")
         for g in gaps:
             face, edge = shape.getElement(g["face"]), shape.getElement(g["edge"])
-            c2d, a, b = face.curveOnSurface(edge)
-            worst = 0.0
-            for i in range(7):
-                uv = c2d.value(a + (b - a) * (i + 0.5) / 7)
-                p = face.Surface.value(uv.x, uv.y)
-                worst = max(worst, edge.distToShape(Part.Vertex(p))[0])
+            worst = self._pcurve_gap(face, edge, samples=7)  # the report's 7 parameters
             self.assertAlmostEqual(g["gap"], worst, delta=1e-9 * shape.BoundBox.DiagonalLength)
             self.assertGreater(g["gap"], 2 * edge.Tolerance)
 
@@ -553,12 +548,14 @@ gmsh.finalize()
 
     @staticmethod
     def _pcurve_gap(face, edge, samples=64):
+        """The largest distance from the trimming curve's image to the 3D edge (sampled)."""
+        import Part
+
         c2d, a, b = face.curveOnSurface(edge)
         worst = 0.0
         for i in range(samples):
             uv = c2d.value(a + (b - a) * (i + 0.5) / samples)
-            worst = max(worst, edge.distToShape(
-                __import__("Part").Vertex(face.Surface.value(uv.x, uv.y)))[0])
+            worst = max(worst, edge.distToShape(Part.Vertex(face.Surface.value(uv.x, uv.y)))[0])
         return worst
 
     @staticmethod
@@ -588,8 +585,6 @@ gmsh.finalize()
         return (1 if (up - uq) @ inward > 0 else -1), (P - Q).Length
 
     def _moves_stay_inside(self, shape, face_name, seed):
-        import Part
-
         from SurfMesh.app import api, conversion, examples, fileio
 
         part = self.doc.addObject("Part::Feature", "Part")

@@ -63,20 +63,19 @@ class _NoGmsh(importlib.abc.MetaPathFinder):
 @contextlib.contextmanager
 def environ(**values):
     """os.environ with ``values`` set (None: removed), restored after."""
+    def put(items):
+        for k, v in items.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
     saved = {k: os.environ.get(k) for k in values}
     try:
-        for k, v in values.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
+        put(values)
         yield
     finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
+        put(saved)
 
 
 FAKE_GMSH = '''
