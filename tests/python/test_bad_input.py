@@ -445,6 +445,36 @@ class BadInputApi(unittest.TestCase):
         # A larger tolerance accepts it.
         SurfMesh.measure(make_mesh(nodes, self.tris), self.shape, tolerance=1.5)
 
+    def test_faces_whose_trimming_curves_disagree_with_their_edges(self):
+        # An imported face whose 2D trimming curve lies off its 3D edge is no bad input: its
+        # mesh is taken and the report names the curve. A node of that mesh moved off the
+        # surface next to such an edge is refused as any other, named, the mesh unchanged.
+        import MeshPart
+        import surfmesh_testing as T
+
+        path = T.find_part("nist_pmi_2.step")
+        if path is None:
+            self.skipTest("nist_pmi_2.step not available")
+        shape = Part.read(path)
+        diag = shape.BoundBox.DiagonalLength
+        tol = diag / 200
+        mesh = MeshPart.meshFromShape(Shape=shape, LinearDeflection=diag / 500)
+        rep = SurfMesh.measure(mesh, shape, tolerance=tol)
+        gaps = rep.bridge["trim_gaps"]
+        self.assertGreater(len(gaps), 0)
+        worst = max(gaps, key=lambda g: g["gap"])
+        edge = shape.getElement(worst["edge"])
+        face = shape.getElement(worst["face"])
+        mid = edge.valueAt(0.5 * (edge.FirstParameter + edge.LastParameter))
+        nodes = np.array([(p.x, p.y, p.z) for p in mesh.Topology[0]])
+        tris = [tuple(f) for f in mesh.Topology[1]]
+        i = int(np.argmin(np.linalg.norm(nodes - np.array(tuple(mid)), axis=1)))
+        u, v = face.Surface.parameter(App.Vector(*nodes[i]))
+        n = face.normalAt(u, v)
+        nodes[i] += 5 * tol * np.array((n.x, n.y, n.z))
+        self.expect_error(make_mesh(nodes, tris), "1 of", "farther than the tolerance",
+                          f"node {i}", shape=shape, tolerance=tol)
+
     def test_every_node_of_a_list_is_named_by_its_id(self):
         # Four nodes pushed off the box: the message's list names each one by its FEM id
         # (ids start at FEM_NODE_ID0, not at the 0-based row the core reports).

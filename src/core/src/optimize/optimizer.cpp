@@ -256,6 +256,21 @@ inline double acrossArea(const Vec3& c, double cn, const Vec3* n, int* which, do
 /// faceCorners bit: the element is held from standing across its surface (a linear triangle:
 /// acrossArea; a high-order one: see State's constructor).
 constexpr unsigned kAcrossGuard = 0x80u;
+/// Corner normals kept per element (cornerN, Worker::cornerNormals): a quad's four.
+constexpr int kCornerSlots = 4;
+/// Curved elements held from standing across by their tangent planes at the corners (State's
+/// constructor): high-order triangles and quad8.
+inline bool heldCurved(ElementType t) { return isHighOrderTriangle(t) || t == ElementType::Quad8; }
+
+/// Where node `local` (not a corner) of a high-order triangle or quad8 lies on straight sides
+/// in (u,v) between its corners' parameters c (cornerCount of them): the parametric
+/// interpolation of its reference position (a quad8's side node: its side's midpoint).
+inline Vec2 straightPlace(ElementType type, int local, const Vec2* c) {
+  if (type == ElementType::Quad8) return 0.5 * (c[local - 4] + c[(local - 3) % 4]);
+  const Eigen::Vector2d xi =
+      lagrangeTriangle(elementOrder(type)).nodes()[static_cast<std::size_t>(local)];
+  return (1.0 - xi.x() - xi.y()) * c[0] + xi.x() * c[1] + xi.y() * c[2];
+}
 
 /// Tangent basis of a Face node's (u,v) at its current position: derivatives are assembled
 /// directly in (u,v) (g_u = Jᵀ g, H_u = Jᵀ H J) instead of as 3×3 Hessians.
@@ -586,12 +601,12 @@ struct State {
         if (m.nodeKind[static_cast<std::size_t>(nd[k])] != NodeKind::Face) {
           const Vec3 nk = m.referenceNormal(m.elemFace[e], m.elementUV(e)[k]);
           fixedNormal[e] += nk;
-          if (m.elemType[e] == ElementType::Tri3 || isHighOrderTriangle(m.elemType[e])) {
+          if (m.elemType[e] == ElementType::Tri3 || heldCurved(m.elemType[e])) {
             if (cornerElems.empty() || cornerElems.back() != static_cast<std::int32_t>(e)) {
               cornerElems.push_back(static_cast<std::int32_t>(e));
-              cornerN.resize(cornerN.size() + 3, Vec3::Zero());
+              cornerN.resize(cornerN.size() + kCornerSlots, Vec3::Zero());
             }
-            cornerN[cornerN.size() - 3 + static_cast<std::size_t>(k)] = nk;
+            cornerN[cornerN.size() - kCornerSlots + static_cast<std::size_t>(k)] = nk;
           }
         } else {
           faceCorners[e] = static_cast<std::uint8_t>(faceCorners[e] | (1u << k));
@@ -630,19 +645,20 @@ struct State {
       if (cn > 0.0 && guard)
         faceCorners[e] = static_cast<std::uint8_t>(faceCorners[e] | kAcrossGuard);
     }
-    // High-order triangles whose tangent plane at every corner is wound along the surface's
-    // normal there are held so too: a move that turns the plane at a corner against the
-    // normal (the curved element then leaves the surface at that corner, standing across it,
-    // while the measure, which orients the element by the sum of its corner normals, can still
-    // find it valid and well shaped) counts as tangling it. Not held: those with a sliding node.
+    // High-order triangles and quad8 whose tangent plane at every corner is wound along the
+    // surface's normal there are held so too: a move that turns the plane at a corner against
+    // the normal (the curved element then leaves the surface at that corner, standing across
+    // it, while the measure, which orients the element by the sum of its corner normals, can
+    // still find it valid and well shaped) counts as tangling it. Not held: those with a
+    // sliding node.
     for (std::size_t e = 0; holdAcross && e < E; ++e) {
-      if (!isHighOrderTriangle(m.elemType[e])) continue;
+      if (!heldCurved(m.elemType[e])) continue;
       const std::int32_t* nd = m.elementNodes(e);
       bool sliding = false;
       for (int k = 0; k < m.elementSize(e); ++k)
         sliding = sliding || m.nodeKind[static_cast<std::size_t>(nd[k])] == NodeKind::Edge;
-      Vec3 corners[3];
-      for (int k = 0; k < 3; ++k) corners[k] = cornerNormal(e, k);
+      Vec3 corners[kCornerSlots];
+      for (int k = 0; k < cornerCount(m.elemType[e]); ++k) corners[k] = cornerNormal(e, k);
       const CornerSides sides = cornerSidesAt(e, -1, Vec3::Zero(), corners);
       if (!sliding && sides.along && !sides.against)
         faceCorners[e] = static_cast<std::uint8_t>(faceCorners[e] | kAcrossGuard);
@@ -747,9 +763,9 @@ struct State {
   /// `pre`: for a high-order triangle, highOrderRest(e, local) when the other nodes have not
   /// moved since (a line search), or null.
   /// `corners`: a linear triangle's unit corner normals in the order (local, its next corner,
-  /// its previous corner), see acrossArea; a high-order triangle's held from standing across
-  /// (guarded) in its corners' order: the element counts as tangled (held) when its tangent
-  /// plane at a corner is wound against the normal there. Null: no hold.
+  /// its previous corner), see acrossArea; a high-order triangle's or quad8's held from
+  /// standing across (guarded) in its corners' order: the element counts as tangled (held) when its
+  /// tangent plane at a corner is wound against the normal there. Null: no hold.
   ElemOut evalElement(std::size_t e, int local, const Vec3& x, const Vec3& n, double delta,
                       bool wantEta0, Vec3* grad, Mat3* hess,
                       const HighOrderJacobians* pre = nullptr,
@@ -843,7 +859,7 @@ struct State {
     const auto it =
         std::lower_bound(cornerElems.begin(), cornerElems.end(), static_cast<std::int32_t>(e));
     if (it == cornerElems.end() || *it != static_cast<std::int32_t>(e)) return -1;
-    return 3 * static_cast<std::int64_t>(it - cornerElems.begin());
+    return kCornerSlots * static_cast<std::int64_t>(it - cornerElems.begin());
   }
 };
 
@@ -870,7 +886,7 @@ struct alignas(64) Worker {
     baseNormal.resize(s.maxDegree);
     otherNormals.resize(2 * s.maxDegree);
     if (!s.allTri3) {
-      cornerNormals.resize(3 * s.maxDegree);
+      cornerNormals.resize(kCornerSlots * s.maxDegree);
       holdHere.resize(s.maxDegree);
       highOrder.resize(s.maxDegree);
     }
@@ -884,8 +900,8 @@ struct alignas(64) Worker {
   std::vector<Vec3> baseNormal;  // per incident element: its normal without the free corner
   // Per incident linear triangle: the corner normals of its two other corners (acrossArea).
   std::vector<Vec3> otherNormals;
-  // Per incident held high-order triangle: its corner normals (the free corner's replaced at
-  // each trial).
+  // Per incident held high-order triangle or quad8: its corner normals (the free corner's
+  // replaced at each trial), kCornerSlots each.
   std::vector<Vec3> cornerNormals;
   std::vector<unsigned char> holdHere;  // whether that triangle is held in this update
   // Per incident high-order triangle: its Jacobians without the free node's term.
@@ -1143,13 +1159,14 @@ class NodeUpdater {
     return gained;
   }
 
-  /// Straightens tangled high-order triangles in (u,v): a curved triangle whose corner
-  /// triangle is valid but whose edge or interior nodes fold it (a mesher's second-order nodes
-  /// projected across a thin or strongly curved face) gets its movable edge and interior
-  /// nodes — Face nodes of the element's face — at the parametric interpolation of its corners
-  /// (straight sides in (u,v), as the paper's initial high-order meshes). Kept only when fewer
-  /// elements around the moved nodes are tangled than before — strict progress, like every
-  /// escape. Returns the number of elements untangled.
+  /// Straightens tangled high-order triangles and quad8 in (u,v): a curved element whose
+  /// corner triangle (quad8: each corner's triangle of its corner quadrilateral) is valid but
+  /// whose edge or interior nodes fold it (a mesher's second-order nodes projected across a
+  /// thin or strongly curved face) gets its movable edge and interior nodes — Face nodes of the
+  /// element's face — at the parametric interpolation of its corners (straight sides in (u,v),
+  /// as the paper's initial high-order meshes; a quad8's side node at its side's midpoint).
+  /// Kept only when fewer elements around the moved nodes are tangled than before — strict
+  /// progress, like every escape. Returns the number of elements untangled.
   /// With `cached`, only the elements the element cache holds tangled are looked at.
   std::size_t straightenHighOrder(const std::vector<unsigned char>& frozen, bool cached) {
     std::size_t gained = 0;
@@ -1158,30 +1175,35 @@ class NodeUpdater {
     std::vector<Vec3> xyzSave, nSave;
     for (std::size_t e = 0; e < s_.mesh.elementCount(); ++e) {
       const ElementType type = s_.mesh.elemType[e];
-      if (frozen[e] || !isHighOrderTriangle(type)) continue;
+      if (frozen[e] || !heldCurved(type)) continue;
       if ((cached && s_.minSigma[e] > 0.0) || !s_.evalWhole(e, 0.0).tangled) continue;
       const int face = s_.mesh.elemFace[e];
       const Surface& surf = *w_.geo.surfaces[static_cast<std::size_t>(face)];
       const std::int32_t* nd = s_.mesh.elementNodes(e);
+      const int nc = cornerCount(type);
       const Vec3 n = s_.elementNormal(e, -1, Vec3::Zero(), Vec3::Zero());
-      Jacobian32 J;
-      J.col(0) = s_.xyz[static_cast<std::size_t>(nd[1])] - s_.xyz[static_cast<std::size_t>(nd[0])];
-      J.col(1) = s_.xyz[static_cast<std::size_t>(nd[2])] - s_.xyz[static_cast<std::size_t>(nd[0])];
-      if (jacobianValidity(J, equilateralWinv(), n).tangled) continue;  // the corners first
-      Vec2 c[3];
+      bool cornersTangled = false;  // the corners first
+      for (int k = 0; k < nc && !cornersTangled; ++k) {
+        // Corner k's triangle (a triangle's one corner triangle, each of a quad's corners).
+        const Vec3& xk = s_.xyz[static_cast<std::size_t>(nd[k])];
+        Jacobian32 J;
+        J.col(0) = s_.xyz[static_cast<std::size_t>(nd[(k + 1) % nc])] - xk;
+        J.col(1) = s_.xyz[static_cast<std::size_t>(nd[(k + nc - 1) % nc])] - xk;
+        cornersTangled = jacobianValidity(J, equilateralWinv(), n).tangled;
+        if (nc == 3) break;  // one corner triangle
+      }
+      if (cornersTangled) continue;
+      Vec2 c[4];
       c[0] = cornerOnFace(e, 0, face, surf,
                           s_.mesh.cornerUV[static_cast<std::size_t>(s_.mesh.elemOffset[e])]);
-      c[1] = cornerOnFace(e, 1, face, surf, c[0]);
-      c[2] = cornerOnFace(e, 2, face, surf, c[0]);
-      const LagrangeTriangle& lt = lagrangeTriangle(elementOrder(type));
+      for (int k = 1; k < nc; ++k) c[k] = cornerOnFace(e, k, face, surf, c[0]);
       moved.clear();
       target.clear();
       bool ok = true;
-      for (int k = 3; k < s_.mesh.elementSize(e) && ok; ++k) {
+      for (int k = nc; k < s_.mesh.elementSize(e) && ok; ++k) {
         const std::size_t j = static_cast<std::size_t>(nd[k]);
         if (s_.mesh.nodeKind[j] != NodeKind::Face || s_.mesh.nodeFace[j] != face) continue;
-        const Eigen::Vector2d xi = lt.nodes()[static_cast<std::size_t>(k)];
-        const Vec2 t = surf.wrap((1.0 - xi.x() - xi.y()) * c[0] + xi.x() * c[1] + xi.y() * c[2]);
+        const Vec2 t = surf.wrap(straightPlace(type, k, c));
         ok = t.allFinite() && surf.containsNearBoundary(t.x(), t.y());
         moved.push_back(j);
         target.push_back(t);
@@ -1324,12 +1346,13 @@ class NodeUpdater {
   }
 
   /// The harmonic layout of escapeTangledElements is of the corners (a node's neighbours are
-  /// the corners of its elements). A side or interior node of a high-order triangle in `patch`
-  /// (no element's corner) goes instead to its place on straight sides in (u,v) between its
-  /// element's corners, as laid out in `uv` (the patch's corners) or where they are: the
-  /// average of the six corners of a side's two elements would bend that side towards one of
-  /// them (a second-order element with a Face corner and two Face side nodes between two nodes
-  /// on a CAD edge stayed folded after every harmonic layout).
+  /// the corners of its elements). A side or interior node of a high-order triangle or a
+  /// quad8 in `patch` (no element's corner) goes instead to its place on straight sides in
+  /// (u,v) between its element's corners (straightPlace), as laid out in `uv` (the patch's
+  /// corners) or where they are: the average of the corners of a side's two elements would
+  /// bend that side towards one of them (a second-order element with a Face corner and two
+  /// Face side nodes between two nodes on a CAD edge stayed folded after every harmonic
+  /// layout).
   void straightSides(const std::vector<std::size_t>& patch, int face, const Surface& surf,
                      std::vector<Vec2>* uv) const {
     for (std::size_t q = 0; q < patch.size(); ++q) {
@@ -1339,19 +1362,18 @@ class NodeUpdater {
       const std::size_t f = static_cast<std::size_t>(s_.inc.elem[p0]);
       const int local = s_.inc.local[p0];
       const ElementType type = s_.mesh.elemType[f];
-      if (!isHighOrderTriangle(type) || local < cornerCount(type)) continue;
+      const int nc = cornerCount(type);
+      if (!heldCurved(type) || local < nc) continue;
       const Vec2 ref = (*uv)[q];
-      Vec2 c[3];
-      for (int k = 0; k < 3; ++k) {
+      Vec2 c[4];
+      for (int k = 0; k < nc; ++k) {
         const std::size_t o = static_cast<std::size_t>(s_.mesh.elementNodes(f)[k]);
         const auto it = std::find(patch.begin(), patch.end(), o);
         c[k] = it == patch.end()
                    ? cornerOnFace(f, k, face, surf, ref)
                    : surf.unwrapNear((*uv)[static_cast<std::size_t>(it - patch.begin())], ref);
       }
-      const Eigen::Vector2d xi =
-          lagrangeTriangle(elementOrder(type)).nodes()[static_cast<std::size_t>(local)];
-      (*uv)[q] = (1.0 - xi.x() - xi.y()) * c[0] + xi.x() * c[1] + xi.y() * c[2];
+      (*uv)[q] = straightPlace(type, local, c);
     }
   }
 
@@ -1518,7 +1540,7 @@ class NodeUpdater {
       // previous corners' (the same for every trial of this update).
       bool guarded = s_.guarded(e);
       const bool tri = s_.mesh.elemType[e] == ElementType::Tri3 && guarded;
-      Vec3 corners[3];
+      Vec3 corners[kCornerSlots];
       if (tri) {
         Vec3* other = w_.otherNormals.data() + 2 * j;
         if (!cur) {
@@ -1529,13 +1551,14 @@ class NodeUpdater {
         corners[1] = other[0];
         corners[2] = other[1];
       } else if (guarded) {
-        // A held high-order triangle's corner normals in its corners' order, the free node's
-        // (when a corner) at the trial. Not held in this update when it stands across already
-        // (an escape's joint move may leave it so): its nodes stay free to move.
-        Vec3* kept = w_.cornerNormals.data() + 3 * j;
+        // A held high-order triangle's or quad8's corner normals in its corners' order, the
+        // free node's (when a corner) at the trial. Not held in this update when it stands
+        // across already (an escape's joint move may leave it so): its nodes stay free to move.
+        const int nc = cornerCount(s_.mesh.elemType[e]);
+        Vec3* kept = w_.cornerNormals.data() + kCornerSlots * j;
         if (!cur)
-          for (int k = 0; k < 3; ++k) kept[k] = s_.cornerNormal(e, k);
-        for (int k = 0; k < 3; ++k) corners[k] = k == local ? nfree(j) : kept[k];
+          for (int k = 0; k < nc; ++k) kept[k] = s_.cornerNormal(e, k);
+        for (int k = 0; k < nc; ++k) corners[k] = k == local ? nfree(j) : kept[k];
         if (!cur) w_.holdHere[j] = !s_.cornerSidesAt(e, -1, Vec3::Zero(), corners).against;
         guarded = w_.holdHere[j] != 0;
       }
