@@ -1,0 +1,114 @@
+// SurfMesh — a proof of the sign of a curved triangle's Jacobian.
+//
+// The map a FEM solver uses for a Lagrange triangle of order p with 3D nodes x_i (Gmsh order,
+// lagrange_triangle.h) is x(ξ) = Σ_i x_i N_i(ξ) on the reference triangle ξ = (ξ, η) ∈
+// {ξ ≥ 0, η ≥ 0, ξ + η ≤ 1}. The element is valid when
+//     D(ξ) = det J(ξ) = (x_ξ × x_η) · n > 0   on the WHOLE reference triangle,
+// n being the element's fixed reference normal. D is a polynomial of total degree 2(p − 1)
+// (x_ξ and x_η have degree p − 1), so it has exact coefficients in the triangular Bernstein
+// basis B_{ijk} = d!/(i! j! k!) λ0^i λ1^j λ2^k of degree d = 2(p − 1). Bernstein polynomials
+// are ≥ 0 and sum to 1, so min D ≥ min coefficient, and the coefficients at the three corners
+// are D's values there; subdividing the triangle (de Casteljau) gives each piece its own
+// coefficients, which converge to D's values (Johnen, Remacle, Geuzaine, "Geometrical validity
+// of curvilinear finite elements", JCP 233, 2013; Gmsh's Numeric/bezierBasis, JacobianBasis).
+//
+// The certificate (certificate.cpp): D at the equispaced points of order d, converted to
+// Bernstein coefficients by a precomputed inverse matrix per order; then the triangle is split
+// into 4 at its edge midpoints (exact dyadic subdivision matrices), level by level:
+//   - a piece whose coefficients are all > τ is proven valid;
+//   - a point with D ≤ τ (a sample, a piece's corner, or the domain point of a piece's smallest
+//     coefficient, each re-evaluated from the nodes) proves the element invalid;
+//   - pieces still undecided at depth kCertificateMaxDepth (or beyond kCertificateMaxPieces
+//     pieces) leave the verdict Undecided, which callers must treat as invalid.
+// τ = kPerpendicularTol ‖n‖ max_a ‖x_ξ(ξ_a)‖ ‖x_η(ξ_a)‖ over the sample points: the same
+// relative margin as orientationDefined() (|c·n| > 1e-9 ‖c‖ ‖n‖ with ‖c‖ ≤ ‖x_ξ‖ ‖x_η‖), so a
+// determinant that is zero within rounding (a side node exactly at the quarter point) counts
+// as a fold, not as valid, and the verdict does not hang on the last bits.
+//
+// The reference normal n and poles / degenerate parametrizations. The certificate needs only
+// the nodes' 3D positions and the direction n; it never evaluates the surface, so a node at a
+// pole or on a degenerate edge of the parametrization is an ordinary point. n is the element's
+// reference normal as the distortion measures use it (elementReferenceNormal in
+// element_measure.h): the normalized sum of the face's outward normals at the element's
+// corners, where a corner at a pole (degenerate parametrization, no normal) contributes none
+// (zero), and the normal at the parametric centroid is used when every corner is degenerate.
+// When the corner normals cancel (their sum shorter than kNormalCancelTol) that n is zero: then
+// D ≡ 0 and the certificate returns NonPositive (value 0 at the centroid) — the element is
+// invalid, as it is tangled for the measures. A non-finite node or normal gives Undecided.
+//
+// Order 1 (Tri3): D is the constant ((x1 − x0) × (x2 − x0)) · n, the plain orientation test.
+// Quadrilaterals: quad4's D = (x_s × x_t)·n is affine in (s, t) (x_s × x_t has no st term),
+// so its four corners decide it, which the corner triangles of quadDistortion already check;
+// quad8's D is proven by its own tensor-product Bernstein certificate inside quad8Distortion
+// (element_quad8.cpp). elementCertifiedValid() dispatches to those verdicts for quads rather
+// than duplicating them; certifyElementJacobian() is for triangles only.
+#pragma once
+
+#include "surfmesh/measures/element_measure.h"
+
+#include <Eigen/Dense>
+
+#include <limits>
+
+namespace surfmesh {
+
+/// Subdivision levels of the certificate (each splits a piece in 4), as quad8's proof.
+constexpr int kCertificateMaxDepth = 8;
+/// Most pieces examined before giving up (Undecided): bounds the work on a determinant that
+/// touches zero along a curve (a nearly degenerate element) to a few milliseconds.
+constexpr int kCertificateMaxPieces = 8192;
+
+/// The certificate's verdict on D = det J = (x_ξ × x_η)·n over the reference triangle.
+enum class JacobianSign : int {
+  Positive = 1,     ///< proven: D > τ everywhere (every coefficient of every piece > τ)
+  NonPositive = 0,  ///< proven: D(point) ≤ τ at the returned point (evaluated from the nodes)
+  Undecided = -1,   ///< neither within the depth / piece limits: treat as invalid
+};
+
+/// Name of a verdict: "positive", "non_positive", "undecided".
+const char* jacobianSignName(JacobianSign s);
+
+/// The certificate of one element, with diagnostics.
+struct JacobianCertificate {
+  JacobianSign sign = JacobianSign::Undecided;
+  /// NonPositive: the reference point (ξ, η) where D ≤ τ was found; NaN otherwise.
+  Eigen::Vector2d point = Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());
+  /// NonPositive: D at `point`, evaluated directly from the nodes; NaN otherwise.
+  double value = std::numeric_limits<double>::quiet_NaN();
+  /// Smallest Bernstein coefficient of D on the whole triangle (before any subdivision).
+  double minCoefficient = std::numeric_limits<double>::quiet_NaN();
+  /// Smallest D over the order-2(p − 1) sample points the coefficients come from.
+  double minSampled = std::numeric_limits<double>::quiet_NaN();
+  /// minCoefficient / minSampled: 1 when the first expansion is already sharp, larger (or
+  /// negative) when subdivision was needed (Johnen et al.'s measure of the bound's quality).
+  double ratio = std::numeric_limits<double>::quiet_NaN();
+  /// Positive: a proven lower bound of D (the smallest coefficient over the final pieces).
+  double lowerBound = std::numeric_limits<double>::quiet_NaN();
+  /// τ, the margin below which D counts as zero (see the file comment).
+  double tolerance = 0.0;
+  int depth = 0;   ///< deepest subdivision level reached (0: the first expansion decided)
+  int pieces = 0;  ///< pieces whose coefficients were examined
+};
+
+/// D(ξ) = (x_ξ × x_η)·n at one reference point for the Lagrange triangle of order p (1…5) with
+/// nodes x (Gmsh order).
+double triangleJacobianDeterminant(int order, const Vec3* x, const Vec3& n,
+                                   const Eigen::Vector2d& xi);
+
+/// Certifies the sign of D over the whole reference triangle for the Lagrange triangle of
+/// order p ∈ [1, 5] with nodes x (Gmsh order) against the direction n (see the file comment).
+/// Throws std::invalid_argument for another order.
+JacobianCertificate certifyTriangleJacobian(int order, const Vec3* x, const Vec3& n,
+                                            int maxDepth = kCertificateMaxDepth);
+
+/// certifyTriangleJacobian for a triangle type (Tri3, Tri6, Tri10, Tri15, Tri21). Throws
+/// std::invalid_argument for a quadrilateral (see elementCertifiedValid).
+JacobianCertificate certifyElementJacobian(ElementType type, const Vec3* x, const Vec3& n);
+
+/// Whether the element's D is proven positive everywhere: triangles by the certificate
+/// (Positive; NonPositive and Undecided are invalid), quad4 by its corner triangles (D affine in
+/// (s, t)), quad8 by its own Bernstein certificate (quad8Distortion's tangled flag, which also
+/// covers its nodes and Gauss points).
+bool elementCertifiedValid(ElementType type, const Vec3* x, const Vec3& n);
+
+}  // namespace surfmesh

@@ -1,0 +1,334 @@
+// A proof of the sign of a Lagrange triangle's Jacobian determinant D = (x_ξ × x_η)·n over the
+// whole reference triangle (certificate.h; Johnen, Remacle, Geuzaine, JCP 2013).
+//
+// Bernstein basis of degree d on a triangle with barycentric coordinates (λ0, λ1, λ2):
+//     B_{ijk} = d!/(i! j! k!) λ0^i λ1^j λ2^k,  i + j + k = d,
+// with λ0 = 1 − ξ − η, λ1 = ξ, λ2 = η on the reference triangle. Coefficients are stored in the
+// order k = 0…d, then j = 0…d − k (position k(d + 1) − k(k − 1)/2 + j). The coefficient c_{ijk}
+// belongs to the domain point (i v0 + j v1 + k v2)/d of a piece with corners v0, v1, v2;
+// c_{d00}, c_{0d0}, c_{00d} are D's values at the corners.
+//
+// First expansion: D at the domain points of the reference triangle (the equispaced points of
+// order d), c = V⁻¹ D with V(a, b) = B_b(ξ_a), precomputed per order (45 × 45 for p = 5).
+// Subdivision: the piece is split at its edge midpoints m01, m12, m20 into (v0, m01, m20),
+// (m01, v1, m12), (m20, m12, v2) and (m12, m20, m01). A child with corners u0, u1, u2 (in the
+// parent's barycentric coordinates) has the coefficients c'_{ijk} = blossom of the parent at
+// (u0 × i, u1 × j, u2 × k), i.e. d de Casteljau steps; as every u has coordinates in {0, ½, 1},
+// the four matrices mapping parent to child coefficients are computed once, exactly (dyadic
+// entries, nonnegative, rows summing to 1), and applied as matrix–vector products.
+#include "surfmesh/measures/certificate.h"
+
+#include "surfmesh/measures/lagrange_triangle.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace surfmesh {
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+/// Coefficients of the largest degree (d = 8 for p = 5): 45.
+constexpr int kMaxCoefficients = 45;
+
+int position(int d, int j, int k) { return k * (d + 1) - k * (k - 1) / 2 + j; }
+
+using Bary = std::array<double, 3>;
+
+/// Everything the certificate of order p needs, precomputed once.
+struct CertificateBasis {
+  int order = 0;
+  int nodes = 0;                        ///< shape functions of the element
+  int degree = 0;                       ///< d = 2(p − 1)
+  int count = 0;                        ///< (d + 1)(d + 2)/2 coefficients
+  std::vector<Eigen::Vector3i> index;   ///< (i, j, k) of each coefficient
+  std::vector<Eigen::Vector2d> points;  ///< the domain points (j/d, k/d) of the reference triangle
+  /// grad[a * nodes + i] = ∇N_i(points[a]).
+  std::vector<Eigen::Vector2d> grad;
+  /// Row-major count × count: coefficients = fromValues · (D at points).
+  std::vector<double> fromValues;
+  /// Row-major count × count per child: child coefficients = child[c] · parent coefficients.
+  std::array<std::vector<double>, 4> child;
+  int corner[3] = {0, 0, 0};  ///< positions of c_{d00}, c_{0d0}, c_{00d}
+};
+
+/// Row of the linear map parent coefficients → the blossom at `args` (d barycentric points).
+std::vector<double> blossomRow(int d, int count, const std::vector<Bary>& args) {
+  // level[L] coefficients, each a row over the parent's coefficients (symbolic de Casteljau).
+  std::vector<std::vector<double>> level(static_cast<std::size_t>(count),
+                                         std::vector<double>(static_cast<std::size_t>(count), 0));
+  for (int a = 0; a < count; ++a)
+    level[static_cast<std::size_t>(a)][static_cast<std::size_t>(a)] = 1;
+  for (int L = d; L > 0; --L) {
+    const Bary& u = args[static_cast<std::size_t>(d - L)];
+    const int m = L * (L + 1) / 2;  // coefficients of degree L − 1
+    std::vector<std::vector<double>> next(static_cast<std::size_t>(m),
+                                          std::vector<double>(static_cast<std::size_t>(count), 0));
+    for (int k = 0; k <= L - 1; ++k)
+      for (int j = 0; j <= L - 1 - k; ++j) {
+        auto& row = next[static_cast<std::size_t>(position(L - 1, j, k))];
+        const auto& r0 = level[static_cast<std::size_t>(position(L, j, k))];  // i + 1
+        const auto& r1 = level[static_cast<std::size_t>(position(L, j + 1, k))];
+        const auto& r2 = level[static_cast<std::size_t>(position(L, j, k + 1))];
+        for (int c = 0; c < count; ++c) {
+          const std::size_t s = static_cast<std::size_t>(c);
+          row[s] = u[0] * r0[s] + u[1] * r1[s] + u[2] * r2[s];
+        }
+      }
+    level.swap(next);
+  }
+  return level[0];
+}
+
+double binomial(int n, int k) {
+  double r = 1.0;
+  for (int s = 1; s <= k; ++s) r = r * (n - k + s) / s;
+  return r;
+}
+
+CertificateBasis makeBasis(int order) {
+  CertificateBasis b;
+  const LagrangeTriangle& lt = lagrangeTriangle(order);
+  b.order = order;
+  b.nodes = lt.nodeCount();
+  const int d = 2 * (order - 1);
+  b.degree = d;
+  b.count = (d + 1) * (d + 2) / 2;
+  const std::size_t m = static_cast<std::size_t>(b.count);
+  for (int k = 0; k <= d; ++k)
+    for (int j = 0; j <= d - k; ++j) {
+      b.index.emplace_back(d - j - k, j, k);
+      // d = 0 (p = 1): one point, D constant; take the first corner.
+      b.points.emplace_back(d > 0 ? static_cast<double>(j) / d : 0.0,
+                            d > 0 ? static_cast<double>(k) / d : 0.0);
+    }
+  b.corner[0] = position(d, 0, 0);
+  b.corner[1] = position(d, d, 0);
+  b.corner[2] = position(d, 0, d);
+  const std::size_t nn = static_cast<std::size_t>(b.nodes);
+  b.grad.resize(m * nn);
+  for (std::size_t a = 0; a < m; ++a) lt.gradients(b.points[a], b.grad.data() + a * nn);
+  // V(a, b) = B_b(points[a]).
+  Eigen::MatrixXd V(b.count, b.count);
+  for (int a = 0; a < b.count; ++a) {
+    const double l[3] = {
+        1.0 - b.points[static_cast<std::size_t>(a)].x() - b.points[static_cast<std::size_t>(a)].y(),
+        b.points[static_cast<std::size_t>(a)].x(), b.points[static_cast<std::size_t>(a)].y()};
+    for (int c = 0; c < b.count; ++c) {
+      const Eigen::Vector3i& e = b.index[static_cast<std::size_t>(c)];
+      V(a, c) = binomial(d, e(0)) * binomial(d - e(0), e(1)) * std::pow(l[0], e(0)) *
+                std::pow(l[1], e(1)) * std::pow(l[2], e(2));
+    }
+  }
+  const Eigen::MatrixXd inv = V.fullPivLu().inverse();
+  b.fromValues.resize(m * m);
+  for (int r = 0; r < b.count; ++r)
+    for (int c = 0; c < b.count; ++c)
+      b.fromValues[static_cast<std::size_t>(r) * m + static_cast<std::size_t>(c)] = inv(r, c);
+  // Children corners in the parent's barycentric coordinates.
+  const Bary e0 = {1, 0, 0}, e1 = {0, 1, 0}, e2 = {0, 0, 1};
+  const Bary m01 = {0.5, 0.5, 0}, m12 = {0, 0.5, 0.5}, m20 = {0.5, 0, 0.5};
+  const std::array<std::array<Bary, 3>, 4> kids = {{{e0, m01, m20},  //
+                                                    {m01, e1, m12},
+                                                    {m20, m12, e2},
+                                                    {m12, m20, m01}}};
+  for (int c = 0; c < 4; ++c) {
+    auto& M = b.child[static_cast<std::size_t>(c)];
+    M.resize(m * m);
+    for (int r = 0; r < b.count; ++r) {
+      const Eigen::Vector3i& e = b.index[static_cast<std::size_t>(r)];
+      std::vector<Bary> args;
+      for (int v = 0; v < 3; ++v)
+        for (int t = 0; t < e(v); ++t)
+          args.push_back(kids[static_cast<std::size_t>(c)][static_cast<std::size_t>(v)]);
+      const std::vector<double> row = blossomRow(d, b.count, args);
+      std::copy(row.begin(), row.end(), M.begin() + static_cast<std::ptrdiff_t>(r * b.count));
+    }
+  }
+  return b;
+}
+
+const CertificateBasis& basis(int order) {
+  static const CertificateBasis b[5] = {makeBasis(1), makeBasis(2), makeBasis(3), makeBasis(4),
+                                        makeBasis(5)};
+  if (order < 1 || order > 5)
+    throw std::invalid_argument("certifyTriangleJacobian: order must be 1..5, got " +
+                                std::to_string(order));
+  return b[order - 1];
+}
+
+/// x_ξ, x_η from the nodes and the gradients of their shape functions at one point.
+inline void tangents(const Vec3* x, const Eigen::Vector2d* g, int nn, Vec3* a, Vec3* b) {
+  double a0 = 0, a1 = 0, a2 = 0, b0 = 0, b1 = 0, b2 = 0;
+  for (int i = 0; i < nn; ++i) {
+    a0 += g[i].x() * x[i].x();
+    a1 += g[i].x() * x[i].y();
+    a2 += g[i].x() * x[i].z();
+    b0 += g[i].y() * x[i].x();
+    b1 += g[i].y() * x[i].y();
+    b2 += g[i].y() * x[i].z();
+  }
+  *a = Vec3(a0, a1, a2);
+  *b = Vec3(b0, b1, b2);
+}
+
+/// One piece of the reference triangle: its corners (ξ, η) and D's coefficients on it.
+struct Piece {
+  Eigen::Vector2d v[3];
+  double c[kMaxCoefficients];
+};
+
+}  // namespace
+
+const char* jacobianSignName(JacobianSign s) {
+  switch (s) {
+    case JacobianSign::Positive:
+      return "positive";
+    case JacobianSign::NonPositive:
+      return "non_positive";
+    default:
+      return "undecided";
+  }
+}
+
+double triangleJacobianDeterminant(int order, const Vec3* x, const Vec3& n,
+                                   const Eigen::Vector2d& xi) {
+  const LagrangeTriangle& lt = lagrangeTriangle(order);
+  Eigen::Vector2d g[kMaxElementNodes];
+  lt.gradients(xi, g);
+  Vec3 a, b;
+  tangents(x, g, lt.nodeCount(), &a, &b);
+  return a.cross(b).dot(n);
+}
+
+JacobianCertificate certifyTriangleJacobian(int order, const Vec3* x, const Vec3& n, int maxDepth) {
+  const CertificateBasis& B = basis(order);
+  const int nn = B.nodes, m = B.count, d = B.degree;
+  const std::size_t mm = static_cast<std::size_t>(m);
+  JacobianCertificate r;
+  if (!n.allFinite()) return r;  // Undecided
+  const double nNorm = n.norm();
+
+  // D at the sample points, and the scale of τ.
+  double values[kMaxCoefficients] = {};
+  double scale = 0.0;
+  bool finite = true;
+  for (int a = 0; a < m; ++a) {
+    Vec3 xa, xb;
+    tangents(x, B.grad.data() + static_cast<std::size_t>(a) * static_cast<std::size_t>(nn), nn, &xa,
+             &xb);
+    values[a] = xa.cross(xb).dot(n);
+    scale = std::max(scale, xa.norm() * xb.norm());
+    finite = finite && std::isfinite(values[a]) && std::isfinite(scale);
+  }
+  if (!finite) return r;  // Undecided
+  const double tol = kPerpendicularTol * nNorm * scale;
+  r.tolerance = tol;
+  int lowest = 0;
+  for (int a = 1; a < m; ++a)
+    if (values[a] < values[lowest]) lowest = a;
+  r.minSampled = values[lowest];
+
+  Piece root;
+  root.v[0] = Eigen::Vector2d(0, 0);
+  root.v[1] = Eigen::Vector2d(1, 0);
+  root.v[2] = Eigen::Vector2d(0, 1);
+  for (int i = 0; i < m; ++i) {
+    double s = 0.0;
+    const double* row = B.fromValues.data() + static_cast<std::size_t>(i) * mm;
+    for (int j = 0; j < m; ++j) s += row[j] * values[j];
+    root.c[i] = s;
+  }
+  if (d == 0) root.c[0] = values[0];  // exact: D is constant
+  r.minCoefficient = *std::min_element(root.c, root.c + m);
+  r.ratio = r.minCoefficient / r.minSampled;
+
+  auto nonPositive = [&](const Eigen::Vector2d& p, double value, int depth) {
+    r.sign = JacobianSign::NonPositive;
+    r.point = p;
+    r.value = value;
+    r.depth = depth;
+    return r;
+  };
+  if (nNorm == 0.0) return nonPositive(Eigen::Vector2d(1.0 / 3.0, 1.0 / 3.0), 0.0, 0);
+  if (values[lowest] <= tol)
+    return nonPositive(B.points[static_cast<std::size_t>(lowest)], values[lowest], 0);
+
+  // A point of a piece where D ≤ τ, evaluated from the nodes (the coefficients only point to
+  // it: a corner coefficient equals D there up to rounding).
+  auto direct = [&](const Eigen::Vector2d& p) {
+    return triangleJacobianDeterminant(order, x, n, p);
+  };
+
+  double lowerBound = std::numeric_limits<double>::infinity();
+  bool undecided = false;
+  std::vector<Piece> level{root}, next;
+  for (int depth = 0; !level.empty(); ++depth) {
+    r.depth = depth;
+    next.clear();
+    for (const Piece& P : level) {
+      ++r.pieces;
+      const int lo = static_cast<int>(std::min_element(P.c, P.c + m) - P.c);
+      if (P.c[lo] > tol) {
+        lowerBound = std::min(lowerBound, P.c[lo]);
+        continue;
+      }
+      for (int k = 0; k < 3; ++k)
+        if (P.c[B.corner[k]] <= tol) {
+          const double v = direct(P.v[k]);
+          if (v <= tol) return nonPositive(P.v[k], v, depth);
+        }
+      if (d > 0) {
+        const Eigen::Vector3i& e = B.index[static_cast<std::size_t>(lo)];
+        const Eigen::Vector2d p = (e(0) * P.v[0] + e(1) * P.v[1] + e(2) * P.v[2]) / d;
+        const double v = direct(p);
+        if (v <= tol) return nonPositive(p, v, depth);
+      }
+      if (depth >= maxDepth || r.pieces + static_cast<int>(next.size()) >= kCertificateMaxPieces) {
+        undecided = true;
+        continue;
+      }
+      const Eigen::Vector2d m01 = 0.5 * (P.v[0] + P.v[1]), m12 = 0.5 * (P.v[1] + P.v[2]),
+                            m20 = 0.5 * (P.v[2] + P.v[0]);
+      const Eigen::Vector2d corners[4][3] = {
+          {P.v[0], m01, m20}, {m01, P.v[1], m12}, {m20, m12, P.v[2]}, {m12, m20, m01}};
+      for (int c = 0; c < 4; ++c) {
+        Piece C;
+        for (int k = 0; k < 3; ++k) C.v[k] = corners[c][k];
+        const double* M = B.child[static_cast<std::size_t>(c)].data();
+        for (int i = 0; i < m; ++i) {
+          double s = 0.0;
+          const double* row = M + static_cast<std::size_t>(i) * mm;
+          for (int j = 0; j < m; ++j) s += row[j] * P.c[j];
+          C.c[i] = s;
+        }
+        next.push_back(C);
+      }
+    }
+    level.swap(next);
+  }
+  if (undecided) return r;
+  r.sign = JacobianSign::Positive;
+  r.lowerBound = lowerBound;
+  return r;
+}
+
+JacobianCertificate certifyElementJacobian(ElementType type, const Vec3* x, const Vec3& n) {
+  if (isQuad(type))
+    throw std::invalid_argument(std::string("certifyElementJacobian: ") + elementTypeName(type) +
+                                " is not a triangle (see elementCertifiedValid)");
+  return certifyTriangleJacobian(elementOrder(type), x, n);
+}
+
+bool elementCertifiedValid(ElementType type, const Vec3* x, const Vec3& n) {
+  if (!isQuad(type)) return certifyElementJacobian(type, x, n).sign == JacobianSign::Positive;
+  // Quad4 and quad8: their own proofs, inside their distortion (any measure: validity only).
+  return !elementDistortion(measureByName("shape"), type, x, n, 0.0).tangled;
+}
+
+}  // namespace surfmesh
