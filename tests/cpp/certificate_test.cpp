@@ -193,7 +193,20 @@ Element cylinder(int p) {
 
 /// The current sampled check (quality report, optimizer): det S ≤ 0 at a node or at a
 /// quadrature point.
+/// The sampled check alone: det S at the element's nodes and quadrature points (the measure's
+/// evaluation from precomputed Jacobians, which leaves the certificate to its caller).
 bool sampledTangled(const Element& e) {
+  if (e.p == 1)
+    return elementDistortion(measureByName("shape"), typeOf(e.p), e.x.data(), e.n, 0.0).tangled;
+  HighOrderJacobians pre;
+  highOrderJacobians(typeOf(e.p), e.x.data(), -1, &pre);
+  return highOrderTriangleDistortion(measureByName("shape"), pre, Vec3::Zero(), e.n, 0.0, nullptr,
+                                     nullptr, nullptr)
+      .tangled;
+}
+
+/// The measures' verdict (elementDistortion: the samples, then the certificate).
+bool measureTangled(const Element& e) {
   return elementDistortion(measureByName("shape"), typeOf(e.p), e.x.data(), e.n, 0.0).tangled;
 }
 
@@ -337,6 +350,8 @@ TEST(JacobianCertificate, FoldBetweenNodesAndQuadraturePointsIsFound) {
           << k.name << " p = " << p;
       // The sampled check (nodes + the quadrature points of highOrderJacobians) says valid…
       EXPECT_FALSE(sampledTangled(e));
+      // …and the measures, which certify what the samples find valid, call it tangled.
+      EXPECT_TRUE(measureTangled(e));
       HighOrderJacobians pre;
       highOrderJacobians(typeOf(p), e.x.data(), -1, &pre);
       const auto& rule = highOrderTriangleRule(p);
@@ -392,6 +407,9 @@ TEST(JacobianCertificate, RandomPerturbationsAgreeWithDenseSampling) {
       const double dmin = grid.min(e.x, e.n);
       const bool sampled = sampledTangled(e);
       sampledTangledCount += sampled;
+      // The measures' verdict: tangled when the samples or the certificate say so.
+      EXPECT_EQ(measureTangled(e), sampled || c.sign != JacobianSign::Positive)
+          << "p = " << p << " trial " << t;
       gridNegative += dmin <= 0.0;
       maxPieces = std::max(maxPieces, c.pieces);
       EXPECT_LE(c.minCoefficient, dmin + c.tolerance) << "p = " << p << " trial " << t;

@@ -325,6 +325,22 @@ JacobianCertificate certifyElementJacobian(ElementType type, const Vec3* x, cons
   return certifyTriangleJacobian(elementOrder(type), x, n);
 }
 
+bool markUncertifiedFold(ElementType type, const Vec3* x, const Vec3& n, double delta,
+                         ElementEval* r, Vec3* grad, Mat3* hess, double* eta0) {
+  if (r->tangled || !isHighOrderTriangle(type)) return false;
+  if (certifyTriangleJacobian(elementOrder(type), x, n).sign == JacobianSign::Positive)
+    return false;
+  r->tangled = true;
+  r->minSigma = std::min(r->minSigma, 0.0);
+  if (eta0) *eta0 = std::numeric_limits<double>::infinity();
+  if (delta == 0.0) {
+    r->eta = std::numeric_limits<double>::infinity();
+    if (grad) grad->setZero();
+    if (hess) hess->setZero();
+  }
+  return true;
+}
+
 bool elementCertifiedValid(ElementType type, const Vec3* x, const Vec3& n) {
   if (!isQuad(type)) return certifyElementJacobian(type, x, n).sign == JacobianSign::Positive;
   // Quad4 and quad8: their own proofs, inside their distortion (any measure: validity only).

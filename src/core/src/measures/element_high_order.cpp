@@ -20,14 +20,19 @@
 // reliably (6, 12, 16, 25 points for p = 2, 3, 4, 5).
 //
 // Validity: the element is tangled when det S ≤ 0 at any quadrature point or at any of its
-// nodes (corners, edge and interior nodes: the points where a fold first shows). minSigma is the
+// nodes (corners, edge and interior nodes: the points where a fold first shows), and, when
+// those samples are all positive, unless the certificate (certificate.h) proves det J > 0 on
+// the whole element: a fold between the samples is a fold (markUncertifiedFold; the overload
+// from precomputed Jacobians leaves that to its caller, which has the nodes). minSigma is the
 // smallest signed shape quality 2σ/‖S‖² over those points (the scaled Jacobian used for linear
-// triangles, so the optimizer's δ policy treats every element type alike).
+// triangles, so the optimizer's δ policy treats every element type alike), 0 at most for a fold
+// only the certificate finds.
 //
 // Derivatives with respect to the free node k: J depends on x_k through x_k ∇N_k(ξ)ᵀ, so
 // jacobianDistortion gives ∂η_q/∂x_k and ∂²η_q/∂x_k² with b = ∇N_k(ξ_q), and
 //     ∇η̂ = Σ_q w_q η_q ∇η_q / η̂,
 //     ∇²η̂ = Σ_q w_q (∇η_q ∇η_qᵀ + η_q ∇²η_q) / η̂ − ∇η̂ ∇η̂ᵀ / η̂.
+#include "surfmesh/measures/certificate.h"
 #include "surfmesh/measures/element_measure.h"
 #include "surfmesh/measures/lagrange_triangle.h"
 
@@ -117,8 +122,11 @@ ElementEval highOrderTriangleDistortion(const PlanarMeasure& m, ElementType type
   // Without derivatives the Jacobians are summed over every node, in node order.
   const int k = (grad || hess) ? freeLocal : -1;
   highOrderJacobians(type, x, k, &pre);
-  return highOrderTriangleDistortion(m, pre, pre.freeLocal >= 0 ? x[pre.freeLocal] : Vec3::Zero(),
-                                     n, delta, grad, hess, eta0);
+  ElementEval r = highOrderTriangleDistortion(
+      m, pre, pre.freeLocal >= 0 ? x[pre.freeLocal] : Vec3::Zero(), n, delta, grad, hess, eta0);
+  // Valid at the samples: valid only where det J is proven positive on the whole element.
+  markUncertifiedFold(type, x, n, delta, &r, grad, hess, eta0);
+  return r;
 }
 
 ElementEval highOrderTriangleDistortion(const PlanarMeasure& m, const HighOrderJacobians& pre,

@@ -1,5 +1,6 @@
 #include "surfmesh/optimize/optimizer.h"
 
+#include "surfmesh/measures/certificate.h"
 #include "surfmesh/measures/element_measure.h"
 #include "surfmesh/measures/lagrange_triangle.h"
 
@@ -783,6 +784,12 @@ struct State {
     if (pre) {
       ev = highOrderTriangleDistortion(measure, *pre, x, nu, delta, grad, hess,
                                        wantEta0 ? &eta0 : nullptr);
+      if (!ev.tangled) {  // valid at the samples: the certificate, as elementDistortion's
+        Vec3 xs[kMaxElementNodes];
+        positions(e, local, x, xs);
+        markUncertifiedFold(mesh.elemType[e], xs, nu, delta, &ev, grad, hess,
+                            wantEta0 ? &eta0 : nullptr);
+      }
     } else {
       Vec3 xs[kMaxElementNodes];
       positions(e, local, x, xs);

@@ -105,6 +105,16 @@ JacobianCertificate certifyTriangleJacobian(int order, const Vec3* x, const Vec3
 /// std::invalid_argument for a quadrilateral (see elementCertifiedValid).
 JacobianCertificate certifyElementJacobian(ElementType type, const Vec3* x, const Vec3& n);
 
+/// The certificate as the measures apply it to a high-order triangle (types Tri6 … Tri21) that
+/// the sampled check (its nodes and quadrature points) found untangled, with nodes x and the
+/// unit reference normal n of the evaluation: when D is not proven positive everywhere the
+/// element is marked tangled as a fold the samples see is — r->tangled, r->minSigma ≤ 0, η = ∞
+/// and the derivatives zero when δ = 0, *eta0 (η at δ = 0, when asked) = ∞; with δ > 0 η and
+/// its derivatives stay the regularized ones the untangling descends. Returns whether it marked
+/// it. Nothing is done for another type or an element already tangled.
+bool markUncertifiedFold(ElementType type, const Vec3* x, const Vec3& n, double delta,
+                         ElementEval* r, Vec3* grad, Mat3* hess, double* eta0);
+
 /// Whether the element's D is proven positive everywhere: triangles by the certificate
 /// (Positive; NonPositive and Undecided are invalid), quad4 by its corner triangles (D affine in
 /// (s, t)), quad8 by its own Bernstein certificate (quad8Distortion's tangled flag, which also
