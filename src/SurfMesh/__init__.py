@@ -18,7 +18,6 @@ See SurfMesh.app.api for the options. Importing this package never imports FreeC
 
 from SurfMesh.app.api import (  # noqa: F401
     BOUNDARY_MODES,
-    OPTIMIZE_DEFAULTS,
     Cancelled,
     OptimizeResult,
     QualityReport,
@@ -38,3 +37,13 @@ from SurfMesh.app.document import (  # noqa: F401
 )
 
 __version__ = "0.1.0"
+
+
+def __getattr__(name):
+    # OPTIMIZE_DEFAULTS (SurfMesh.app.api's): read from the compiled core when first asked for,
+    # so that importing SurfMesh does not load it.
+    if name == "OPTIMIZE_DEFAULTS":
+        from SurfMesh.app import options
+
+        return options.optimize_defaults()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

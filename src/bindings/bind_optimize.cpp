@@ -17,6 +17,30 @@ py::dict statsToDict(const QualityStats& s);
 
 void bind_optimize(MeshClass& cls) {
   const OptimizeOptions kDefaults;
+  // The one source of the options' defaults on the Python side (SurfMesh.app.options):
+  // a default-constructed OptimizeOptions, by optimize()'s keyword names.
+  cls.def_static(
+      "optimize_defaults",
+      []() {
+        const OptimizeOptions o;
+        py::dict d;
+        d["measure"] = o.measure;
+        d["max_sweeps"] = o.maxSweeps;
+        d["rel_tol"] = o.relTol;
+        d["move_tol"] = o.moveTol;
+        d["inner_iterations"] = o.innerIterations;
+        d["max_line_search"] = o.maxLineSearch;
+        d["over_relaxation"] = o.overRelaxation;
+        d["delta_policy"] = o.deltaPolicy;
+        d["delta_epsilon"] = o.deltaEpsilon;
+        d["delta"] = o.delta;
+        d["monotone"] = o.monotone;
+        d["threads"] = o.threads;
+        return d;
+      },
+      "The defaults of optimize()'s options (the core's OptimizeOptions), by its keyword names: "
+      "measure, max_sweeps, rel_tol, move_tol, inner_iterations, max_line_search, "
+      "over_relaxation, delta_policy, delta_epsilon, delta, monotone, threads.");
   cls.def(
       "optimize",
       [](MeshHandle& h, const std::string& measure, int max_sweeps, double rel_tol, double move_tol,
@@ -104,7 +128,7 @@ void bind_optimize(MeshClass& cls) {
         d["warnings"] = r.warnings;
         return d;
       },
-      // The core's defaults (OptimizeOptions), as in SurfMesh.app.api.OPTIMIZE_DEFAULTS.
+      // The core's defaults (OptimizeOptions), as optimize_defaults() gives them.
       py::arg("measure") = kDefaults.measure, py::arg("max_sweeps") = kDefaults.maxSweeps,
       py::arg("rel_tol") = kDefaults.relTol, py::arg("move_tol") = kDefaults.moveTol,
       py::arg("inner_iterations") = kDefaults.innerIterations,

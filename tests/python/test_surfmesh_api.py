@@ -5,6 +5,7 @@ normals (surfmesh_testing.reference_tri_quality), FreeCAD's geometry queries and
 closed-form distance for node positions.
 """
 
+import os
 import re
 import unittest
 
@@ -581,6 +582,65 @@ class TestOnlySomeFaces(ApiCase):
         self.assertEqual([o.Name for o in self.doc.Objects], names)
         new = SurfMesh.optimize_object(obj, part, faces=self.names[:1])
         self.assertIn(f"faces={self.names[:1]!r}", new.SurfMeshRun["options"])
+
+
+class TestDefaults(unittest.TestCase):
+    """One source of the optimizer's defaults: the core's OptimizeOptions, through the binding."""
+
+    def test_bound_defaults_are_the_apis(self):
+        import inspect
+
+        from SurfMesh.app import api, document, options
+
+        bound = dict(api.core().SurfaceMesh.optimize_defaults())
+        self.assertEqual(bound.pop("measure"), options.DEFAULT_MEASURE)
+        self.assertEqual(SurfMesh.OPTIMIZE_DEFAULTS, bound)
+        self.assertEqual(list(SurfMesh.OPTIMIZE_DEFAULTS), list(bound))  # same order
+        self.assertIs(api.OPTIMIZE_DEFAULTS, SurfMesh.OPTIMIZE_DEFAULTS)
+        self.assertIs(options.optimize_defaults(), SurfMesh.OPTIMIZE_DEFAULTS)
+        for k, v in bound.items():  # same types too (True, not 1; 0, not 0.0)
+            self.assertIs(type(SurfMesh.OPTIMIZE_DEFAULTS[k]), type(v), k)
+        # The values the API had before they came from the core.
+        self.assertEqual(SurfMesh.OPTIMIZE_DEFAULTS, {
+            "max_sweeps": 100, "rel_tol": 1e-3, "move_tol": 1e-3, "inner_iterations": 1,
+            "max_line_search": 30, "over_relaxation": 1.9, "delta_policy": "auto",
+            "delta_epsilon": 1e-2, "delta": 1e-2, "monotone": True, "threads": 0})
+        # The signatures' defaults are the same ones.
+        for fn in (api.measure, api.optimize, document.measure_object,
+                   document.tangled_elements, document.optimize_object):
+            params = inspect.signature(fn).parameters
+            self.assertEqual(params["measure"].default, options.DEFAULT_MEASURE, fn.__name__)
+            if "boundary" in params:
+                self.assertEqual(params["boundary"].default, options.DEFAULT_BOUNDARY)
+        self.assertEqual(inspect.signature(api.prepare).parameters["boundary"].default,
+                         options.DEFAULT_BOUNDARY)
+        self.assertEqual(options.DEFAULT_BOUNDARY, api.BOUNDARY_MODES[0])
+
+    def test_documented_options_are_the_defaults(self):
+        # The table of **options in docs/python-api.md: every option of it is a key, with the
+        # default it gives, and it names every key.
+        with open(os.path.join(T.REPO, "docs", "python-api.md"), encoding="utf-8") as f:
+            text = f.read()
+        table = text[text.index("| option | default | meaning |"):]
+        table = table[:table.index("\n\n")]
+        rows = re.findall(r"^\| `(\w+)` \| (.+?) \| ", table, flags=re.M)
+        self.assertGreater(len(rows), 5)
+        documented = {}
+        for name, value in rows:
+            value = value.strip("`")
+            if value in ("True", "False"):
+                documented[name] = value == "True"
+            elif value.startswith('"'):
+                documented[name] = value.strip('"')
+            else:
+                documented[name] = int(value) if re.fullmatch(r"\d+", value) else float(value)
+        self.assertEqual(documented, dict(SurfMesh.OPTIMIZE_DEFAULTS))
+
+    def test_unknown_option_names_the_known_ones(self):
+        with self.assertRaises(ValueError) as ctx:
+            SurfMesh.optimize(None, None, sweeps=3)
+        known = ", ".join(SurfMesh.OPTIMIZE_DEFAULTS)
+        self.assertEqual(str(ctx.exception), f"unknown option(s) sweeps; known: {known}")
 
 
 class TestErrors(ApiCase):

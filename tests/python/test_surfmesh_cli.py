@@ -228,5 +228,33 @@ class TestCli(unittest.TestCase):
         self.assertEqual(code, 2)
 
 
+class TestCliDefaults(unittest.TestCase):
+    """The command line's defaults are SurfMesh.app.options's (the optimizer's: the core's)."""
+
+    def test_parser_defaults_and_help(self):
+        import argparse
+
+        from SurfMesh.app import messages, options
+        from SurfMesh.cli import surfmesh_cli
+
+        parser = surfmesh_cli.build_parser()
+        subs = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+        opt = subs.choices["optimize"]
+        actions = {a.dest: a for a in opt._actions}
+        self.assertEqual(actions["measure"].default, options.DEFAULT_MEASURE)
+        self.assertEqual(subs.choices["measure"].get_default("measure"), options.DEFAULT_MEASURE)
+        self.assertEqual(actions["boundary"].default, options.DEFAULT_BOUNDARY)
+        self.assertEqual(tuple(actions["boundary"].choices), options.BOUNDARY_MODES)
+        # the optimizer's options are not set unless given: the core's defaults apply
+        for dest in ("max_sweeps", "rel_tol", "over_relaxation", "threads"):
+            self.assertIsNone(actions[dest].default, dest)
+        text = " ".join(opt.format_help().split())
+        d = options.optimize_defaults()
+        self.assertIn(f"by less than this fraction (default {messages.number_text(d['rel_tol'])})",
+                      text)
+        self.assertIn("(default 1e-3)", text)
+        self.assertIn(f"(in [1, 2), default {d['over_relaxation']}; 1: plain Gauss-Seidel)", text)
+
+
 if __name__ == "__main__":
     unittest.main()

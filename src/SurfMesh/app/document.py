@@ -35,7 +35,8 @@ import dataclasses
 
 import numpy as np
 
-from SurfMesh.app import api, coloring, compat, conversion, progress, shapes
+from SurfMesh.app import api, coloring, compat, conversion, messages, progress, shapes
+from SurfMesh.app.options import DEFAULT_BOUNDARY, DEFAULT_MEASURE, optimize_defaults
 
 GROUP = "SurfMesh"
 STAT_KEYS = ("min", "max", "mean", "std", "tangled", "elements", "across", "invalid")
@@ -413,7 +414,7 @@ def _print_notes(obj, warnings):
             FreeCAD.Console.PrintWarning(f"SurfMesh: {label}: {n}\n")
 
 
-def measure_object(obj, shape=None, measure="shape", color=True, **kwargs):
+def measure_object(obj, shape=None, measure=DEFAULT_MEASURE, color=True, **kwargs):
     """Measures mesh object ``obj`` on ``shape`` (default: its source shape), stores the
     stats on it and colors it. Returns the QualityReport."""
     shp = resolve_shape(obj, shape)
@@ -463,7 +464,7 @@ class ElementPick:
     def summary(self) -> str:
         """What was picked, in words: how many, their ids, where the first one is."""
         n, noun = len(self.ids), self.noun
-        ids = f"{noun}{'s' if n != 1 else ''} {api._id_list(self.ids, shown=_SHOWN_IDS)}"
+        ids = f"{noun}{'s' if n != 1 else ''} {messages.id_list(self.ids, shown=_SHOWN_IDS)}"
         if n == 0:
             return f"no {noun} measured"
         c = self.centers[0]
@@ -490,7 +491,7 @@ class ElementPick:
         return sorted(counts.items(), key=lambda fc: (-fc[1], int(fc[0][4:])))
 
 
-def tangled_elements(obj, shape=None, measure="shape", worst=WORST_ELEMENTS, **kwargs):
+def tangled_elements(obj, shape=None, measure=DEFAULT_MEASURE, worst=WORST_ELEMENTS, **kwargs):
     """The tangled elements of mesh object ``obj`` measured on ``shape`` (default: its source
     shape) with ``measure``, as :func:`measure_object` measures it; when none is tangled, its
     ``worst`` elements of lowest quality (worst first; elements left out of the measure are
@@ -544,8 +545,9 @@ def analysis_of(obj):
     return None
 
 
-def optimize_object(obj, shape=None, measure="shape", boundary="fixed", name=None, color=True,
-                    progress_callback=None, replace_in_analysis=None, **options):
+def optimize_object(obj, shape=None, measure=DEFAULT_MEASURE, boundary=DEFAULT_BOUNDARY,
+                    name=None, color=True, progress_callback=None, replace_in_analysis=None,
+                    **options):
     """Optimizes mesh object ``obj``; creates ``<name>_optimized`` (the original is kept, and
     hidden in the GUI) in one undo transaction, stores before/after stats on it and colors it.
     Returns the new object (its ``SurfMeshStats`` / ``SurfMeshStatsBefore`` hold the result).
@@ -567,7 +569,7 @@ def optimize_object(obj, shape=None, measure="shape", boundary="fixed", name=Non
     shp = resolve_shape(obj, shape)
     src = shape if (shape is not None and hasattr(shape, "isDerivedFrom")) else \
         shapes.source_shape_object(obj)
-    total = int(options.get("max_sweeps", api.OPTIMIZE_DEFAULTS["max_sweeps"]))
+    total = int(options.get("max_sweeps", optimize_defaults()["max_sweeps"]))
     callback, finish = progress.make_callback(progress_callback, total=total)
     try:
         res = api.optimize(obj, shp, measure=measure, boundary=boundary, progress=callback,

@@ -6,47 +6,18 @@ the algorithm and with counts; every command on a mesh gives them again, and an 
 (a new object) gives them once more with other counts. Here each kind of note is printed once
 per mesh "lineage" (a mesh and the meshes optimized from it) and document session, in plain
 words; the full texts, with the latest counts, are its details (:func:`details`, shown by the
-Quality report).
+Quality report). The patterns that tell a warning's kind and the notes' words are
+SurfMesh.app.messages's (:func:`~SurfMesh.app.messages.user_words`), beside the warnings' texts.
 
 Headless: never imports FreeCADGui.
 """
 
 from __future__ import annotations
 
-import re
-
-# "364 collapsed element(s)", "10 high-order element(s)": the counts of a "left out" warning
-_COUNTED = re.compile(r"(\d+) [a-z-]*\s*element")
-# (pattern, kind, the note in a user's words from the match)
-_RULES = [
-    (re.compile(r"^(\d+) nodes belong to no element"), "unused",
-     lambda m: f"{m.group(1)} nodes are used by no face element (e.g. nodes of edge "
-               "elements): they stay where they are"),
-    (re.compile(r"^left out (.*?): ids"), "left_out",
-     lambda m: f"{sum(int(n) for n in _COUNTED.findall(m.group(1)))} elements are left out "
-               "(collapsed or degenerate, e.g. where the mesher merged nodes): they keep their "
-               "place and are drawn grey"),
-    (re.compile(r"^(\d+) high-order element\(s\) have a side node farther"), "node_order",
-     lambda m: f"{m.group(1)} curved elements have a side node far from their side (sharp "
-               "features, or a node order other than corners first): they are measured as "
-               "they are"),
-    (re.compile(r"^glued (\d+) node"), "glued",
-     lambda m: f"{m.group(1)} nodes sit on another node (a crack along a CAD edge): they are "
-               "measured as one and move together"),
-]
+from SurfMesh.app.messages import user_words  # noqa: F401  (the notes' words, by kind)
 
 #: (document name, lineage root object name) -> {kind: the latest full text}
 _seen = {}
-
-
-def user_words(warning):
-    """(kind, the note in a user's words) of one bridge warning; an unknown warning is its own
-    kind (numbers aside) and is given as it is."""
-    for pattern, kind, words in _RULES:
-        m = pattern.search(warning)
-        if m:
-            return kind, words(m)
-    return re.sub(r"\d+(?:\.\d+)?(?:e[-+]?\d+)?", "#", warning)[:60], warning
 
 
 def lineage(obj):

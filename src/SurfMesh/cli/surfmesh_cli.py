@@ -34,6 +34,32 @@ def _import_surfmesh():
     return sys.modules["SurfMesh"]
 
 
+def _optimizer_default(option):
+    """The optimizer's default of ``option`` as the help gives it (the core's, through
+    SurfMesh.app.options); "the optimizer's" when the compiled core is not available."""
+    try:
+        _import_surfmesh()
+        from SurfMesh.app import messages, options
+
+        return messages.number_text(options.optimize_defaults()[option])
+    except ImportError:
+        return "the optimizer's"
+
+
+class _HelpFormatter(argparse.HelpFormatter):
+    """Puts the optimizer's defaults into the help of the options that give one
+    ("%(optimizer_default)s", for the option named by the action's ``optimizer_option``) when
+    the help is shown: building the parser loads neither SurfMesh nor its core (surfmesh batch
+    builds it in a process of the standard library only)."""
+
+    def _get_help_string(self, action):
+        text = super()._get_help_string(action)
+        option = getattr(action, "optimizer_option", None)
+        if option is not None and "%(optimizer_default)s" in text:
+            text = text.replace("%(optimizer_default)s", _optimizer_default(option))
+        return text
+
+
 def build_parser(prog="surfmesh_cli.py"):
     p = argparse.ArgumentParser(
         prog=prog,
@@ -73,17 +99,23 @@ def build_parser(prog="surfmesh_cli.py"):
     m.add_argument("--vtk", metavar="FILE", default=None,
                    help="write the mesh with the metrics as cell data (.vtk or .vtu; all of "
                    "them unless --metrics)")
-    o = sub.add_parser("optimize", help="smooth and untangle a mesh on a shape")
+    o = sub.add_parser("optimize", help="smooth and untangle a mesh on a shape",
+                       formatter_class=_HelpFormatter)
     common(o)
+    # (the defaults of --measure and --boundary are SurfMesh.app.options's DEFAULT_MEASURE and
+    # DEFAULT_BOUNDARY, written here so that building the parser needs no SurfMesh: checked by
+    # test_surfmesh_cli; the optimizer's options default to None: the core's defaults)
     o.add_argument("-o", "--output", required=True, help="optimized mesh file")
     o.add_argument("--boundary", default="fixed", choices=["fixed", "slide"])
     o.add_argument("--max-sweeps", type=int, default=None)
     o.add_argument("--rel-tol", type=float, default=None,
                    help="once untangled, stop when a sweep lowers both the objective and the "
-                   "quality deficit sum(1 - q) by less than this fraction (default 1e-3)")
+                   "quality deficit sum(1 - q) by less than this fraction (default "
+                   "%(optimizer_default)s)").optimizer_option = "rel_tol"
     o.add_argument("--over-relaxation", type=float, default=None,
                    help="once untangled, a node first tries this multiple of its Newton step "
-                   "(in [1, 2), default 1.9; 1: plain Gauss-Seidel)")
+                   "(in [1, 2), default %(optimizer_default)s; 1: plain Gauss-Seidel)"
+                   ).optimizer_option = "over_relaxation"
     o.add_argument("--threads", type=int, default=None)
     o.add_argument("--no-monotone", action="store_true",
                    help="accept moves that lower a valid mesh's minimum quality")

@@ -8,7 +8,7 @@ import math
 
 import FreeCAD
 
-from SurfMesh.app import api
+from SurfMesh.app import options
 
 PATH = "User parameter:BaseApp/Preferences/Mod/SurfMesh"
 
@@ -28,7 +28,7 @@ def params():
 
 
 def measure() -> str:
-    return params().GetString("Measure", "shape")
+    return params().GetString("Measure", options.DEFAULT_MEASURE)
 
 
 def set_measure(name: str):
@@ -36,7 +36,8 @@ def set_measure(name: str):
 
 
 def _default(name):
-    return "fixed" if name == "boundary" else api.OPTIMIZE_DEFAULTS[name]
+    """The optimizer's default of a setting (SurfMesh.app.options: the core's)."""
+    return options.DEFAULT_BOUNDARY if name == "boundary" else options.optimize_defaults()[name]
 
 
 def _param_name(name):
@@ -51,7 +52,7 @@ def optimize_settings() -> dict:
     for name, kind in _OPTIMIZE_SETTINGS.items():
         d = _default(name)
         value = getattr(p, "Get" + kind)(_param_name(name), d)
-        if name == "boundary" and value not in api.BOUNDARY_MODES:
+        if name == "boundary" and value not in options.BOUNDARY_MODES:
             value = d
         if kind == "Float" and not math.isfinite(value):
             value = d
@@ -109,7 +110,7 @@ class PreferencePage:
         lay = QtGui.QFormLayout(self.form)
         self.measure = QtGui.QComboBox()
         self.measure.setObjectName("measure")
-        self.measure.addItems(api.measure_names())
+        self.measure.addItems(options.measure_names())
         self.measure.setToolTip("Distortion measure of Measure quality and Select tangled "
                                 "elements (the Optimize panel sets it to the one it ran with)")
         lay.addRow("Quality measure", self.measure)
@@ -146,7 +147,7 @@ class PreferencePage:
             self.threshold.setValue(metric_report.default_threshold(name) if t is None else t)
 
     def loadSettings(self):
-        names = api.measure_names()
+        names = options.measure_names()
         cur = measure()
         self.measure.setCurrentIndex(names.index(cur) if cur in names else 0)
         self.color_by.setCurrentIndex(max(self.color_by.findData(color_by()), 0))

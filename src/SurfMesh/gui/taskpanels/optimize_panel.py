@@ -20,7 +20,7 @@ import FreeCADGui
 from PySide import QtCore, QtGui
 
 from SurfMesh import paths
-from SurfMesh.app import api, compat, document, progress, reports
+from SurfMesh.app import api, compat, document, options, progress, reports
 from SurfMesh.gui import preferences, runner, selection
 
 
@@ -237,8 +237,9 @@ class OptimizePanel:
         args.append(f"boundary={o['boundary']!r}")
         if o["tolerance"] is not None:
             args.append(f"tolerance={o['tolerance']!r}")
+        defaults = options.optimize_defaults()  # (the core's)
         for k in ("rel_tol", "max_sweeps", "monotone", "over_relaxation", "threads"):
-            if o[k] != api.OPTIMIZE_DEFAULTS[k]:
+            if o[k] != defaults[k]:
                 args.append(f"{k}={o[k]!r}")
         faces = self.face_names()
         if faces:
