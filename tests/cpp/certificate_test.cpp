@@ -501,3 +501,72 @@ TEST(JacobianCertificate, QuadrilateralsKeepTheirOwnProofs) {
   EXPECT_FALSE(elementCertifiedValid(ElementType::Tri10, s.x.data(), -s.n));
   (void)kPi;
 }
+
+// ---- the untangling sees a fold between the samples ---------------------------------------------
+
+TEST(JacobianCertificate, UntanglingSeesAFoldBetweenTheSamples) {
+  // With δ > 0 the measures add the pointwise distortion at the certificate's fold point to the
+  // element's mean: the value rises above the samples' alone, its gradient with respect to a
+  // node matches central differences, and gradient steps on the nodes open the fold.
+  const PlanarMeasure& m = measureByName("shape");
+  for (int p : {2, 3}) {
+    Element e;
+    int tried = 0;
+    ASSERT_TRUE(findHiddenFold(flat(p), 0.15, 11u + static_cast<unsigned>(p), &e, &tried));
+    const ElementType t = typeOf(p);
+    const double size2 = (e.x[1] - e.x[0]).squaredNorm();
+    const double delta = 1e-3 * size2;
+    HighOrderJacobians pre;
+    highOrderJacobians(t, e.x.data(), -1, &pre);
+    const ElementEval samples =
+        highOrderTriangleDistortion(m, pre, Vec3::Zero(), e.n, delta, nullptr, nullptr, nullptr);
+    ASSERT_FALSE(samples.tangled);
+    const ElementEval whole = elementDistortion(m, t, e.x.data(), e.n, delta);
+    EXPECT_TRUE(whole.tangled);
+    EXPECT_GT(whole.eta, samples.eta) << "p = " << p;
+    // Gradient and Hessian with respect to each node, against central differences.
+    for (int k = 0; k < static_cast<int>(e.x.size()); ++k) {
+      Vec3 g;
+      Mat3 H;
+      const ElementEval ev = elementDistortion(m, t, e.x.data(), e.n, delta, k, &g, &H);
+      ASSERT_TRUE(std::isfinite(ev.eta));
+      const double h = 1e-6 * std::sqrt(size2);
+      for (int d = 0; d < 3; ++d) {
+        std::vector<Vec3> xp = e.x, xm = e.x;
+        xp[static_cast<std::size_t>(k)][d] += h;
+        xm[static_cast<std::size_t>(k)][d] -= h;
+        Vec3 gp, gm;
+        Mat3 Hp, Hm;
+        const double fp = elementDistortion(m, t, xp.data(), e.n, delta, k, &gp, &Hp).eta;
+        const double fm = elementDistortion(m, t, xm.data(), e.n, delta, k, &gm, &Hm).eta;
+        EXPECT_NEAR(g[d], (fp - fm) / (2 * h), 1e-5 * (1.0 + g.norm())) << "p " << p << " k " << k;
+        EXPECT_LE((H.col(d) - (gp - gm) / (2 * h)).norm(), 1e-4 * (1.0 + H.norm()))
+            << "p " << p << " k " << k;
+      }
+    }
+    // Steepest descent with backtracking on the side and interior nodes (corners fixed):
+    // the fold opens.
+    const int nc = 3;
+    bool opened = false;
+    for (int it = 0; it < 400 && !opened; ++it) {
+      for (int k = nc; k < static_cast<int>(e.x.size()); ++k) {
+        Vec3 g;
+        Mat3 H;
+        const double f0 = elementDistortion(m, t, e.x.data(), e.n, delta, k, &g, &H).eta;
+        g -= g.dot(e.n) * e.n;  // in the element's plane
+        double step = 0.05 * size2 / (g.norm() + 1e-300);
+        for (int ls = 0; ls < 30; ++ls, step *= 0.5) {
+          std::vector<Vec3> xt = e.x;
+          xt[static_cast<std::size_t>(k)] -= step * g;
+          if (elementDistortion(m, t, xt.data(), e.n, delta).eta < f0) {
+            e.x = xt;
+            break;
+          }
+        }
+      }
+      opened = certify(e).sign == JacobianSign::Positive;
+    }
+    EXPECT_TRUE(opened) << "p = " << p;
+    EXPECT_FALSE(elementDistortion(m, t, e.x.data(), e.n, 0.0).tangled);
+  }
+}

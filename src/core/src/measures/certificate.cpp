@@ -326,18 +326,58 @@ JacobianCertificate certifyElementJacobian(ElementType type, const Vec3* x, cons
 }
 
 bool markUncertifiedFold(ElementType type, const Vec3* x, const Vec3& n, double delta,
-                         ElementEval* r, Vec3* grad, Mat3* hess, double* eta0) {
+                         ElementEval* r, Vec3* grad, Mat3* hess, double* eta0,
+                         const PlanarMeasure* m, int freeLocal) {
   if (r->tangled || !isHighOrderTriangle(type)) return false;
-  if (certifyTriangleJacobian(elementOrder(type), x, n).sign == JacobianSign::Positive)
-    return false;
+  const int p = elementOrder(type);
+  const JacobianCertificate c = certifyTriangleJacobian(p, x, n);
+  if (c.sign == JacobianSign::Positive) return false;
+  constexpr double kInf = std::numeric_limits<double>::infinity();
   r->tangled = true;
   r->minSigma = std::min(r->minSigma, 0.0);
-  if (eta0) *eta0 = std::numeric_limits<double>::infinity();
+  if (eta0) *eta0 = kInf;
   if (delta == 0.0) {
-    r->eta = std::numeric_limits<double>::infinity();
+    r->eta = kInf;
+    if (grad) grad->setZero();
+    if (hess) hess->setZero();
+    return true;
+  }
+  if (!m || !c.point.allFinite() || !std::isfinite(r->eta) || !(r->eta > 0.0)) return true;
+  // The fold's point ξ* as one more sample of the mean, with its derivatives.
+  const LagrangeTriangle& lt = lagrangeTriangle(p);
+  const int nn = lt.nodeCount();
+  Eigen::Vector2d g[kMaxElementNodes];
+  lt.gradients(c.point, g);
+  Jacobian32 J = Jacobian32::Zero();
+  for (int i = 0; i < nn; ++i) {
+    J.col(0) += g[i].x() * x[i];
+    J.col(1) += g[i].y() * x[i];
+  }
+  const bool derivs = freeLocal >= 0 && freeLocal < nn && grad != nullptr;
+  Vec3 gs = Vec3::Zero();
+  Mat3 Hs = Mat3::Zero();
+  const ElementEval e =
+      jacobianDistortion(*m, J, equilateralWinv(), n, delta, derivs ? &g[freeLocal] : nullptr,
+                         derivs ? &gs : nullptr, derivs && hess ? &Hs : nullptr);
+  if (!std::isfinite(e.eta)) return true;
+  const double w = 1.0 / nn;
+  const double eta = r->eta;
+  const double etaNew = std::sqrt(eta * eta + w * e.eta * e.eta);
+  if (derivs) {
+    const Vec3 g0 = *grad;
+    const Vec3 gNew = (eta * g0 + w * e.eta * gs) / etaNew;
+    if (hess) {
+      // ½∇²(η̂²) = η̂ ∇²η̂ + ∇η̂ ∇η̂ᵀ, summed with the point's, then ∇²η̂_new from it.
+      const Mat3 half =
+          eta * (*hess) + g0 * g0.transpose() + w * (e.eta * Hs + gs * gs.transpose());
+      *hess = (half - gNew * gNew.transpose()) / etaNew;
+    }
+    *grad = gNew;
+  } else {
     if (grad) grad->setZero();
     if (hess) hess->setZero();
   }
+  r->eta = etaNew;
   return true;
 }
 

@@ -125,7 +125,7 @@ ElementEval highOrderTriangleDistortion(const PlanarMeasure& m, ElementType type
   ElementEval r = highOrderTriangleDistortion(
       m, pre, pre.freeLocal >= 0 ? x[pre.freeLocal] : Vec3::Zero(), n, delta, grad, hess, eta0);
   // Valid at the samples: valid only where det J is proven positive on the whole element.
-  markUncertifiedFold(type, x, n, delta, &r, grad, hess, eta0);
+  markUncertifiedFold(type, x, n, delta, &r, grad, hess, eta0, &m, k);
   return r;
 }
 

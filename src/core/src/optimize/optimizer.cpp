@@ -788,7 +788,7 @@ struct State {
         Vec3 xs[kMaxElementNodes];
         positions(e, local, x, xs);
         markUncertifiedFold(mesh.elemType[e], xs, nu, delta, &ev, grad, hess,
-                            wantEta0 ? &eta0 : nullptr);
+                            wantEta0 ? &eta0 : nullptr, &measure, local);
       }
     } else {
       Vec3 xs[kMaxElementNodes];

@@ -109,11 +109,17 @@ JacobianCertificate certifyElementJacobian(ElementType type, const Vec3* x, cons
 /// the sampled check (its nodes and quadrature points) found untangled, with nodes x and the
 /// unit reference normal n of the evaluation: when D is not proven positive everywhere the
 /// element is marked tangled as a fold the samples see is — r->tangled, r->minSigma ≤ 0, η = ∞
-/// and the derivatives zero when δ = 0, *eta0 (η at δ = 0, when asked) = ∞; with δ > 0 η and
-/// its derivatives stay the regularized ones the untangling descends. Returns whether it marked
-/// it. Nothing is done for another type or an element already tangled.
+/// and the derivatives zero when δ = 0, *eta0 (η at δ = 0, when asked) = ∞. With δ > 0 and a
+/// measure m, the fold is made visible to the untangling: the pointwise distortion at the
+/// certificate's point ξ* (where D ≤ τ) joins the element's mean with the weight of one node,
+///     η̂² ← η̂² + η*²/n_nodes,
+/// and the gradient and Hessian with respect to node `freeLocal` (when asked; both need the
+/// gradient) follow — so that Newton steps open a fold lying between the quadrature points.
+/// Returns whether it marked the element. Nothing is done for another type or an element
+/// already tangled.
 bool markUncertifiedFold(ElementType type, const Vec3* x, const Vec3& n, double delta,
-                         ElementEval* r, Vec3* grad, Mat3* hess, double* eta0);
+                         ElementEval* r, Vec3* grad, Mat3* hess, double* eta0,
+                         const PlanarMeasure* m = nullptr, int freeLocal = -1);
 
 /// Whether the element's D is proven positive everywhere: triangles by the certificate
 /// (Positive; NonPositive and Undecided are invalid), quad4 by its corner triangles (D affine in
