@@ -48,15 +48,16 @@ def _optimizer_default(option):
 
 class _HelpFormatter(argparse.HelpFormatter):
     """Puts the optimizer's defaults into the help of the options that give one
-    ("%(optimizer_default)s", for the option named by the action's ``optimizer_option``) when
+    ("{optimizer_default}", for the option named by the action's ``optimizer_option``) when
     the help is shown: building the parser loads neither SurfMesh nor its core (surfmesh batch
-    builds it in a process of the standard library only)."""
+    builds it in a process of the standard library only). Not a %-format: Python 3.14's
+    argparse checks those when the option is added."""
 
     def _get_help_string(self, action):
         text = super()._get_help_string(action)
         option = getattr(action, "optimizer_option", None)
-        if option is not None and "%(optimizer_default)s" in text:
-            text = text.replace("%(optimizer_default)s", _optimizer_default(option))
+        if option is not None and "{optimizer_default}" in text:
+            text = text.replace("{optimizer_default}", _optimizer_default(option))
         return text
 
 
@@ -111,10 +112,10 @@ def build_parser(prog="surfmesh_cli.py"):
     o.add_argument("--rel-tol", type=float, default=None,
                    help="once untangled, stop when a sweep lowers both the objective and the "
                    "quality deficit sum(1 - q) by less than this fraction (default "
-                   "%(optimizer_default)s)").optimizer_option = "rel_tol"
+                   "{optimizer_default})").optimizer_option = "rel_tol"
     o.add_argument("--over-relaxation", type=float, default=None,
                    help="once untangled, a node first tries this multiple of its Newton step "
-                   "(in [1, 2), default %(optimizer_default)s; 1: plain Gauss-Seidel)"
+                   "(in [1, 2), default {optimizer_default}; 1: plain Gauss-Seidel)"
                    ).optimizer_option = "over_relaxation"
     o.add_argument("--threads", type=int, default=None)
     o.add_argument("--no-monotone", action="store_true",
