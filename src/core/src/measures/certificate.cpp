@@ -32,7 +32,6 @@ namespace surfmesh {
 
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 /// Coefficients of the largest degree (d = 8 for p = 5): 45.
 constexpr int kMaxCoefficients = 45;
 
