@@ -15,8 +15,9 @@ normal is not finite or is zero (a pole) contributes nothing, and a sum shorter 
 (kNormalCancelTol) leaves the element with a zero normal (invalid for both checks).
 
 Both checks run in C++ on the same nodes and normals, through the module built here
-(_surfmesh): the sampled check of the quality report (`elements_tangled`: det S ≤ 0 at a node
-or a quadrature point) and the certificate (`certify_elements`: Bernstein coefficients of
+(_surfmesh): the sampled check (`elements_tangled(..., samples_only=True)`: det S ≤ 0 at a
+node or a quadrature point, the quality report's check before it took the certificate) and the
+certificate (`certify_elements`: Bernstein coefficients of
 det J with subdivision). One Markdown row per part and order: elements, tangled by the sampled
 check, proven invalid (non-positive) and undecided by the certificate, elements the sampled
 check calls valid but the certificate proves invalid, the reverse, and the time per element
@@ -142,7 +143,8 @@ def main():
             E = len(ids)
             if E == 0:
                 continue
-            tangled, ts = best_time(lambda: sm.elements_tangled(name, x, n), a.repeat)
+            tangled, ts = best_time(lambda: sm.elements_tangled(name, x, n, samples_only=True),
+                                   a.repeat)
             cert, tc = best_time(lambda: sm.certify_elements(name, x, n), a.repeat)
             v = cert["verdict"]
             zero = int(np.sum(np.linalg.norm(n, axis=1) == 0))

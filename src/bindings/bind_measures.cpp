@@ -153,7 +153,7 @@ void bind_measures(py::module_& m) {
   m.def(
       "elements_tangled",
       [](const std::string& type, const ArrayD& nodes, const ArrayD& normals,
-         const std::string& measure) {
+         const std::string& measure, bool samplesOnly) {
         const ElementType t = elementTypeFromName(type);
         const PlanarMeasure& pm = measureByName(measure);
         const std::vector<Vec3> n = elementNormals(normals);
@@ -165,17 +165,31 @@ void bind_measures(py::module_& m) {
         {
           py::gil_scoped_release release;
           for (std::size_t e = 0; e < n.size(); ++e) {
-            const ElementEval ev = elementDistortion(pm, t, x.data() + e * k, n[e], 0.0);
+            const Vec3* xe = x.data() + e * k;
+            ElementEval ev;
+            if (samplesOnly && isHighOrderTriangle(t)) {
+              // The samples alone: the evaluation from precomputed Jacobians, which leaves the
+              // certificate to its caller.
+              HighOrderJacobians pre;
+              highOrderJacobians(t, xe, -1, &pre);
+              ev = highOrderTriangleDistortion(pm, pre, Vec3::Zero(), n[e], 0.0, nullptr, nullptr,
+                                               nullptr);
+            } else {
+              ev = elementDistortion(pm, t, xe, n[e], 0.0);
+            }
             out[e] = ev.tangled || !std::isfinite(ev.eta) || !(ev.eta > 0.0);
           }
         }
         return tangled;
       },
       py::arg("type"), py::arg("nodes"), py::arg("normals"), py::arg("measure") = "shape",
-      "The sampled validity check of the quality report (SurfaceMesh.measure's `tangled`) for E "
-      "elements of one type given by their nodes (as certify_elements) and reference normals "
-      "(E, 3): det S <= 0 at a node or quadrature point (high-order triangles), at a node or Gauss "
-      "point or not proven (quad8). bool (E,)");
+      py::arg("samples_only") = false,
+      "The validity check of the quality report (SurfaceMesh.measure's `tangled`) for E elements "
+      "of one type given by their nodes (as certify_elements) and reference normals (E, 3): "
+      "det S <= 0 at a node or quadrature point or det J not proven positive by the certificate "
+      "(high-order triangles), at a node or Gauss point or not proven (quad8). With "
+      "samples_only, a high-order triangle's nodes and quadrature points alone (the check before "
+      "the certificate). bool (E,)");
 }
 
 }  // namespace surfmesh::bindings
