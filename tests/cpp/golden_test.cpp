@@ -187,8 +187,8 @@ SurfaceMesh torusQuad4(const Surface& torus, int nu, int nv) {
   return makeSingleSurfaceMesh(torus, uv, ElementType::Quad4, conn, {});
 }
 
-/// Face nodes moved at random in (u,v) until `tangled` elements are tangled (0: a small
-/// perturbation of a valid mesh, `amplitude` of the parameter steps).
+/// Face nodes moved at random in (u,v) by up to (du, dv) until `tangled` elements are tangled
+/// (0: one such move of every Face node, a small perturbation of a valid mesh).
 void perturb(SurfaceMesh& m, const Surface& s, std::size_t tangled, double du, double dv,
              unsigned seed) {
   if (tangled > 0) {

@@ -545,20 +545,11 @@ TEST(HighOrderOptimize, FoldedSecondOrderNodesAreStraightenedInParameterSpace) {
       if (thrown[j] || m.nodeKind[j] != NodeKind::Face) continue;
       const Vec2 opposite = m.elementUV(e)[(k - 3 + 2) % 3];
       const Vec2 mid = m.elementUV(e)[k];
-      const Vec2 uv = mid + 1.6 * (opposite - mid);
-      m.uv[j] = torus.wrap(uv);
-      m.xyz[j] = torus.value(m.uv[j].x(), m.uv[j].y());
-      m.cornerUV[static_cast<std::size_t>(m.elemOffset[e] + k)] = uv;
+      m.uv[j] = mid + 1.6 * (opposite - mid);
       thrown[j] = 1;
     }
   }
-  // The corner uv of the other element of each thrown node.
-  for (std::size_t e = 0; e < m.elementCount(); ++e)
-    for (int k = 3; k < 6; ++k) {
-      const std::size_t j = static_cast<std::size_t>(m.elementNodes(e)[k]);
-      Vec2& c = m.cornerUV[static_cast<std::size_t>(m.elemOffset[e] + k)];
-      if (thrown[j]) c = torus.unwrapNear(m.uv[j], c);
-    }
+  syncFaceNodes(m);  // positions, and every element's parameters next to where they were
   const QualityStats folded = measureQuality(m, measureByName("shape")).stats;
   ASSERT_GT(folded.tangled, m.elementCount() / 3);
   OptimizeOptions opt;

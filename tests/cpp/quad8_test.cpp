@@ -237,19 +237,11 @@ TEST(Quad8Optimize, FoldedSideNodesAreStraightenedInParameterSpace) {
       const std::size_t j = static_cast<std::size_t>(m.elementNodes(e)[k]);
       const Vec2 mid = m.elementUV(e)[k];
       const Vec2 opposite = m.elementUV(e)[4 + (k - 4 + 2) % 4];
-      const Vec2 uv = mid + 1.4 * (opposite - mid);
-      m.uv[j] = torus.wrap(uv);
-      m.xyz[j] = torus.value(m.uv[j].x(), m.uv[j].y());
+      m.uv[j] = mid + 1.4 * (opposite - mid);
       thrown[j] = 1;
     }
   }
-  // Every element's parameters of the thrown nodes, next to where they were.
-  for (std::size_t e = 0; e < m.elementCount(); ++e)
-    for (int k = 4; k < 8; ++k) {
-      const std::size_t j = static_cast<std::size_t>(m.elementNodes(e)[k]);
-      Vec2& c = m.cornerUV[static_cast<std::size_t>(m.elemOffset[e] + k)];
-      if (thrown[j]) c = torus.unwrapNear(m.uv[j], c);
-    }
+  syncFaceNodes(m);  // positions, and every element's parameters next to where they were
   const QualityStats folded = measureQuality(m, measureByName("shape")).stats;
   ASSERT_GE(folded.tangled, m.elementCount() / 2);
   OptimizeOptions opt;

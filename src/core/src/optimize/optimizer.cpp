@@ -1189,15 +1189,15 @@ class NodeUpdater {
       const std::int32_t* nd = s_.mesh.elementNodes(e);
       const int nc = cornerCount(type);
       const Vec3 n = s_.elementNormal(e, -1, Vec3::Zero(), Vec3::Zero());
-      bool cornersTangled = false;  // the corners first
-      for (int k = 0; k < nc && !cornersTangled; ++k) {
-        // Corner k's triangle (a triangle's one corner triangle, each of a quad's corners).
+      // The corners first: a triangle's one corner triangle, each corner's of a quad.
+      const int cornerTriangles = nc == 3 ? 1 : nc;
+      bool cornersTangled = false;
+      for (int k = 0; k < cornerTriangles && !cornersTangled; ++k) {
         const Vec3& xk = s_.xyz[static_cast<std::size_t>(nd[k])];
         Jacobian32 J;
         J.col(0) = s_.xyz[static_cast<std::size_t>(nd[(k + 1) % nc])] - xk;
         J.col(1) = s_.xyz[static_cast<std::size_t>(nd[(k + nc - 1) % nc])] - xk;
         cornersTangled = jacobianValidity(J, equilateralWinv(), n).tangled;
-        if (nc == 3) break;  // one corner triangle
       }
       if (cornersTangled) continue;
       Vec2 c[4];
