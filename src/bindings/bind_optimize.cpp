@@ -8,15 +8,61 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <algorithm>
+#include <functional>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace surfmesh::bindings {
 
 py::dict statsToDict(const QualityStats& s);
 
+namespace {
+
+/// One of optimize()'s options: its keyword name and the OptimizeOptions member it sets.
+struct OptionField {
+  const char* name;
+  std::function<py::object(const OptimizeOptions&)> get;
+  std::function<void(OptimizeOptions&, py::handle)> set;
+};
+
+template <class T>
+OptionField field(const char* name, T OptimizeOptions::*member) {
+  return {name, [member](const OptimizeOptions& o) { return py::cast(o.*member); },
+          [member](OptimizeOptions& o, py::handle v) { o.*member = v.cast<T>(); }};
+}
+
+/// The options by their keyword names: the one list the defaults, the keywords and the
+/// assignments come from.
+const std::vector<OptionField>& optionFields() {
+  static const std::vector<OptionField> fields = {
+      field("measure", &OptimizeOptions::measure),
+      field("max_sweeps", &OptimizeOptions::maxSweeps),
+      field("rel_tol", &OptimizeOptions::relTol),
+      field("move_tol", &OptimizeOptions::moveTol),
+      field("inner_iterations", &OptimizeOptions::innerIterations),
+      field("max_line_search", &OptimizeOptions::maxLineSearch),
+      field("over_relaxation", &OptimizeOptions::overRelaxation),
+      field("delta_policy", &OptimizeOptions::deltaPolicy),
+      field("delta_epsilon", &OptimizeOptions::deltaEpsilon),
+      field("delta", &OptimizeOptions::delta),
+      field("monotone", &OptimizeOptions::monotone),
+      field("threads", &OptimizeOptions::threads),
+      field("high_order", &OptimizeOptions::highOrder),
+  };
+  return fields;
+}
+
+std::string optionNames() {
+  std::string s;
+  for (const OptionField& f : optionFields()) s += (s.empty() ? "" : ", ") + std::string(f.name);
+  return s;
+}
+
+}  // namespace
+
 void bind_optimize(MeshClass& cls) {
-  const OptimizeOptions kDefaults;
   // The one source of the options' defaults on the Python side (SurfMesh.app.options):
   // a default-constructed OptimizeOptions, by optimize()'s keyword names.
   cls.def_static(
@@ -24,42 +70,45 @@ void bind_optimize(MeshClass& cls) {
       []() {
         const OptimizeOptions o;
         py::dict d;
-        d["measure"] = o.measure;
-        d["max_sweeps"] = o.maxSweeps;
-        d["rel_tol"] = o.relTol;
-        d["move_tol"] = o.moveTol;
-        d["inner_iterations"] = o.innerIterations;
-        d["max_line_search"] = o.maxLineSearch;
-        d["over_relaxation"] = o.overRelaxation;
-        d["delta_policy"] = o.deltaPolicy;
-        d["delta_epsilon"] = o.deltaEpsilon;
-        d["delta"] = o.delta;
-        d["monotone"] = o.monotone;
-        d["threads"] = o.threads;
+        for (const OptionField& f : optionFields()) d[f.name] = f.get(o);
         return d;
       },
-      "The defaults of optimize()'s options (the core's OptimizeOptions), by its keyword names: "
-      "measure, max_sweeps, rel_tol, move_tol, inner_iterations, max_line_search, "
-      "over_relaxation, delta_policy, delta_epsilon, delta, monotone, threads.");
+      ("The defaults of optimize()'s options (the core's OptimizeOptions), by its keyword "
+       "names: " +
+       optionNames() + ".")
+          .c_str());
   cls.def(
       "optimize",
-      [](MeshHandle& h, const std::string& measure, int max_sweeps, double rel_tol, double move_tol,
-         int inner_iterations, int max_line_search, double over_relaxation,
-         const std::string& delta_policy, double delta_epsilon, double delta, bool monotone,
-         int threads, py::object progress, py::object before, py::object fixed) {
+      [](MeshHandle& h, py::kwargs kwargs) {
         OptimizeOptions o;
-        o.measure = measure;
-        o.maxSweeps = max_sweeps;
-        o.relTol = rel_tol;
-        o.moveTol = move_tol;
-        o.innerIterations = inner_iterations;
-        o.maxLineSearch = max_line_search;
-        o.overRelaxation = over_relaxation;
-        o.deltaPolicy = delta_policy;
-        o.deltaEpsilon = delta_epsilon;
-        o.delta = delta;
-        o.monotone = monotone;
-        o.threads = threads;
+        py::object progress = py::none(), before = py::none(), fixed = py::none();
+        for (auto item : kwargs) {
+          const std::string key = py::cast<std::string>(item.first);
+          if (key == "progress") {
+            progress = py::reinterpret_borrow<py::object>(item.second);
+            continue;
+          }
+          if (key == "before") {
+            before = py::reinterpret_borrow<py::object>(item.second);
+            continue;
+          }
+          if (key == "fixed") {
+            fixed = py::reinterpret_borrow<py::object>(item.second);
+            continue;
+          }
+          const auto& fields = optionFields();
+          const auto it = std::find_if(fields.begin(), fields.end(),
+                                       [&](const OptionField& f) { return key == f.name; });
+          if (it == fields.end())
+            throw py::type_error("optimize() got an unexpected keyword argument '" + key +
+                                 "'; options: " + optionNames() + ", progress, before, fixed");
+          try {
+            it->set(o, item.second);
+          } catch (const py::cast_error&) {
+            throw py::type_error("optimize(): " + key + " has the wrong type (" +
+                                 py::cast<std::string>(py::str(py::type::of(item.second))) + ")");
+          }
+        }
         o.fixedNodes = toMask(fixed, static_cast<py::ssize_t>(h.get().nodeCount()), "fixed");
         if (!progress.is_none() && !PyCallable_Check(progress.ptr()))
           throw std::invalid_argument("progress must be callable or None");
@@ -78,6 +127,7 @@ void bind_optimize(MeshClass& cls) {
               d["tangled"] = p.tangled;
               d["min_quality"] = p.minQuality;
               d["delta"] = p.delta;
+              d["stage"] = p.stage;
               py::object r = progress(d);
               return r.is_none() || r.cast<bool>();
             } catch (py::error_already_set& e) {
@@ -128,19 +178,9 @@ void bind_optimize(MeshClass& cls) {
         d["warnings"] = r.warnings;
         return d;
       },
-      // The core's defaults (OptimizeOptions), as optimize_defaults() gives them.
-      py::arg("measure") = kDefaults.measure, py::arg("max_sweeps") = kDefaults.maxSweeps,
-      py::arg("rel_tol") = kDefaults.relTol, py::arg("move_tol") = kDefaults.moveTol,
-      py::arg("inner_iterations") = kDefaults.innerIterations,
-      py::arg("max_line_search") = kDefaults.maxLineSearch,
-      py::arg("over_relaxation") = kDefaults.overRelaxation,
-      py::arg("delta_policy") = kDefaults.deltaPolicy,
-      py::arg("delta_epsilon") = kDefaults.deltaEpsilon, py::arg("delta") = kDefaults.delta,
-      py::arg("monotone") = kDefaults.monotone, py::arg("threads") = kDefaults.threads,
-      py::arg("progress") = py::none(), py::arg("before") = py::none(),
-      py::arg("fixed") = py::none(),
-      "Optimizes the mesh in place (nodes stay on their surfaces); the options' defaults are "
-      "the core's. progress(dict) is called "
+      "Optimizes the mesh in place (nodes stay on their surfaces). Keyword options (the "
+      "core's OptimizeOptions, defaults: optimize_defaults()), progress, before, fixed. "
+      "progress(dict) is called "
       "after every sweep; returning False cancels (reason 'cancelled', mesh unchanged). "
       "Returns a dict: before, after (stats), sweeps, seconds, reason, moved_nodes, threads, "
       "patch_untanglings (escapes of stuck tangled elements by joint relaxation tried), "

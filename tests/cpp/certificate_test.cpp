@@ -87,6 +87,29 @@ struct Lagrange {
       (*g)[i] = Eigen::Vector2d(d1 - d0, d2 - d0);  // λ0 = 1 − ξ − η
     }
   }
+  /// N_i(ξ, η) for every node.
+  void values(double xi, double eta, std::vector<double>* N) const {
+    const double l[3] = {1 - xi - eta, xi, eta};
+    N->resize(nodes.size());
+    for (std::size_t i = 0; i < nodes.size(); ++i) {
+      double f = 1.0;
+      for (int c = 0; c < 3; ++c) {
+        const int m = nodes[i][static_cast<std::size_t>(c)];
+        for (int t = 0; t < m; ++t)
+          f *= (l[c] - t / static_cast<double>(p)) / ((m - t) / static_cast<double>(p));
+      }
+      (*N)[i] = f;
+    }
+  }
+  /// D_h(ξ) = (x_ξ × x_η)·Σ N_i(ξ) n_i against normals given at the nodes.
+  double detAgainst(const std::vector<Vec3>& x, const std::vector<Vec3>& nodeNormals, double xi,
+                    double eta) const {
+    std::vector<double> N;
+    values(xi, eta, &N);
+    Vec3 n = Vec3::Zero();
+    for (std::size_t i = 0; i < N.size(); ++i) n += N[i] * nodeNormals[i];
+    return det(x, n, xi, eta);
+  }
   /// D(ξ) = (x_ξ × x_η)·n.
   double det(const std::vector<Vec3>& x, const Vec3& n, double xi, double eta) const {
     std::vector<Eigen::Vector2d> g;
@@ -453,6 +476,169 @@ TEST(JacobianCertificate, RandomPerturbationsAgreeWithDenseSampling) {
     EXPECT_GT(nonPositive, trials / 10);
     EXPECT_LE(undecided, trials / 200);
   }
+}
+
+// ---- against the surface's normal inside the element ------------------------------------------
+
+namespace {
+
+/// The cylinder of radius 1 about z at (θ, z), and its outward normal.
+Vec3 cylinderPoint(double theta, double z) { return Vec3(std::cos(theta), std::sin(theta), z); }
+/// The cylinder's normal at the point closest to x: the horizontal direction of x.
+Vec3 cylinderNormalNear(const Vec3& x) { return Vec3(x.x(), x.y(), 0).normalized(); }
+
+/// A P-order element on the cylinder with its nodes at reference node ξ_i mapped to
+/// (θ, z) = (a ξ + b η, c ξ + d η) plus per-node offsets in (θ, z) (nodes stay on the surface).
+struct CylinderElement {
+  Element e;
+  std::vector<Vec3> normals;  ///< the cylinder's normal at every node
+};
+
+CylinderElement onCylinder(int p, double a, double b, double c, double d, std::mt19937* rng,
+                           double jitter) {
+  std::uniform_real_distribution<double> u(-jitter, jitter);
+  CylinderElement r;
+  r.e.p = p;
+  const int count = (p + 1) * (p + 2) / 2;
+  Vec3 sum = Vec3::Zero();
+  for (int i = 0; i < count; ++i) {
+    const Eigen::Vector2d s = nodeXi(p, i);
+    const double th = a * s.x() + b * s.y() + u(*rng), z = c * s.x() + d * s.y() + u(*rng);
+    r.e.x.push_back(cylinderPoint(th, z));
+    r.normals.push_back(cylinderNormalNear(r.e.x.back()));
+    if (i < 3) sum += r.normals.back();
+  }
+  r.e.n = sum.normalized();
+  return r;
+}
+
+}  // namespace
+
+TEST(JacobianCertificate, AgainstNodeNormalsAgreesWithDenseSampling) {
+  // Random elements of order 1…5 on the cylinder, wide in θ (up to 1.8 rad) and with their
+  // nodes moved on the surface: the certificate of D_h = (x_ξ × x_η)·Σ N_i n_i against a dense
+  // grid of D_h computed here from the textbook Lagrange functions — a Positive verdict never
+  // where the grid finds D_h ≤ 0, a lower bound below the grid's minimum, every NonPositive
+  // point confirmed; and both verdicts occur.
+  for (int p : {1, 2, 3, 4, 5}) {
+    std::mt19937 rng(77u + static_cast<unsigned>(p));
+    std::uniform_real_distribution<double> wide(0.3, 1.8), tall(0.3, 1.2);
+    const Lagrange L(p);
+    const int N = p <= 3 ? 60 : 30;
+    const int trials = p <= 3 ? 600 : 200;
+    int positive = 0, nonPositive = 0, undecided = 0;
+    for (int t = 0; t < trials; ++t) {
+      const CylinderElement ce = onCylinder(p, wide(rng), 0.2 * wide(rng), 0.1 * tall(rng),
+                                            tall(rng), &rng, (t % 4) * 0.1 / p);
+      const JacobianCertificate c =
+          certifyTriangleAgainstNodeNormals(p, ce.e.x.data(), ce.normals.data());
+      double dmin = INFINITY;
+      for (int j = 0; j <= N; ++j)
+        for (int i = 0; i + j <= N; ++i)
+          dmin = std::min(dmin, L.detAgainst(ce.e.x, ce.normals, static_cast<double>(i) / N,
+                                             static_cast<double>(j) / N));
+      switch (c.sign) {
+        case JacobianSign::Positive:
+          ++positive;
+          EXPECT_GT(dmin, 0.0) << "p = " << p << " trial " << t;
+          EXPECT_LE(c.lowerBound, dmin * (1 + 1e-9) + c.tolerance) << "p = " << p << " " << t;
+          break;
+        case JacobianSign::NonPositive:
+          ++nonPositive;
+          EXPECT_LE(L.detAgainst(ce.e.x, ce.normals, c.point.x(), c.point.y()), c.tolerance)
+              << "p = " << p << " trial " << t;
+          break;
+        case JacobianSign::Undecided:
+          ++undecided;
+          break;
+      }
+      // At the corners D_h is the corner test of standsAcross.
+      Vec3 corners[3] = {ce.normals[0], ce.normals[1], ce.normals[2]};
+      if (cornerSides(typeOf(p), ce.e.x.data(), corners).against)
+        EXPECT_NE(c.sign, JacobianSign::Positive) << "p = " << p << " trial " << t;
+    }
+    std::printf(
+        "p = %d, %d elements against their node normals: %d positive, %d non-positive, "
+        "%d undecided\n",
+        p, trials, positive, nonPositive, undecided);
+    EXPECT_GT(positive, trials / 10);
+    if (p > 1) EXPECT_GT(nonPositive, trials / 25);
+    EXPECT_LE(undecided, trials / 100);
+  }
+}
+
+TEST(JacobianCertificate, TurnedAcrossTheSurfaceInsideIsNotCertified) {
+  // Elements on the cylinder that the certificate against their fixed reference normal calls
+  // valid, wound along the surface at every corner, but whose tangent plane turns against the
+  // cylinder's normal inside: the certificate against the node normals finds them, and its
+  // point is confirmed with the cylinder's own normal at the closest point of the surface (not
+  // the interpolated one). Searched among random on-surface elements (fixed seed).
+  for (int p : {2, 3}) {
+    std::mt19937 rng(5u + static_cast<unsigned>(p));
+    std::uniform_real_distribution<double> wide(p == 2 ? 2.0 : 1.2, p == 2 ? 3.0 : 2.2),
+        tall(0.2, 0.8);
+    const Lagrange L(p);
+    int found = 0, tried = 0;
+    for (; tried < 20000 && found < 5; ++tried) {
+      const CylinderElement ce =
+          onCylinder(p, wide(rng), 0.1 * wide(rng), 0.05, tall(rng), &rng, p == 2 ? 0.3 : 0.125);
+      if (certify(ce.e).sign != JacobianSign::Positive) continue;
+      Vec3 corners[3] = {ce.normals[0], ce.normals[1], ce.normals[2]};
+      if (cornerSides(typeOf(p), ce.e.x.data(), corners).against) continue;
+      const JacobianCertificate c =
+          certifyTriangleAgainstNodeNormals(p, ce.e.x.data(), ce.normals.data());
+      if (c.sign == JacobianSign::Positive) continue;
+      ASSERT_EQ(c.sign, JacobianSign::NonPositive);
+      // The independent judge: det J against the cylinder's normal at the projection of x(ξ),
+      // at the certificate's point or next to it (a 1 % neighbourhood on a fine grid).
+      std::vector<double> N;
+      double worst = INFINITY;
+      for (int dj = -5; dj <= 5; ++dj)
+        for (int di = -5; di <= 5; ++di) {
+          const double xi = c.point.x() + di * 0.002, eta = c.point.y() + dj * 0.002;
+          if (xi < 0 || eta < 0 || xi + eta > 1) continue;
+          L.values(xi, eta, &N);
+          Vec3 x = Vec3::Zero();
+          for (std::size_t i = 0; i < N.size(); ++i) x += N[i] * ce.e.x[i];
+          std::vector<Eigen::Vector2d> g;
+          L.derivatives(xi, eta, &g);
+          Vec3 a = Vec3::Zero(), b = Vec3::Zero();
+          for (std::size_t i = 0; i < g.size(); ++i) {
+            a += g[i].x() * ce.e.x[i];
+            b += g[i].y() * ce.e.x[i];
+          }
+          worst = std::min(worst, a.cross(b).normalized().dot(cylinderNormalNear(x)));
+        }
+      EXPECT_LT(worst, 0.02) << "p = " << p;
+      ++found;
+    }
+    std::printf(
+        "p = %d: %d elements valid against their reference normal but turned across the "
+        "cylinder inside, in %d tried\n",
+        p, found, tried);
+    EXPECT_EQ(found, 5) << "p = " << p;
+  }
+}
+
+TEST(JacobianCertificate, AgainstNodeNormalsAtAPoleAndWithoutNormals) {
+  // A zero normal (a node at a pole) takes the others' direction; no normal at all: D_h ≡ 0.
+  const Element s = sphere(2);
+  std::vector<Vec3> normals;
+  for (const Vec3& x : s.x) normals.push_back(x.normalized());
+  EXPECT_EQ(certifyTriangleAgainstNodeNormals(2, s.x.data(), normals.data()).sign,
+            JacobianSign::Positive);
+  normals[0] = Vec3::Zero();
+  EXPECT_EQ(certifyTriangleAgainstNodeNormals(2, s.x.data(), normals.data()).sign,
+            JacobianSign::Positive);
+  for (Vec3& n : normals) n = -n;
+  EXPECT_EQ(certifyTriangleAgainstNodeNormals(2, s.x.data(), normals.data()).sign,
+            JacobianSign::NonPositive);
+  for (Vec3& n : normals) n = Vec3::Zero();
+  EXPECT_EQ(certifyTriangleAgainstNodeNormals(2, s.x.data(), normals.data()).sign,
+            JacobianSign::NonPositive);
+  normals[1] = Vec3(NAN, 0, 0);
+  EXPECT_EQ(certifyTriangleAgainstNodeNormals(2, s.x.data(), normals.data()).sign,
+            JacobianSign::Undecided);
 }
 
 // ---- (f) order 1 --------------------------------------------------------------------------------

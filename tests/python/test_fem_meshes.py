@@ -481,6 +481,81 @@ class Quad8(unittest.TestCase):
         self.assertLessEqual(int(after.sum()), int(before.sum()))
         self.assertLessEqual(res.after.stats["invalid"], res.before.stats["invalid"])
 
+    def test_no_sound_tria6_is_turned_against_its_surface_inside(self):
+        # Gmsh's raw second-order mesh of OCC's propeller (no high-order optimization, size
+        # diagonal / 21), optimized with its boundary fixed, judged by code written here: P2
+        # shape functions, det J against FreeCAD's Face.normalAt at the point of the face
+        # closest to x(xi) (Surface.parameter), at the 45 points of an order-8 lattice. The
+        # blades turn the face's normal by up to 19 degrees within an element; an element
+        # proven valid against one reference normal could still turn its tangent plane across
+        # the surface inside, and the run made 3 sound elements so. None may be; every element
+        # the judge finds folded after the run was folded before, and the report counts it
+        # invalid.
+        import Part
+
+        from SurfMesh.app import fileio
+
+        path = T.find_part("occt_propeller.brep")
+        if path is None:
+            self.skipTest("occt_propeller.brep not found")
+        shape = Part.read(path)
+        msh = os.path.join(T.output_dir(), "fem39_propeller_o2.msh")
+        gmsh = fileio._gmsh()
+        gmsh.clear()
+        gmsh.model.occ.importShapes(path)
+        gmsh.model.occ.synchronize()
+        opts = {"Mesh.MeshSizeMax": shape.BoundBox.DiagonalLength / 21,
+                "Mesh.HighOrderOptimize": 0, "Mesh.SaveAll": 0, "Mesh.MshFileVersion": 4.1}
+        saved = {k: gmsh.option.getNumber(k) for k in opts}
+        try:
+            for k, v in opts.items():
+                gmsh.option.setNumber(k, v)
+            gmsh.model.mesh.generate(2)
+            gmsh.model.mesh.setOrder(2)
+            gmsh.write(msh)
+        finally:
+            for k, v in saved.items():
+                gmsh.option.setNumber(k, v)
+            gmsh.clear()
+        data = fileio.read_mesh(msh).data
+        res = SurfMesh.optimize(data, shape, boundary="fixed")
+        faces = np.asarray(res.after.element_faces)
+        index = {int(i): k for k, i in enumerate(data.element_ids)}
+        rows = [index[int(i)] for i in res.after.element_ids]
+        self.assertTrue(all(len(data.element(r)) == 6 for r in rows))
+        n = 8
+        lattice = [(i / n, j / n) for i in range(n + 1) for j in range(n + 1 - i)]
+
+        def shape_functions(xi, eta):
+            l0 = 1 - xi - eta
+            N = np.array([l0 * (2 * l0 - 1), xi * (2 * xi - 1), eta * (2 * eta - 1),
+                          4 * l0 * xi, 4 * xi * eta, 4 * eta * l0])
+            dxi = np.array([1 - 4 * l0, 4 * xi - 1, 0, 4 * (l0 - xi), 4 * eta, -4 * eta])
+            deta = np.array([1 - 4 * l0, 0, 4 * eta - 1, -4 * xi, 4 * xi, 4 * (l0 - eta)])
+            return N, dxi, deta
+
+        table = [shape_functions(xi, eta) for xi, eta in lattice]
+
+        def folded(nodes, r):
+            x = nodes[np.asarray(data.element(rows[r]))]
+            face = shape.Faces[int(faces[r])]
+            for N, dxi, deta in table:
+                u, v = face.Surface.parameter(FreeCAD.Vector(*map(float, N @ x)))
+                nrm = face.normalAt(u, v)
+                if float(np.dot(np.cross(dxi @ x, deta @ x), (nrm.x, nrm.y, nrm.z))) <= 0.0:
+                    return True
+            return False
+
+        after = [r for r in range(len(rows)) if folded(res.nodes, r)]
+        made = [int(res.after.element_ids[r]) for r in after if not folded(data.nodes, r)]
+        invalid = np.asarray(res.after.tangled, dtype=bool) | np.asarray(res.after.across,
+                                                                         dtype=bool)
+        print(f"\npropeller tria6: {len(rows)} elements, report invalid "
+              f"{res.before.stats['invalid']} -> {res.after.stats['invalid']}; folded against "
+              f"the face's normal after the run {len(after)}, made so by the run {made}")
+        self.assertEqual(made, [])
+        self.assertEqual([int(res.after.element_ids[r]) for r in after if not invalid[r]], [])
+
     def test_gmsh_quad8_cylinder_through_every_fem_format(self):
         # Gmsh's quad8 mesh of a cylinder, tangled by moving side nodes along the surface,
         # optimized by the command line to .msh, .unv, .inp and .vtk: each file read back holds
@@ -551,6 +626,75 @@ class Quad8(unittest.TestCase):
             self.assertLess(abs(dist.max() - rep["after"]["max_distance_to_shape"]), 1e-9)
             back_conn = [d.element(e) for e in range(d.element_count)]
             self.assertEqual(folded_count(d.nodes, back_conn), 0, ext)
+
+
+class StraightSidedReference(unittest.TestCase):
+    def test_freecad_planar_tria6_examples_stay_affine(self):
+        # FreeCAD's own second-order shell examples on flat plates (femexamples' rc_wall_2d and
+        # buckling_plate meshes): straight-sided tria6, every side node at its side's midpoint.
+        # With the default mode the corners are smoothed and every element stays affine (side
+        # nodes at their midpoints within 1e-9 of the side, det J constant over the element,
+        # computed here with P2 shape functions); the smallest corner-triangle shape quality
+        # (Knupp's 4√3 A / Σ l², computed here) rises. The paper's integral mode moves side
+        # nodes off their midpoints (the behaviour a FEM user reported).
+        import Fem
+        import Part
+        from femexamples.meshes import mesh_buckling_plate_tria6 as plate_mesh
+        from femexamples.meshes import mesh_rc_wall_2d_tria6 as wall_mesh
+
+        V = FreeCAD.Vector
+        c = [V(0, -2000, 0), V(500, -2000, 0), V(500, 0, 0), V(3500, 0, 0),
+             V(3500, -2000, 0), V(4000, -2000, 0), V(4000, 2000, 0), V(0, 2000, 0)]
+        wall = Part.Face(Part.Wire([Part.makeLine(a, b) for a, b in zip(c, c[1:] + c[:1])]))
+        for name, module, shape in (("rc_wall_2d", wall_mesh, wall),
+                                    ("buckling_plate", plate_mesh, None)):
+            fm = Fem.FemMesh()
+            module.create_nodes(fm)
+            module.create_elements(fm)
+            if shape is None:
+                bb = fm.BoundBox
+                shape = Part.makePlane(bb.XLength, bb.YLength, V(bb.XMin, bb.YMin, bb.ZMin))
+            ids = sorted(fm.Faces)
+            self.assertTrue(all(len(fm.getElementNodes(e)) == 6 for e in ids))
+
+            def measure(nodes):
+                offsets, spread, qmin = [], [], 1.0
+                for e in ids:
+                    x = np.array([nodes[n] for n in fm.getElementNodes(e)])
+                    for s, a, b in ((3, 0, 1), (4, 1, 2), (5, 2, 0)):
+                        offsets.append(np.linalg.norm(x[s] - 0.5 * (x[a] + x[b]))
+                                       / np.linalg.norm(x[b] - x[a]))
+                    dets = []
+                    for xi, eta in ((0, 0), (1, 0), (0, 1), (1 / 3, 1 / 3), (0.5, 0.25)):
+                        l0 = 1 - xi - eta
+                        dxi = np.array([1 - 4 * l0, 4 * xi - 1, 0, 4 * (l0 - xi), 4 * eta,
+                                        -4 * eta])
+                        deta = np.array([1 - 4 * l0, 0, 4 * eta - 1, -4 * xi, 4 * xi,
+                                         4 * (l0 - eta)])
+                        dets.append(np.linalg.norm(np.cross(dxi @ x, deta @ x)))
+                    spread.append((max(dets) - min(dets)) / max(dets))
+                    e2 = sum(np.sum((x[(k + 1) % 3] - x[k]) ** 2) for k in range(3))
+                    area = 0.5 * np.linalg.norm(np.cross(x[1] - x[0], x[2] - x[0]))
+                    qmin = min(qmin, 4 * np.sqrt(3) * area / e2)
+                return max(offsets), max(spread), qmin
+
+            before = {n: np.array(tuple(fm.getNodeById(n))) for n in fm.Nodes}
+            off0, spread0, q0 = measure(before)
+            self.assertLess(off0, 1e-9, name)
+            res = SurfMesh.optimize(fm, shape)
+            after = {n: np.array(tuple(res.mesh.getNodeById(n))) for n in res.mesh.Nodes}
+            off1, spread1, q1 = measure(after)
+            inte = SurfMesh.optimize(fm, shape, high_order="integral")
+            moved = {n: np.array(tuple(inte.mesh.getNodeById(n))) for n in inte.mesh.Nodes}
+            off2, _, _ = measure(moved)
+            print(f"\n{name}: {len(ids)} tria6; reference: side-node offset {off1:.1e}, det J "
+                  f"spread {spread1:.1e}, min corner shape {q0:.3f} -> {q1:.3f}; integral: "
+                  f"side-node offset {off2:.3f}")
+            self.assertLess(off1, 1e-9, name)
+            self.assertLess(spread1, 1e-9, name)
+            self.assertGreater(q1, q0 + 0.02, name)
+            self.assertGreater(off2, 0.01, name)
+            self.assertEqual(res.after.stats["invalid"], 0)
 
 
 class TrimmingCurves(unittest.TestCase):

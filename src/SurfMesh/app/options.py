@@ -18,6 +18,9 @@ import numpy as np
 from SurfMesh.app.native import core
 
 BOUNDARY_MODES = ("fixed", "slide")
+#: How curved elements are optimized (OptimizeOptions::highOrder): against their
+#: straight-sided counterpart on the surface, or by the paper's integral measure alone.
+HIGH_ORDER_MODES = ("reference", "integral")
 #: The boundary mode of a run when none is given.
 DEFAULT_BOUNDARY = BOUNDARY_MODES[0]
 #: The quality measure when none is given (the core's OptimizeOptions::measure, checked by
@@ -30,7 +33,7 @@ _defaults = None
 def optimize_defaults() -> dict:
     """The options of :func:`SurfMesh.optimize` that map to the core's OptimizeOptions, with
     the core's defaults (max_sweeps, rel_tol, move_tol, inner_iterations, max_line_search,
-    over_relaxation, delta_policy, delta_epsilon, delta, monotone, threads).
+    over_relaxation, delta_policy, delta_epsilon, delta, monotone, threads, high_order).
 
     The same dict object on every call (``SurfMesh.OPTIMIZE_DEFAULTS``): copy it to change it.
     """
@@ -96,6 +99,10 @@ def check_options(o):
         raise ValueError(f"over_relaxation must be a number in [1, 2), got {w!r}")
     if o["delta_policy"] not in ("auto", "fixed"):
         raise ValueError(f"delta_policy must be 'auto' or 'fixed', got {o['delta_policy']!r}")
+    if o["high_order"] not in HIGH_ORDER_MODES:
+        raise ValueError(
+            f"high_order must be 'reference' or 'integral', got {o['high_order']!r}"
+        )
     t = o["threads"]
     if isinstance(t, bool) or not isinstance(t, (int, np.integer)) or t < 0:
         raise ValueError(f"threads must be an integer ≥ 0, got {t!r}")

@@ -229,6 +229,10 @@ BOUNDARY_LABELS = {
     "fixed": "Nodes on CAD edges stay",
     "slide": "Nodes slide along CAD edges",
 }
+HIGH_ORDER_LABELS = {
+    "reference": "Straight-sided on the surface (FEM)",
+    "integral": "Integral measure (the paper's)",
+}
 
 
 def measure_label(name):

@@ -120,7 +120,7 @@ def optimize(
         boundary: "fixed" (nodes on CAD edges and vertices stay) or "slide" (nodes on CAD edges
             slide along their edge; vertices stay).
         progress: called after every sweep with a dict (sweep, max_sweeps, objective, tangled,
-            min_quality, delta); return False to cancel (then :class:`Cancelled` is raised).
+            min_quality, delta, stage); return False to cancel (then :class:`Cancelled` is raised).
         faces: optimize only the elements on these faces of the shape, by FreeCAD's names
             ("Face3") or numbers (3 for Face3), or as Part.Face objects of the shape: every
             node of an element on another face stays where it is (so does a node on a CAD edge
@@ -160,11 +160,15 @@ def optimize(
     t1 = time.perf_counter()
     stats = {k: before.stats[k]
              for k in ("min", "max", "mean", "std", "tangled", "elements", "across")}
-    fewest = {"tangled": None, "sweep": 0}  # when the run last reached fewer tangled elements
+    # when the run last reached fewer tangled elements; a new stage (the runs of the curved
+    # elements' "reference" mode, each counting its own mesh's) starts the count again
+    fewest = {"tangled": None, "sweep": 0, "stage": 0}
 
     def track(p):
-        if fewest["tangled"] is None or p["tangled"] < fewest["tangled"]:
-            fewest.update(tangled=p["tangled"], sweep=p["sweep"])
+        stage = p.get("stage", 0)
+        if (fewest["tangled"] is None or p["tangled"] < fewest["tangled"]
+                or stage != fewest["stage"]):
+            fewest.update(tangled=p["tangled"], sweep=p["sweep"], stage=stage)
         return None if progress is None else progress(p)
 
     _progress.phase("optimizing")

@@ -118,6 +118,12 @@ def build_parser(prog="surfmesh_cli.py"):
                    "(in [1, 2), default {optimizer_default}; 1: plain Gauss-Seidel)"
                    ).optimizer_option = "over_relaxation"
     o.add_argument("--threads", type=int, default=None)
+    o.add_argument("--high-order", choices=["reference", "integral"], default=None,
+                   help="curved elements: 'reference' measures them against their "
+                   "straight-sided counterpart on the surface (corners by the linear measure, "
+                   "high-order nodes where interpolating the face puts them), 'integral' by the "
+                   "paper's integral measure alone (default {optimizer_default})"
+                   ).optimizer_option = "high_order"
     o.add_argument("--no-monotone", action="store_true",
                    help="accept moves that lower a valid mesh's minimum quality")
     o.add_argument("--msh-version", type=float, choices=[2, 2.2, 4, 4.1], default=None)
@@ -257,6 +263,8 @@ def run(argv, prog="surfmesh_cli.py"):
             options["over_relaxation"] = args.over_relaxation
         if args.threads is not None:
             options["threads"] = args.threads
+        if args.high_order is not None:
+            options["high_order"] = args.high_order
         if args.no_monotone:
             options["monotone"] = False
         if args.faces is not None:

@@ -1,5 +1,6 @@
 """User preferences of SurfMesh: the last measure used, and the Optimize panel's last settings
-(boundary mode, tolerances, sweeps, monotone mode, over-relaxation, threads), stored in
+(boundary mode, curved elements, tolerances, sweeps, monotone mode, over-relaxation, threads),
+stored in
 FreeCAD's parameters (Tools > Edit parameters: Preferences/Mod/SurfMesh)."""
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ _OPTIMIZE_SETTINGS = {
     "monotone": "Bool",
     "over_relaxation": "Float",
     "threads": "Int",
+    "high_order": "String",
 }
 
 
@@ -53,6 +55,8 @@ def optimize_settings() -> dict:
         d = _default(name)
         value = getattr(p, "Get" + kind)(_param_name(name), d)
         if name == "boundary" and value not in options.BOUNDARY_MODES:
+            value = d
+        if name == "high_order" and value not in options.HIGH_ORDER_MODES:
             value = d
         if kind == "Float" and not math.isfinite(value):
             value = d

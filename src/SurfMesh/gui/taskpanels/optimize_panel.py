@@ -67,6 +67,17 @@ class OptimizePanel:
         self.boundary.setToolTip("Whether the nodes on the part's edges stay where they are, "
                                  "or slide along the edges (the nodes on corners always stay)")
         lay.addRow("Edges", self.boundary)
+        self.high_order = QtGui.QComboBox()
+        self.high_order.setObjectName("high_order")
+        for mode in options.HIGH_ORDER_MODES:
+            self.high_order.addItem(reports.HIGH_ORDER_LABELS.get(mode, mode), mode)
+        self.high_order.setCurrentIndex(list(options.HIGH_ORDER_MODES).index(last["high_order"]))
+        self.high_order.setToolTip(
+            "Second- and higher-order elements: measured against their straight-sided "
+            "counterpart on the surface (corners smoothed, side nodes where interpolating the "
+            "face puts them: affine on a plane), or by the paper's integral measure, which may "
+            "curve straight sides. Linear meshes are the same either way")
+        lay.addRow("Curved elements", self.high_order)
         self.faces = QtGui.QLineEdit(", ".join(self.initial_faces))
         self.faces.setObjectName("faces")
         self.faces.setPlaceholderText("all")
@@ -146,7 +157,7 @@ class OptimizePanel:
         adv.addRow("Threads", self.threads)
         lay.addRow(advanced)
         # what a run disables while it lasts
-        self.inputs = [self.measure, self.boundary, self.faces, self.max_sweeps, self.monotone,
+        self.inputs = [self.measure, self.boundary, self.high_order, self.faces, self.max_sweeps, self.monotone,
                        self.replace, self.tolerance, self.rel_tol, self.over_relaxation,
                        self.threads]
         self.bar = QtGui.QProgressBar()
@@ -226,6 +237,7 @@ class OptimizePanel:
             "monotone": self.monotone.isChecked(),
             "over_relaxation": self.over_relaxation.value(),
             "threads": self.threads.value(),
+            "high_order": self.high_order.currentData(),
         }
 
     def command(self):
@@ -238,7 +250,8 @@ class OptimizePanel:
         if o["tolerance"] is not None:
             args.append(f"tolerance={o['tolerance']!r}")
         defaults = options.optimize_defaults()  # (the core's)
-        for k in ("rel_tol", "max_sweeps", "monotone", "over_relaxation", "threads"):
+        for k in ("rel_tol", "max_sweeps", "monotone", "over_relaxation", "threads",
+                  "high_order"):
             if o[k] != defaults[k]:
                 args.append(f"{k}={o[k]!r}")
         faces = self.face_names()

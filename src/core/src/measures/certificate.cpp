@@ -32,8 +32,8 @@ namespace surfmesh {
 
 namespace {
 
-/// Coefficients of the largest degree (d = 8 for p = 5): 45.
-constexpr int kMaxCoefficients = 45;
+/// Coefficients of the largest degree (d = 13: p = 5 against the nodes' normals): 105.
+constexpr int kMaxCoefficients = 105;
 
 int position(int d, int j, int k) { return k * (d + 1) - k * (k - 1) / 2 + j; }
 
@@ -43,12 +43,15 @@ using Bary = std::array<double, 3>;
 struct CertificateBasis {
   int order = 0;
   int nodes = 0;                        ///< shape functions of the element
-  int degree = 0;                       ///< d = 2(p − 1)
+  bool field = false;                   ///< against the interpolated nodal normals
+  int degree = 0;                       ///< d = 2(p − 1), or 3p − 2 for the normal field
   int count = 0;                        ///< (d + 1)(d + 2)/2 coefficients
   std::vector<Eigen::Vector3i> index;   ///< (i, j, k) of each coefficient
   std::vector<Eigen::Vector2d> points;  ///< the domain points (j/d, k/d) of the reference triangle
   /// grad[a * nodes + i] = ∇N_i(points[a]).
   std::vector<Eigen::Vector2d> grad;
+  /// shape[a * nodes + i] = N_i(points[a]) (the normal field's interpolation; field only).
+  std::vector<double> shape;
   /// Row-major count × count: coefficients = fromValues · (D at points).
   std::vector<double> fromValues;
   /// Row-major count × count per child: child coefficients = child[c] · parent coefficients.
@@ -90,12 +93,13 @@ double binomial(int n, int k) {
   return r;
 }
 
-CertificateBasis makeBasis(int order) {
+CertificateBasis makeBasis(int order, bool field) {
   CertificateBasis b;
   const LagrangeTriangle& lt = lagrangeTriangle(order);
   b.order = order;
   b.nodes = lt.nodeCount();
-  const int d = 2 * (order - 1);
+  b.field = field;
+  const int d = field ? 3 * order - 2 : 2 * (order - 1);
   b.degree = d;
   b.count = (d + 1) * (d + 2) / 2;
   const std::size_t m = static_cast<std::size_t>(b.count);
@@ -112,6 +116,10 @@ CertificateBasis makeBasis(int order) {
   const std::size_t nn = static_cast<std::size_t>(b.nodes);
   b.grad.resize(m * nn);
   for (std::size_t a = 0; a < m; ++a) lt.gradients(b.points[a], b.grad.data() + a * nn);
+  if (field) {
+    b.shape.resize(m * nn);
+    for (std::size_t a = 0; a < m; ++a) lt.shape(b.points[a], b.shape.data() + a * nn);
+  }
   // V(a, b) = B_b(points[a]).
   Eigen::MatrixXd V(b.count, b.count);
   for (int a = 0; a < b.count; ++a) {
@@ -153,12 +161,30 @@ CertificateBasis makeBasis(int order) {
 }
 
 const CertificateBasis& basis(int order) {
-  static const CertificateBasis b[5] = {makeBasis(1), makeBasis(2), makeBasis(3), makeBasis(4),
-                                        makeBasis(5)};
+  static const CertificateBasis b[5] = {makeBasis(1, false), makeBasis(2, false),
+                                        makeBasis(3, false), makeBasis(4, false),
+                                        makeBasis(5, false)};
   if (order < 1 || order > 5)
     throw std::invalid_argument("certifyTriangleJacobian: order must be 1..5, got " +
                                 std::to_string(order));
   return b[order - 1];
+}
+
+/// The bases against the nodes' normals (degree 3p − 2), built on first use.
+const CertificateBasis& fieldBasis(int order) {
+  if (order < 1 || order > 5)
+    throw std::invalid_argument("certifyTriangleAgainstNodeNormals: order must be 1..5, got " +
+                                std::to_string(order));
+  static const CertificateBasis b[5] = {makeBasis(1, true), makeBasis(2, true), makeBasis(3, true),
+                                        makeBasis(4, true), makeBasis(5, true)};
+  return b[order - 1];
+}
+
+/// Σ_i N_i n_i from the shape function values at one point.
+inline Vec3 interpolate(const Vec3* n, const double* N, int nn) {
+  Vec3 r = Vec3::Zero();
+  for (int i = 0; i < nn; ++i) r += N[i] * n[i];
+  return r;
 }
 
 /// x_ξ, x_η from the nodes and the gradients of their shape functions at one point.
@@ -205,28 +231,16 @@ double triangleJacobianDeterminant(int order, const Vec3* x, const Vec3& n,
   return a.cross(b).dot(n);
 }
 
-JacobianCertificate certifyTriangleJacobian(int order, const Vec3* x, const Vec3& n, int maxDepth) {
-  const CertificateBasis& B = basis(order);
-  const int nn = B.nodes, m = B.count, d = B.degree;
+namespace {
+
+/// The certificate proper: D's values at B's sample points, its margin τ, `direct(ξ)` D at any
+/// reference point (evaluated from the nodes), `zero`: D ≡ 0 (no direction to judge against).
+template <class Direct>
+JacobianCertificate certify(const CertificateBasis& B, const double* values, double tol, bool zero,
+                            const Direct& direct, int maxDepth) {
+  const int m = B.count, d = B.degree;
   const std::size_t mm = static_cast<std::size_t>(m);
   JacobianCertificate r;
-  if (!n.allFinite()) return r;  // Undecided
-  const double nNorm = n.norm();
-
-  // D at the sample points, and the scale of τ.
-  double values[kMaxCoefficients] = {};
-  double scale = 0.0;
-  bool finite = true;
-  for (int a = 0; a < m; ++a) {
-    Vec3 xa, xb;
-    tangents(x, B.grad.data() + static_cast<std::size_t>(a) * static_cast<std::size_t>(nn), nn, &xa,
-             &xb);
-    values[a] = xa.cross(xb).dot(n);
-    scale = std::max(scale, xa.norm() * xb.norm());
-    finite = finite && std::isfinite(values[a]) && std::isfinite(scale);
-  }
-  if (!finite) return r;  // Undecided
-  const double tol = kPerpendicularTol * nNorm * scale;
   r.tolerance = tol;
   int lowest = 0;
   for (int a = 1; a < m; ++a)
@@ -254,16 +268,12 @@ JacobianCertificate certifyTriangleJacobian(int order, const Vec3* x, const Vec3
     r.depth = depth;
     return r;
   };
-  if (nNorm == 0.0) return nonPositive(Eigen::Vector2d(1.0 / 3.0, 1.0 / 3.0), 0.0, 0);
+  if (zero) return nonPositive(Eigen::Vector2d(1.0 / 3.0, 1.0 / 3.0), 0.0, 0);
   if (values[lowest] <= tol)
     return nonPositive(B.points[static_cast<std::size_t>(lowest)], values[lowest], 0);
 
   // A point of a piece where D ≤ τ, evaluated from the nodes (the coefficients only point to
   // it: a corner coefficient equals D there up to rounding).
-  auto direct = [&](const Eigen::Vector2d& p) {
-    return triangleJacobianDeterminant(order, x, n, p);
-  };
-
   double lowerBound = std::numeric_limits<double>::infinity();
   bool undecided = false;
   std::vector<Piece> level{root}, next;
@@ -297,7 +307,8 @@ JacobianCertificate certifyTriangleJacobian(int order, const Vec3* x, const Vec3
       const Eigen::Vector2d corners[4][3] = {
           {P.v[0], m01, m20}, {m01, P.v[1], m12}, {m20, m12, P.v[2]}, {m12, m20, m01}};
       for (int c = 0; c < 4; ++c) {
-        Piece C;
+        next.emplace_back();
+        Piece& C = next.back();
         for (int k = 0; k < 3; ++k) C.v[k] = corners[c][k];
         const double* M = B.child[static_cast<std::size_t>(c)].data();
         for (int i = 0; i < m; ++i) {
@@ -306,7 +317,6 @@ JacobianCertificate certifyTriangleJacobian(int order, const Vec3* x, const Vec3
           for (int j = 0; j < m; ++j) s += row[j] * P.c[j];
           C.c[i] = s;
         }
-        next.push_back(C);
       }
     }
     level.swap(next);
@@ -315,6 +325,78 @@ JacobianCertificate certifyTriangleJacobian(int order, const Vec3* x, const Vec3
   r.sign = JacobianSign::Positive;
   r.lowerBound = lowerBound;
   return r;
+}
+
+}  // namespace
+
+JacobianCertificate certifyTriangleJacobian(int order, const Vec3* x, const Vec3& n, int maxDepth) {
+  const CertificateBasis& B = basis(order);
+  const int nn = B.nodes, m = B.count;
+  if (!n.allFinite()) return JacobianCertificate{};  // Undecided
+  const double nNorm = n.norm();
+  // D at the sample points, and the scale of τ.
+  double values[kMaxCoefficients] = {};
+  double scale = 0.0;
+  bool finite = true;
+  for (int a = 0; a < m; ++a) {
+    Vec3 xa, xb;
+    tangents(x, B.grad.data() + static_cast<std::size_t>(a) * static_cast<std::size_t>(nn), nn, &xa,
+             &xb);
+    values[a] = xa.cross(xb).dot(n);
+    scale = std::max(scale, xa.norm() * xb.norm());
+    finite = finite && std::isfinite(values[a]) && std::isfinite(scale);
+  }
+  if (!finite) return JacobianCertificate{};  // Undecided
+  auto direct = [&](const Eigen::Vector2d& p) {
+    return triangleJacobianDeterminant(order, x, n, p);
+  };
+  return certify(B, values, kPerpendicularTol * nNorm * scale, nNorm == 0.0, direct, maxDepth);
+}
+
+double triangleJacobianAgainstNodeNormals(int order, const Vec3* x, const Vec3* nodeNormals,
+                                          const Eigen::Vector2d& xi) {
+  const LagrangeTriangle& lt = lagrangeTriangle(order);
+  Eigen::Vector2d g[kMaxElementNodes];
+  double N[kMaxElementNodes];
+  lt.gradients(xi, g);
+  lt.shape(xi, N);
+  Vec3 a, b;
+  tangents(x, g, lt.nodeCount(), &a, &b);
+  return a.cross(b).dot(interpolate(nodeNormals, N, lt.nodeCount()));
+}
+
+JacobianCertificate certifyTriangleAgainstNodeNormals(int order, const Vec3* x,
+                                                      const Vec3* nodeNormalsIn, int maxDepth) {
+  const CertificateBasis& B = fieldBasis(order);
+  const int nn = B.nodes, m = B.count;
+  double values[kMaxCoefficients] = {};
+  double scale = 0.0;
+  bool finite = true;
+  // A node at a pole (zero normal) takes the direction of the others' sum.
+  Vec3 nodeNormals[kMaxElementNodes];
+  Vec3 sum = Vec3::Zero();
+  for (int i = 0; i < nn; ++i) {
+    finite = finite && nodeNormalsIn[i].allFinite();
+    sum += nodeNormalsIn[i];
+  }
+  const double normals = sum.norm();
+  for (int i = 0; i < nn; ++i)
+    nodeNormals[i] = nodeNormalsIn[i].squaredNorm() > 0.0 || normals == 0.0 ? nodeNormalsIn[i]
+                                                                            : Vec3(sum / normals);
+  for (int a = 0; a < m && finite; ++a) {
+    const std::size_t o = static_cast<std::size_t>(a) * static_cast<std::size_t>(nn);
+    Vec3 xa, xb;
+    tangents(x, B.grad.data() + o, nn, &xa, &xb);
+    const Vec3 na = interpolate(nodeNormals, B.shape.data() + o, nn);
+    values[a] = xa.cross(xb).dot(na);
+    scale = std::max(scale, xa.norm() * xb.norm() * na.norm());
+    finite = std::isfinite(values[a]) && std::isfinite(scale);
+  }
+  if (!finite) return JacobianCertificate{};  // Undecided
+  auto direct = [&](const Eigen::Vector2d& p) {
+    return triangleJacobianAgainstNodeNormals(order, x, nodeNormals, p);
+  };
+  return certify(B, values, kPerpendicularTol * scale, normals == 0.0, direct, maxDepth);
 }
 
 JacobianCertificate certifyElementJacobian(ElementType type, const Vec3* x, const Vec3& n) {

@@ -276,6 +276,17 @@ Vec3 elementReferenceNormal(const SurfaceMesh& mesh, std::size_t e,
   return len > 0.0 ? Vec3(n / len) : Vec3::Zero();
 }
 
+void elementNodeNormals(const SurfaceMesh& mesh, std::size_t e,
+                        const std::vector<const Surface*>& surfaces, Vec3* nodeNormals) {
+  const int f = mesh.elemFace[e];
+  const Vec2* uv = mesh.elementUV(e);
+  const Surface& s = *surfaces[static_cast<std::size_t>(f)];
+  const int o =
+      mesh.faceOrientation.empty() ? 1 : mesh.faceOrientation[static_cast<std::size_t>(f)];
+  for (int k = 0; k < mesh.elementSize(e); ++k)
+    nodeNormals[k] = Vec3((o * s.normal(uv[k].x(), uv[k].y())).eval());
+}
+
 CornerSides cornerSides(ElementType type, const Vec3* x, const Vec3* cornerNormals) {
   const int nc = cornerCount(type);
   CornerSides r;

@@ -16,12 +16,15 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-/// Distance from x to the surface near (u,v): Newton on f = ½|φ − x|², Gauss–Newton where
-/// the Hessian is not positive definite, each step halved until f does not grow.
-double projectDistance(const Surface& s, const Vec3& x, Vec2 uv) {
+}  // namespace
+
+Vec2 nearestParameters(const Surface& s, const Vec3& x, Vec2 uv, double* distance) {
   SurfaceD2 d = s.d2(uv.x(), uv.y());
   double best = (d.p - x).norm();
-  if (!std::isfinite(best)) return kNaN;
+  if (!std::isfinite(best)) {
+    *distance = kNaN;
+    return uv;
+  }
   for (int it = 0; it < 50 && best > 0.0; ++it) {
     const Vec3 r = d.p - x;
     const Vec2 g(d.du.dot(r), d.dv.dot(r));
@@ -56,7 +59,17 @@ double projectDistance(const Surface& s, const Vec3& x, Vec2 uv) {
     }
     if (change <= 1e-15 * (x.norm() + best)) break;  // no step, or converged
   }
-  return best;
+  *distance = best;
+  return uv;
+}
+
+namespace {
+
+/// Distance from x to the surface near (u,v) (nearestParameters).
+double projectDistance(const Surface& s, const Vec3& x, const Vec2& uv) {
+  double dist = kNaN;
+  nearestParameters(s, x, uv, &dist);
+  return dist;
 }
 
 /// Shape function values of element type t at the reference point (a, b): a triangle's

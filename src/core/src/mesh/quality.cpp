@@ -1,5 +1,6 @@
 #include "surfmesh/mesh/quality.h"
 
+#include "surfmesh/measures/certificate.h"
 #include "surfmesh/measures/element_measure.h"
 
 #include <algorithm>
@@ -54,7 +55,16 @@ MeshQuality measureQuality(const SurfaceMesh& mesh, const PlanarMeasure& m) {
       const ElementEval ev = elementDistortion(m, mesh.elemType[e], x.data(), normal, 0.0);
       const bool bad = ev.tangled || !std::isfinite(ev.eta) || !(ev.eta > 0.0);
       r.tangled[e] = bad ? 1 : 0;
-      r.across[e] = standsAcross(mesh.elemType[e], x.data(), corners) ? 1 : 0;
+      bool across = standsAcross(mesh.elemType[e], x.data(), corners);
+      if (!across && !bad && isHighOrderTriangle(mesh.elemType[e])) {
+        // Its tangent plane turned across the surface's inside the element (certificate.h).
+        Vec3 nodeNormals[kMaxElementNodes];
+        elementNodeNormals(mesh, e, surfaces, nodeNormals);
+        across =
+            certifyTriangleAgainstNodeNormals(elementOrder(mesh.elemType[e]), x.data(), nodeNormals)
+                .sign != JacobianSign::Positive;
+      }
+      r.across[e] = across ? 1 : 0;
       r.distortion[e] = bad ? std::numeric_limits<double>::infinity() : ev.eta;
       r.quality[e] = bad ? 0.0 : std::min(1.0, 1.0 / ev.eta);
       r.minSigma[e] = ev.minSigma;

@@ -1,5 +1,6 @@
 #include "surfmesh/optimize/optimizer.h"
 
+#include "reference_mode.h"
 #include "surfmesh/measures/certificate.h"
 #include "surfmesh/measures/element_measure.h"
 #include "surfmesh/measures/lagrange_triangle.h"
@@ -257,8 +258,11 @@ inline double acrossArea(const Vec3& c, double cn, const Vec3* n, int* which, do
 /// faceCorners bit: the element is held from standing across its surface (a linear triangle:
 /// acrossArea; a high-order one: see State's constructor).
 constexpr unsigned kAcrossGuard = 0x80u;
-/// Corner normals kept per element (cornerN, Worker::cornerNormals): a quad's four.
+/// Corner normals kept per element (cornerN): a quad's four.
 constexpr int kCornerSlots = 4;
+/// Normals kept per held element in a node update (Worker::cornerNormals): a high-order
+/// triangle's at every node (certifyTriangleAgainstNodeNormals), a quad8's at its corners.
+constexpr int kHeldSlots = kMaxElementNodes;
 /// Curved elements held from standing across by their tangent planes at the corners (State's
 /// constructor): high-order triangles and quad8.
 inline bool heldCurved(ElementType t) { return isHighOrderTriangle(t) || t == ElementType::Quad8; }
@@ -658,10 +662,10 @@ struct State {
       bool sliding = false;
       for (int k = 0; k < m.elementSize(e); ++k)
         sliding = sliding || m.nodeKind[static_cast<std::size_t>(nd[k])] == NodeKind::Edge;
-      Vec3 corners[kCornerSlots];
-      for (int k = 0; k < cornerCount(m.elemType[e]); ++k) corners[k] = cornerNormal(e, k);
+      Vec3 corners[kHeldSlots];
+      for (int k = 0; k < heldNormalCount(e); ++k) corners[k] = heldNormal(e, k);
       const CornerSides sides = cornerSidesAt(e, -1, Vec3::Zero(), corners);
-      if (!sliding && sides.along && !sides.against)
+      if (!sliding && sides.along && !turnedAgainst(e, -1, Vec3::Zero(), corners))
         faceCorners[e] = static_cast<std::uint8_t>(faceCorners[e] | kAcrossGuard);
     }
     if (anyEdge) {
@@ -752,6 +756,35 @@ struct State {
     return cornerSides(mesh.elemType[e], xs, corners);
   }
 
+  /// Normals a held element is judged by (heldNormal): every node's for a high-order
+  /// triangle, the corners' for a quad8.
+  int heldNormalCount(std::size_t e) const {
+    return isHighOrderTriangle(mesh.elemType[e]) ? mesh.elementSize(e)
+                                                 : cornerCount(mesh.elemType[e]);
+  }
+
+  /// The surface's unit normal at node k of element e (zero at a pole): cornerNormal for a
+  /// corner; a high-order node's own for a Face node, else at its (u,v) in e.
+  Vec3 heldNormal(std::size_t e, int k) const {
+    if (k < cornerCount(mesh.elemType[e])) return cornerNormal(e, k);
+    const std::size_t j = static_cast<std::size_t>(mesh.elementNodes(e)[k]);
+    if (mesh.nodeKind[j] == NodeKind::Face) return nodeNormal[j];
+    return mesh.referenceNormal(mesh.elemFace[e], mesh.elementUV(e)[k]);
+  }
+
+  /// Whether element e, its node `local` at x (local < 0: at the current positions), with the
+  /// normals `normals` (heldNormal's, in its nodes' order) has its tangent plane wound against
+  /// the surface: a quad8 at a corner (cornerSides); a high-order triangle anywhere, as its
+  /// Jacobian is not proven positive against the normals interpolated from its nodes
+  /// (certifyTriangleAgainstNodeNormals; at the corners that is the corner test).
+  bool turnedAgainst(std::size_t e, int local, const Vec3& x, const Vec3* normals) const {
+    if (!isHighOrderTriangle(mesh.elemType[e])) return cornerSidesAt(e, local, x, normals).against;
+    Vec3 xs[kMaxElementNodes];
+    positions(e, local, x, xs);
+    return certifyTriangleAgainstNodeNormals(elementOrder(mesh.elemType[e]), xs, normals).sign !=
+           JacobianSign::Positive;
+  }
+
   /// The Jacobians of high-order triangle e at its nodes and quadrature points without the
   /// term of its node `local` (see HighOrderJacobians), at the current positions.
   void highOrderRest(std::size_t e, int local, HighOrderJacobians* out) const {
@@ -802,7 +835,7 @@ struct State {
     r.tangled = ev.tangled;
     if (wantEta0) r.eta0 = (ev.tangled || !std::isfinite(eta0)) ? kInf : eta0;
     if (corners && !ev.tangled && std::isfinite(ev.eta)) {
-      if (cornerSidesAt(e, local, x, corners).against) {
+      if (turnedAgainst(e, local, x, corners)) {
         // Held from standing across: the move tangles it (a node update rejects it), while
         // its cached η and det S stay the paper's, as the quality report measures them. (Not
         // `held`: a run left with tangled elements does not start again without the hold for
@@ -893,7 +926,7 @@ struct alignas(64) Worker {
     baseNormal.resize(s.maxDegree);
     otherNormals.resize(2 * s.maxDegree);
     if (!s.allTri3) {
-      cornerNormals.resize(kCornerSlots * s.maxDegree);
+      cornerNormals.resize(kHeldSlots * s.maxDegree);
       holdHere.resize(s.maxDegree);
       highOrder.resize(s.maxDegree);
     }
@@ -907,8 +940,8 @@ struct alignas(64) Worker {
   std::vector<Vec3> baseNormal;  // per incident element: its normal without the free corner
   // Per incident linear triangle: the corner normals of its two other corners (acrossArea).
   std::vector<Vec3> otherNormals;
-  // Per incident held high-order triangle or quad8: its corner normals (the free corner's
-  // replaced at each trial), kCornerSlots each.
+  // Per incident held high-order triangle or quad8: its node normals (a quad8's corners only;
+  // the free node's replaced at each trial), kHeldSlots each.
   std::vector<Vec3> cornerNormals;
   std::vector<unsigned char> holdHere;  // whether that triangle is held in this update
   // Per incident high-order triangle: its Jacobians without the free node's term.
@@ -1547,7 +1580,7 @@ class NodeUpdater {
       // previous corners' (the same for every trial of this update).
       bool guarded = s_.guarded(e);
       const bool tri = s_.mesh.elemType[e] == ElementType::Tri3 && guarded;
-      Vec3 corners[kCornerSlots];
+      Vec3 corners[kHeldSlots];
       if (tri) {
         Vec3* other = w_.otherNormals.data() + 2 * j;
         if (!cur) {
@@ -1561,12 +1594,12 @@ class NodeUpdater {
         // A held high-order triangle's or quad8's corner normals in its corners' order, the
         // free node's (when a corner) at the trial. Not held in this update when it stands
         // across already (an escape's joint move may leave it so): its nodes stay free to move.
-        const int nc = cornerCount(s_.mesh.elemType[e]);
-        Vec3* kept = w_.cornerNormals.data() + kCornerSlots * j;
+        const int nc = s_.heldNormalCount(e);
+        Vec3* kept = w_.cornerNormals.data() + kHeldSlots * j;
         if (!cur)
-          for (int k = 0; k < nc; ++k) kept[k] = s_.cornerNormal(e, k);
+          for (int k = 0; k < nc; ++k) kept[k] = s_.heldNormal(e, k);
         for (int k = 0; k < nc; ++k) corners[k] = k == local ? nfree(j) : kept[k];
-        if (!cur) w_.holdHere[j] = !s_.cornerSidesAt(e, -1, Vec3::Zero(), corners).against;
+        if (!cur) w_.holdHere[j] = !s_.turnedAgainst(e, -1, Vec3::Zero(), corners);
         guarded = w_.holdHere[j] != 0;
       }
       // A high-order triangle's Jacobians without the free node's term: the same for every
@@ -3032,6 +3065,11 @@ OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
         mesh, [&](std::size_t i) { return opt.fixedNodes[i] != 0; },
         [&] { return optimizeMesh(mesh, rest, progress, before); });
   }
+  if (opt.highOrder != "reference" && opt.highOrder != "integral")
+    throw std::invalid_argument("highOrder must be 'reference' or 'integral', got '" +
+                                opt.highOrder + "'");
+  if (opt.highOrder == "reference" && opt.maxSweeps > 0 && hasCurvedElements(mesh))
+    return optimizeReference(mesh, opt, progress, before);
   if (opt.measure != "shape" && opt.maxSweeps > 0)
     return optimizeUntanglingFirst(mesh, opt, progress, before);
   return optimizeBoundary(mesh, opt, progress, before);

@@ -36,6 +36,21 @@
 // D ≡ 0 and the certificate returns NonPositive (value 0 at the centroid) — the element is
 // invalid, as it is tangled for the measures. A non-finite node or normal gives Undecided.
 //
+// Against the surface. The reference normal is one direction for the whole element; where the
+// face's normal turns within it (a blade, a fillet), D > 0 against the reference normal does not
+// keep the element's tangent plane from turning across the surface's inside the element (it is
+// then wound against the surface there: "standing across" at an interior point, where the
+// corner test of standsAcross cannot see it). certifyTriangleAgainstNodeNormals proves instead
+//     D_h(ξ) = (x_ξ × x_η) · n_h(ξ) > 0,  n_h(ξ) = Σ_i N_i(ξ) n_i,
+// n_i the face's unit normal at node i's (u,v): the isoparametric interpolation of the CAD
+// normals at the nodes (a shell element's director field). D_h is a polynomial of degree
+// 3p − 2, certified by the same Bernstein expansion and subdivision. At the corners D_h is the
+// corner test of standsAcross; n_h differs from the face's normal at the point by the
+// interpolation error of degree p + 1 in the element's size. A node at a pole (where the face
+// has no normal: zero) takes the direction of the sum of the other nodes' normals; zero normals
+// everywhere make D_h ≡ 0, NonPositive. (Where the face's normal turns by a large angle within
+// one element, n_h is a coarse picture of it: such an element is far too coarse for its face.)
+//
 // Order 1 (Tri3): D is the constant ((x1 − x0) × (x2 − x0)) · n, the plain orientation test.
 // Quadrilaterals: quad4's D = (x_s × x_t)·n is affine in (s, t) (x_s × x_t has no st term),
 // so its four corners decide it, which the corner triangles of quadDistortion already check;
@@ -100,6 +115,18 @@ double triangleJacobianDeterminant(int order, const Vec3* x, const Vec3& n,
 /// Throws std::invalid_argument for another order.
 JacobianCertificate certifyTriangleJacobian(int order, const Vec3* x, const Vec3& n,
                                             int maxDepth = kCertificateMaxDepth);
+
+/// D_h(ξ) = (x_ξ × x_η)·Σ_i N_i(ξ) n_i at one reference point (see the file comment).
+double triangleJacobianAgainstNodeNormals(int order, const Vec3* x, const Vec3* nodeNormals,
+                                          const Eigen::Vector2d& xi);
+
+/// Certifies the sign of D_h over the whole reference triangle for the Lagrange triangle of
+/// order p ∈ [1, 5] with nodes x and the face's unit normals at its nodes (Gmsh order; zero at
+/// a pole). τ = kPerpendicularTol max ‖x_ξ‖ ‖x_η‖ ‖n_h‖ over the sample points. Throws
+/// std::invalid_argument for another order.
+JacobianCertificate certifyTriangleAgainstNodeNormals(int order, const Vec3* x,
+                                                      const Vec3* nodeNormals,
+                                                      int maxDepth = kCertificateMaxDepth);
 
 /// certifyTriangleJacobian for a triangle type (Tri3, Tri6, Tri10, Tri15, Tri21). Throws
 /// std::invalid_argument for a quadrilateral (see elementCertifiedValid).

@@ -175,6 +175,11 @@ Vec3 elementReferenceNormal(const SurfaceMesh& mesh, std::size_t e,
 Vec3 elementReferenceNormal(const SurfaceMesh& mesh, std::size_t e,
                             const std::vector<const Surface*>& surfaces, Vec3* cornerNormals);
 
+/// The face's unit normals (mesh.referenceNormal, zero at a pole) at every node of element e,
+/// at the node's (u,v) in e, written to nodeNormals[0 … elementSize − 1]; surfaces as above.
+void elementNodeNormals(const SurfaceMesh& mesh, std::size_t e,
+                        const std::vector<const Surface*>& surfaces, Vec3* nodeNormals);
+
 /// Whether an element with nodes x (Gmsh order) stands across its surface: its own plane — a
 /// linear triangle's plane, a quad4's corner triangle, a high-order triangle's or a quad8's
 /// tangent plane at a corner node — is wound along the surface's normal cornerNormals[k] at some of

@@ -11,6 +11,12 @@ namespace surfmesh {
 /// elementDistanceToFace samples it: 45 points on a triangle, 81 on a quadrilateral.
 constexpr int kDistanceDivisions = 8;
 
+/// The parameters of the point of surface s nearest to x near (u,v): Newton on
+/// ½|φ(u,v) − x|² from uv, Gauss–Newton steps where the Hessian is not positive definite, each
+/// step halved until the distance does not grow (a local search, not a global one). Writes
+/// that distance (NaN when φ is not finite at uv).
+Vec2 nearestParameters(const Surface& s, const Vec3& x, Vec2 uv, double* distance);
+
 /// Largest distance of every element's interior from the surface of its face.
 ///
 /// The element is sampled at the points of a regular grid of `divisions` steps per side of

@@ -17,8 +17,10 @@ struct QualityStats {
   double stddev = 0.0;  ///< population standard deviation
   std::size_t tangled = 0;
   std::size_t elements = 0;
-  /// Elements standing across their surface (standsAcross), tangled or not: a diagnostic next
-  /// to the paper's statistics, which it does not change. Filled by measureQuality.
+  /// Elements standing across their surface (standsAcross), tangled or not, and the untangled
+  /// high-order triangles whose Jacobian is not proven positive against the face's normals
+  /// interpolated from their nodes (certifyTriangleAgainstNodeNormals): a diagnostic next to
+  /// the paper's statistics, which it does not change. Filled by measureQuality.
   std::size_t across = 0;
 };
 
@@ -28,7 +30,7 @@ struct MeshQuality {
   std::vector<unsigned char> tangled;  ///< per element, 1 when tangled or degenerate
   std::vector<double> minSigma;        ///< per element, smallest scaled det S (≤ 0: tangled)
   std::vector<unsigned char> across;   ///< per element, 1 when standing across its surface
-                                       ///< (standsAcross)
+                                       ///< (as QualityStats::across)
   QualityStats stats;
 };
 

@@ -143,6 +143,22 @@ struct OptimizeOptions {
   bool monotone = true;
   /// Worker threads for the sweeps; 0 = all hardware threads.
   int threads = 0;
+  /// How curved elements (tri6 … tri21, quad8) are optimized:
+  ///  * "reference": against their straight-sided counterpart on the surface (same corners,
+  ///    high-order nodes where interpolating the face puts them), the measure a FEM solver's
+  ///    checks follow. The corners are optimized as the linear mesh they span with the paper's
+  ///    linear measure, each high-order node inside its face then goes to its straight-sided
+  ///    place, and only the elements that leaves invalid (and high-order nodes sliding along
+  ///    CAD edges) are optimized further with the Definition-4 measure. On a plane a
+  ///    straight-sided element stays affine. When that result would make an element of the
+  ///    input invalid, leave more invalid elements than the input, a lower minimum quality
+  ///    where the input has no tangled element, or on a valid input a lower minimum Jacobian
+  ///    ratio, the "integral" result is returned instead; where elements stay invalid, the
+  ///    "integral" result when it leaves fewer (reference_mode.cpp).
+  ///  * "integral": every node by the paper's Definition-4 integral measure (the paper's
+  ///    Table 4); it may curve the sides of a straight-sided element to improve the measure.
+  /// Linear meshes are the same in both modes.
+  std::string highOrder = "reference";
   /// Empty, or one entry per node: nonzero for the nodes the run must leave where they are
   /// (held like CAD vertices; e.g. the nodes of the elements outside a region to optimize).
   std::vector<unsigned char> fixedNodes;
@@ -161,6 +177,11 @@ struct OptimizeProgress {
   std::size_t tangled = 0;
   double minQuality = 0.0;
   double delta = 0.0;
+  /// Which run of several this sweep belongs to (0 for a single run): the "reference" mode
+  /// for curved elements runs the corners' linear mesh, then the repair, then possibly the
+  /// "integral" mode from the input, each counting tangled elements of its own mesh; sweep
+  /// numbers go on across them.
+  int stage = 0;
 };
 using ProgressCallback = std::function<bool(const OptimizeProgress&)>;
 

@@ -1,0 +1,354 @@
+// Curved elements measured against their straight-sided counterpart on the surface
+// (OptimizeOptions::highOrder = "reference"; optimizer.h).
+//
+// A FEM solver judges a curved element by how far its map departs from that of its
+// straight-sided counterpart: the same corners, the high-order nodes where interpolating the
+// face puts them (Toulorge, Geuzaine, Remacle, Lambrechts, "Robust untangling of curvilinear
+// meshes", JCP 254, 2013; Gargallo-Peiró, Roca, Peraire, Sarrate, IJNME 2016). The optimum of
+// that distortion is the counterpart itself: on a plane an affine element, on a curved face
+// only the curving the face asks for. The corners keep the paper's linear measure. So:
+//   1. the corners are optimized as the linear mesh they span (tri3 / quad4 on the same faces,
+//      the same options and boundary mode): the paper's method on the corner triangles;
+//   2. every high-order node that lies inside its element's face (a Face node, not held by the
+//      caller) goes to its straight-sided place on the face: the point of the face nearest to
+//      the straight-sided element's node (the corners' interpolation in 3D; a side node: its
+//      side's midpoint), searched from the corners' interpolation in (u,v) — independent of
+//      the parametrization, as Gmsh's setOrder places them;
+//   3. the elements left invalid (tangled, or standing across the surface) and the high-order
+//      nodes sliding along CAD edges are optimized with the paper's Definition-4 measure
+//      ("integral" mode) with the nodes of the elements within one ring around them, every
+//      other node held; within three rings when that makes an element of the input invalid;
+//   4. never worse: when an element valid in the input is invalid in the result, or the result
+//      has more invalid elements than the input, or a lower minimum quality where the input
+//      has no tangled element, or, on a valid input, a lower minimum Jacobian ratio
+//      (elementJacobianRatio), the input is optimized in
+//      "integral" mode instead, whose own guarantees hold; and where elements stay invalid,
+//      the integral mode's result is taken when it leaves fewer.
+#include "reference_mode.h"
+
+#include "surfmesh/measures/lagrange_triangle.h"
+#include "surfmesh/measures/measure.h"
+#include "surfmesh/mesh/distance_to_face.h"
+#include "surfmesh/mesh/jacobian_ratio.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+namespace surfmesh {
+
+namespace {
+
+ElementType linearOf(ElementType t) { return isQuad(t) ? ElementType::Quad4 : ElementType::Tri3; }
+
+/// Where node `local` (not a corner) of a curved element goes on straight sides in (u,v)
+/// between its corners' parameters c: the parametric interpolation of its reference position.
+Vec2 straightSidedPlace(ElementType type, int local, const Vec2* c) {
+  if (type == ElementType::Quad8) return 0.5 * (c[local - 4] + c[(local - 3) % 4]);
+  const Eigen::Vector2d xi =
+      lagrangeTriangle(elementOrder(type)).nodes()[static_cast<std::size_t>(local)];
+  return (1.0 - xi.x() - xi.y()) * c[0] + xi.x() * c[1] + xi.y() * c[2];
+}
+
+/// The same place in 3D between the corners' positions x (the straight-sided element's node).
+Vec3 straightSidedPoint(ElementType type, int local, const Vec3* x) {
+  if (type == ElementType::Quad8) return 0.5 * (x[local - 4] + x[(local - 3) % 4]);
+  const Eigen::Vector2d xi =
+      lagrangeTriangle(elementOrder(type)).nodes()[static_cast<std::size_t>(local)];
+  return (1.0 - xi.x() - xi.y()) * x[0] + xi.x() * x[1] + xi.y() * x[2];
+}
+
+std::size_t invalidCount(const MeshQuality& q) {
+  std::size_t n = 0;
+  for (std::size_t e = 0; e < q.tangled.size(); ++e) n += (q.tangled[e] || q.across[e]) ? 1 : 0;
+  return n;
+}
+
+double smallest(const std::vector<double>& v) {
+  double m = std::numeric_limits<double>::infinity();
+  for (double x : v) m = std::min(m, x);
+  return m;
+}
+
+/// The linear mesh of the corners of `mesh`: the same nodes (the others held), each element's
+/// corners as a tri3 or quad4 on the same face with the same corner parameters.
+SurfaceMesh cornerMesh(const SurfaceMesh& mesh) {
+  SurfaceMesh L;
+  L.surfaces = mesh.surfaces;
+  L.faceOrientation = mesh.faceOrientation;
+  L.curves = mesh.curves;
+  L.xyz = mesh.xyz;
+  L.uv = mesh.uv;
+  L.nodeFace = mesh.nodeFace;
+  L.nodeEdge = mesh.nodeEdge;
+  L.nodeT = mesh.nodeT;
+  L.nodeKind = mesh.nodeKind;
+  std::vector<unsigned char> corner(mesh.nodeCount(), 0);
+  L.elemOffset.push_back(0);
+  for (std::size_t e = 0; e < mesh.elementCount(); ++e) {
+    const int nc = cornerCount(mesh.elemType[e]);
+    const std::int32_t* nd = mesh.elementNodes(e);
+    const Vec2* uv = mesh.elementUV(e);
+    L.elemType.push_back(linearOf(mesh.elemType[e]));
+    L.elemFace.push_back(mesh.elemFace[e]);
+    for (int k = 0; k < nc; ++k) {
+      L.elemNodes.push_back(nd[k]);
+      L.cornerUV.push_back(uv[k]);
+      corner[static_cast<std::size_t>(nd[k])] = 1;
+    }
+    L.elemOffset.push_back(static_cast<std::int64_t>(L.elemNodes.size()));
+  }
+  for (std::size_t i = 0; i < mesh.nodeCount(); ++i)
+    if (!corner[i]) L.nodeKind[i] = NodeKind::Fixed;
+  return L;
+}
+
+struct Positions {
+  std::vector<Vec3> xyz;
+  std::vector<Vec2> uv;
+  std::vector<double> nodeT;
+  std::vector<Vec2> cornerUV;
+  static Positions of(const SurfaceMesh& m) { return {m.xyz, m.uv, m.nodeT, m.cornerUV}; }
+  void restore(SurfaceMesh& m) const {
+    m.xyz = xyz;
+    m.uv = uv;
+    m.nodeT = nodeT;
+    m.cornerUV = cornerUV;
+  }
+};
+
+/// Steps 1's result copied back and step 2 (see the file comment).
+void placeStraightSided(SurfaceMesh& mesh, const SurfaceMesh& L) {
+  for (std::size_t e = 0; e < mesh.elementCount(); ++e) {
+    const int nc = cornerCount(mesh.elemType[e]);
+    const std::int32_t* nd = mesh.elementNodes(e);
+    const Vec2* luv = L.elementUV(e);
+    Vec2* cuv = mesh.cornerUV.data() + mesh.elemOffset[e];
+    for (int k = 0; k < nc; ++k) {
+      const std::size_t i = static_cast<std::size_t>(nd[k]);
+      mesh.xyz[i] = L.xyz[i];
+      mesh.uv[i] = L.uv[i];
+      if (!mesh.nodeT.empty()) mesh.nodeT[i] = L.nodeT[i];
+      cuv[k] = luv[k];
+    }
+  }
+  std::vector<unsigned char> placed(mesh.nodeCount(), 0);
+  for (std::size_t e = 0; e < mesh.elementCount(); ++e) {
+    const ElementType type = mesh.elemType[e];
+    if (type == ElementType::Tri3 || type == ElementType::Quad4) continue;
+    const int f = mesh.elemFace[e];
+    const Surface& s = *mesh.surfaces[static_cast<std::size_t>(f)];
+    const std::int32_t* nd = mesh.elementNodes(e);
+    Vec2* cuv = mesh.cornerUV.data() + mesh.elemOffset[e];
+    for (int k = cornerCount(type); k < mesh.elementSize(e); ++k) {
+      const std::size_t j = static_cast<std::size_t>(nd[k]);
+      if (mesh.nodeKind[j] != NodeKind::Face || mesh.nodeFace[j] != f) continue;
+      // The point of the face nearest to the straight-sided element's node (the corners'
+      // interpolation in 3D), from the corners' interpolation in (u,v): independent of the
+      // parametrization (Gmsh's setOrder projects so too).
+      Vec3 corners[4];
+      for (int c = 0; c < cornerCount(type); ++c)
+        corners[c] = mesh.xyz[static_cast<std::size_t>(nd[c])];
+      const Vec2 start = straightSidedPlace(type, k, cuv);
+      double dist = 0.0;
+      Vec2 t = nearestParameters(s, straightSidedPoint(type, k, corners), start, &dist);
+      if (!std::isfinite(dist) || !t.allFinite()) t = start;
+      const Vec2 w = s.wrap(t);
+      if (!w.allFinite() || !s.contains(w.x(), w.y())) continue;
+      mesh.uv[j] = w;
+      mesh.xyz[j] = s.value(w.x(), w.y());
+      cuv[k] = t;
+      placed[j] = 1;
+    }
+  }
+  // The placed nodes' parameters in the other elements around them, unwrapped there.
+  for (std::size_t e = 0; e < mesh.elementCount(); ++e) {
+    const std::int32_t* nd = mesh.elementNodes(e);
+    Vec2* cuv = mesh.cornerUV.data() + mesh.elemOffset[e];
+    const Surface& s = *mesh.surfaces[static_cast<std::size_t>(mesh.elemFace[e])];
+    for (int k = 0; k < mesh.elementSize(e); ++k) {
+      const std::size_t j = static_cast<std::size_t>(nd[k]);
+      if (placed[j] && mesh.nodeFace[j] == mesh.elemFace[e])
+        cuv[k] = s.unwrapNear(mesh.uv[j], cuv[0]);
+    }
+  }
+}
+
+}  // namespace
+
+bool hasCurvedElements(const SurfaceMesh& mesh) {
+  for (ElementType t : mesh.elemType)
+    if (t != ElementType::Tri3 && t != ElementType::Quad4) return true;
+  return false;
+}
+
+OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
+                                 const ProgressCallback& progress, const QualityStats* before) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const PlanarMeasure& measure = measureByName(opt.measure);
+  mesh.validate();
+  const MeshQuality q0 = measureQuality(mesh, measure);
+  const double ratio0 = smallest(elementJacobianRatio(mesh));
+  const std::size_t invalid0 = invalidCount(q0);
+  const Positions original = Positions::of(mesh);
+  OptimizeOptions inner = opt;
+  inner.highOrder = "integral";
+  auto seconds = [&] {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  };
+  // The stages report their sweeps one after the other: sweep numbers go on from the sweeps
+  // of the stages before.
+  int done = 0, stage = 0;
+  ProgressCallback staged;
+  if (progress)
+    staged = [&](const OptimizeProgress& p) {
+      OptimizeProgress q = p;
+      q.sweep += done;
+      q.maxSweeps += done;
+      q.stage = stage;
+      return progress(q);
+    };
+  auto integral = [&] {
+    ++stage;
+    original.restore(mesh);
+    OptimizeResult r = optimizeMesh(mesh, inner, staged, &q0.stats);
+    if (before) r.before = *before;
+    r.sweeps += done;
+    r.seconds = seconds();
+    return r;
+  };
+
+  // 1. The corners.
+  SurfaceMesh L = cornerMesh(mesh);
+  const OptimizeResult r1 = optimizeMesh(L, inner, staged);
+  done += r1.sweeps;
+  OptimizeResult res;
+  res.before = before ? *before : q0.stats;
+  res.threadsUsed = r1.threadsUsed;
+  if (r1.reason == StopReason::Cancelled) {
+    res.after = q0.stats;
+    res.sweeps = done;
+    res.reason = StopReason::Cancelled;
+    res.seconds = seconds();
+    return res;
+  }
+  // 2. The high-order nodes at their straight-sided places.
+  placeStraightSided(mesh, L);
+  // 3. What that leaves invalid (and the high-order nodes on CAD edges), with the nodes of
+  // the elements within `rings` rings around them; a second try with 3 rings when the first
+  // makes an element of the input invalid.
+  const MeshQuality q1 = measureQuality(mesh, measure);
+  const Positions placed = Positions::of(mesh);
+  std::vector<std::vector<std::int32_t>> nodeElems(mesh.nodeCount());
+  for (std::size_t e = 0; e < mesh.elementCount(); ++e)
+    for (int k = 0; k < mesh.elementSize(e); ++k)
+      nodeElems[static_cast<std::size_t>(mesh.elementNodes(e)[k])].push_back(
+          static_cast<std::int32_t>(e));
+  auto freeNodes = [&](int rings, bool* any) {
+    std::vector<unsigned char> region(mesh.elementCount(), 0);
+    for (std::size_t e = 0; e < mesh.elementCount(); ++e)
+      region[e] = (q1.tangled[e] || q1.across[e]) ? 1 : 0;
+    for (int r = 0; r < rings; ++r) {
+      std::vector<unsigned char> next = region;
+      for (std::size_t e = 0; e < mesh.elementCount(); ++e) {
+        if (!region[e]) continue;
+        for (int k = 0; k < mesh.elementSize(e); ++k)
+          for (std::int32_t f : nodeElems[static_cast<std::size_t>(mesh.elementNodes(e)[k])])
+            next[static_cast<std::size_t>(f)] = 1;
+      }
+      region.swap(next);
+    }
+    std::vector<unsigned char> held(mesh.nodeCount(), 1);
+    *any = false;
+    for (std::size_t e = 0; e < mesh.elementCount(); ++e) {
+      const std::int32_t* nd = mesh.elementNodes(e);
+      const int nc = cornerCount(mesh.elemType[e]);
+      for (int k = 0; k < mesh.elementSize(e); ++k) {
+        const std::size_t j = static_cast<std::size_t>(nd[k]);
+        if (region[e] || (k >= nc && mesh.nodeKind[j] == NodeKind::Edge)) {
+          held[j] = 0;
+          *any = *any || mesh.nodeKind[j] != NodeKind::Fixed;
+        }
+      }
+    }
+    return held;
+  };
+  // Whether an element valid in the input is invalid now, and how many are invalid.
+  auto judge = [&](const MeshQuality& q, std::size_t* invalid) {
+    *invalid = invalidCount(q);
+    for (std::size_t e = 0; e < mesh.elementCount(); ++e)
+      if ((q.tangled[e] || q.across[e]) && !(q0.tangled[e] || q0.across[e])) return true;
+    return false;
+  };
+  OptimizeResult r2;
+  bool ran2 = false;
+  MeshQuality q2 = q1;
+  std::size_t invalid2 = 0;
+  bool madeInvalid = judge(q2, &invalid2);
+  for (int rings : {1, 3}) {
+    if (ran2 && !madeInvalid) break;
+    bool any = false;
+    OptimizeOptions rest = inner;
+    rest.fixedNodes = freeNodes(rings, &any);
+    if (!any) break;
+    placed.restore(mesh);
+    try {
+      ++stage;
+      r2 = optimizeMesh(mesh, rest, staged, &q1.stats);
+    } catch (...) {
+      original.restore(mesh);
+      throw;
+    }
+    ran2 = true;
+    done += r2.sweeps;
+    if (r2.reason == StopReason::Cancelled) {
+      original.restore(mesh);
+      res.after = q0.stats;
+      res.sweeps = done;
+      res.reason = StopReason::Cancelled;
+      res.seconds = seconds();
+      return res;
+    }
+    q2 = measureQuality(mesh, measure);
+    madeInvalid = judge(q2, &invalid2);
+  }
+  // 4. Never worse: no element valid in the input invalid, no more invalid elements, no lower
+  // minimum quality without tangled elements in the input (the monotone mode's guarantee), on
+  // a valid input no lower minimum Jacobian ratio — else the integral mode. Where
+  // elements stay invalid, the integral mode's result when it leaves fewer.
+  const double ratio2 = smallest(elementJacobianRatio(mesh));
+  // (Rounding aside: an affine element's Jacobian ratio is 1 within 1e-15 or so.)
+  constexpr double kRounding = 1e-9;
+  const bool worse = madeInvalid || invalid2 > invalid0 ||
+                     (q0.stats.tangled == 0 && q2.stats.min < q0.stats.min - kRounding) ||
+                     (invalid0 == 0 && ratio2 < ratio0 - kRounding);
+  if (worse) return integral();
+  if (invalid2 > 0) {
+    const Positions mine = Positions::of(mesh);
+    OptimizeResult alt = integral();
+    if (alt.reason == StopReason::Cancelled) return alt;  // the input, unchanged
+    if (invalidCount(measureQuality(mesh, measure)) < invalid2) return alt;
+    mine.restore(mesh);
+  }
+
+  res.after = q2.stats;
+  res.sweeps = done;
+  res.reason = ran2 ? r2.reason : r1.reason;
+  res.initialObjective = r1.initialObjective;
+  res.finalObjective = ran2 ? r2.finalObjective : r1.finalObjective;
+  for (std::size_t i = 0; i < mesh.nodeCount(); ++i)
+    res.movedNodes += mesh.xyz[i] != original.xyz[i] ? 1 : 0;
+  res.patchUntanglings = r1.patchUntanglings + (ran2 ? r2.patchUntanglings : 0);
+  res.straightenedElements = ran2 ? r2.straightenedElements : 0;
+  res.heldAcross = r1.heldAcross || (ran2 && r2.heldAcross);
+  if (ran2) {
+    res.tangledUnmovable = r2.tangledUnmovable;
+    res.tangledMovable = r2.tangledMovable;
+    res.warnings = r2.warnings;
+  }
+  res.seconds = seconds();
+  return res;
+}
+
+}  // namespace surfmesh
