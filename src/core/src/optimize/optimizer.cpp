@@ -1,6 +1,7 @@
 #include "surfmesh/optimize/optimizer.h"
 
 #include "reference_mode.h"
+#include "straight_sided.h"
 #include "surfmesh/measures/certificate.h"
 #include "surfmesh/measures/element_measure.h"
 #include "surfmesh/measures/lagrange_triangle.h"
@@ -266,16 +267,6 @@ constexpr int kHeldSlots = kMaxElementNodes;
 /// Curved elements held from standing across by their tangent planes at the corners (State's
 /// constructor): high-order triangles and quad8.
 inline bool heldCurved(ElementType t) { return isHighOrderTriangle(t) || t == ElementType::Quad8; }
-
-/// Where node `local` (not a corner) of a high-order triangle or quad8 lies on straight sides
-/// in (u,v) between its corners' parameters c (cornerCount of them): the parametric
-/// interpolation of its reference position (a quad8's side node: its side's midpoint).
-inline Vec2 straightPlace(ElementType type, int local, const Vec2* c) {
-  if (type == ElementType::Quad8) return 0.5 * (c[local - 4] + c[(local - 3) % 4]);
-  const Eigen::Vector2d xi =
-      lagrangeTriangle(elementOrder(type)).nodes()[static_cast<std::size_t>(local)];
-  return (1.0 - xi.x() - xi.y()) * c[0] + xi.x() * c[1] + xi.y() * c[2];
-}
 
 /// Tangent basis of a Face node's (u,v) at its current position: derivatives are assembled
 /// directly in (u,v) (g_u = Jᵀ g, H_u = Jᵀ H J) instead of as 3×3 Hessians.

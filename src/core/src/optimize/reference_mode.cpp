@@ -26,6 +26,7 @@
 //      the integral mode's result is taken when it leaves fewer.
 #include "reference_mode.h"
 
+#include "straight_sided.h"
 #include "surfmesh/measures/lagrange_triangle.h"
 #include "surfmesh/measures/measure.h"
 #include "surfmesh/mesh/distance_to_face.h"
@@ -41,23 +42,6 @@ namespace surfmesh {
 namespace {
 
 ElementType linearOf(ElementType t) { return isQuad(t) ? ElementType::Quad4 : ElementType::Tri3; }
-
-/// Where node `local` (not a corner) of a curved element goes on straight sides in (u,v)
-/// between its corners' parameters c: the parametric interpolation of its reference position.
-Vec2 straightSidedPlace(ElementType type, int local, const Vec2* c) {
-  if (type == ElementType::Quad8) return 0.5 * (c[local - 4] + c[(local - 3) % 4]);
-  const Eigen::Vector2d xi =
-      lagrangeTriangle(elementOrder(type)).nodes()[static_cast<std::size_t>(local)];
-  return (1.0 - xi.x() - xi.y()) * c[0] + xi.x() * c[1] + xi.y() * c[2];
-}
-
-/// The same place in 3D between the corners' positions x (the straight-sided element's node).
-Vec3 straightSidedPoint(ElementType type, int local, const Vec3* x) {
-  if (type == ElementType::Quad8) return 0.5 * (x[local - 4] + x[(local - 3) % 4]);
-  const Eigen::Vector2d xi =
-      lagrangeTriangle(elementOrder(type)).nodes()[static_cast<std::size_t>(local)];
-  return (1.0 - xi.x() - xi.y()) * x[0] + xi.x() * x[1] + xi.y() * x[2];
-}
 
 std::size_t invalidCount(const MeshQuality& q) {
   std::size_t n = 0;
@@ -150,9 +134,9 @@ void placeStraightSided(SurfaceMesh& mesh, const SurfaceMesh& L) {
       Vec3 corners[4];
       for (int c = 0; c < cornerCount(type); ++c)
         corners[c] = mesh.xyz[static_cast<std::size_t>(nd[c])];
-      const Vec2 start = straightSidedPlace(type, k, cuv);
+      const Vec2 start = straightPlace(type, k, cuv);
       double dist = 0.0;
-      Vec2 t = nearestParameters(s, straightSidedPoint(type, k, corners), start, &dist);
+      Vec2 t = nearestParameters(s, straightPlace(type, k, corners), start, &dist);
       if (!std::isfinite(dist) || !t.allFinite()) t = start;
       const Vec2 w = s.wrap(t);
       if (!w.allFinite() || !s.contains(w.x(), w.y())) continue;
