@@ -18,7 +18,8 @@
 // BENCH_SWEEPS, BENCH_MEASURE, BENCH_MONOTONE (0/1), BENCH_MOVETOL, BENCH_OMEGA override relTol,
 // maxSweeps, the measure, the monotone option, moveTol and overRelaxation; BENCH_REPEAT=n optimizes
 // n − 1 copies of the mesh first (profiling); BENCH_BOUNDARY ("fixed" or "slide") the boundary mode
-// of the CAD recovery; BENCH_TRACE=1 prints each sweep's progress on stderr.
+// of the CAD recovery; BENCH_TRACE=1 prints each sweep's progress on stderr; BENCH_TOPOLOGY=flip
+// adds edge flips (OUT.bin then has the rewired elements' node lists).
 #include "bench_common.h"
 #include "surfmesh/cad/cad_bridge.h"
 #include "surfmesh/cad/cad_shape.h"
@@ -80,13 +81,16 @@ void writeDump(const std::string& path, const SurfaceMesh& m, const Dump& d) {
 /// leaves them out; their nodes are marked as bordering the holes they leave. `leftOut`
 /// receives how many triangles were left out. The same rule for every tool's mesh, so that all
 /// are measured on the same triangles.
-MeshInput inputWithoutDuplicates(const Dump& d, std::size_t* leftOut) {
+MeshInput inputWithoutDuplicates(const Dump& d, std::size_t* leftOut,
+                                 std::vector<std::size_t>* keptElements) {
   *leftOut = 0;
+  keptElements->clear();
   if (d.mixed) {  // a recombined mesh: its elements as they are
     MeshInput in = triangleMeshInput(d.xyz, {});
     for (std::size_t e = 0; 4 * e < d.tris.size(); ++e) {
       const bool tri = d.tris[4 * e + 3] < 0;
       in.types.push_back(tri ? ElementType::Tri3 : ElementType::Quad4);
+      keptElements->push_back(e);
       in.conn.insert(in.conn.end(), d.tris.begin() + static_cast<std::ptrdiff_t>(4 * e),
                      d.tris.begin() + static_cast<std::ptrdiff_t>(4 * e + (tri ? 3 : 4)));
     }
@@ -117,6 +121,7 @@ MeshInput inputWithoutDuplicates(const Dump& d, std::size_t* leftOut) {
         kept.push_back(v);
     }
     *leftOut += dup[e];
+    if (!dup[e]) keptElements->push_back(e);
   }
   MeshInput in = triangleMeshInput(d.xyz, kept);
   if (*leftOut > 0) in.leftOutNeighbour = std::move(border);
@@ -142,7 +147,8 @@ int main(int argc, char** argv) {
     // The CAD recovery runs on as many threads as the optimization (measure: all cores).
     if (mode == "optimize" && argc > 5) bopt.threads = std::atoi(argv[5]);
     std::size_t leftOut = 0;
-    CadMesh cm(shape, inputWithoutDuplicates(d, &leftOut), bopt);
+    std::vector<std::size_t> keptElements;  // dump element of each mesh element
+    CadMesh cm(shape, inputWithoutDuplicates(d, &leftOut, &keptElements), bopt);
     const double tBridge = now() - t1;
     SurfaceMesh& m = cm.mesh();
     const PlanarMeasure& shapeMeasure = measureByName("shape");
@@ -182,6 +188,7 @@ int main(int argc, char** argv) {
     if (const char* v = std::getenv("BENCH_MONOTONE")) opt.monotone = std::atoi(v) != 0;
     if (const char* v = std::getenv("BENCH_MOVETOL")) opt.moveTol = std::atof(v);
     if (const char* v = std::getenv("BENCH_OMEGA")) opt.overRelaxation = std::atof(v);
+    if (const char* v = std::getenv("BENCH_TOPOLOGY")) opt.topology = v;
     // Floors of the speed issue (bench_common.h): one first-derivative evaluation per Face
     // node, and that plus one value of each triangle around it.
     const Floors floors = measureFloors(m);
@@ -206,7 +213,16 @@ int main(int argc, char** argv) {
     const double sweep1 = stamps.empty() ? 0.0 : stamps.front() - tOpt;
     const double meanSweep =
         stamps.size() >= 2 ? (stamps.back() - stamps.front()) / (stamps.size() - 1) : sweep1;
-    writeDump(argv[4], m, d);
+    // Edge flips rewired some elements: the dump gets their new node lists.
+    Dump out = d;
+    const std::size_t stride = d.mixed ? 4 : 3;
+    for (std::int32_t e : r.rewiredElements) {
+      const std::int32_t* nd = m.elementNodes(static_cast<std::size_t>(e));
+      for (int k = 0; k < m.elementSize(static_cast<std::size_t>(e)); ++k)
+        out.tris[stride * keptElements[static_cast<std::size_t>(e)] + static_cast<std::size_t>(k)] =
+            nd[k];
+    }
+    writeDump(argv[4], m, out);
     std::string movableIds;  // the tangled elements left with a movable node
     for (std::int32_t e : r.tangledMovable)
       movableIds += (movableIds.empty() ? "" : ", ") + std::to_string(e);
@@ -216,10 +232,12 @@ int main(int argc, char** argv) {
         "\"tangled\": %zu, \"tangled_unmovable\": %zu, \"before_tangled\": %zu, "
         "\"peak_mb\": %.1f, "
         "\"floor_s\": %.6f, \"value_floor_s\": %.6f, \"sweep1_s\": %.6f, "
-        "\"mean_sweep_s\": %.6f, \"tangled_movable_ids\": [%s]}\n",
+        "\"mean_sweep_s\": %.6f, \"tangled_movable_ids\": [%s], \"flips\": %zu, "
+        "\"needles\": %zu}\n",
         r.seconds, r.sweeps, stopReasonName(r.reason), r.threadsUsed, tBridge, tShape, r.after.min,
         r.after.mean, r.after.tangled, r.tangledUnmovable.size(), r.before.tangled,
-        peakRssBytes() / 1e6, floors.d1, floors.value, sweep1, meanSweep, movableIds.c_str());
+        peakRssBytes() / 1e6, floors.d1, floors.value, sweep1, meanSweep, movableIds.c_str(),
+        r.flips, r.needles.size());
   } catch (const std::exception& ex) {
     std::printf("{\"error\": \"%s\"}\n", ex.what());
     return 1;

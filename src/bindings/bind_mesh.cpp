@@ -119,6 +119,24 @@ MeshClass bind_mesh(py::module_& m) {
           "element_faces", [](const MeshHandle& h) { return toArray(h.get().elemFace); },
           "Per element: the face id it lies on")
       .def(
+          "element_nodes",
+          [](const MeshHandle& h, const std::vector<std::int32_t>& elements) {
+            const SurfaceMesh& m = h.get();
+            py::list out;
+            for (std::int32_t e : elements) {
+              if (e < 0 || static_cast<std::size_t>(e) >= m.elementCount())
+                throw std::invalid_argument("element " + std::to_string(e) + " out of range (" +
+                                            std::to_string(m.elementCount()) + " elements)");
+              const std::int32_t* nd = m.elementNodes(static_cast<std::size_t>(e));
+              out.append(
+                  std::vector<std::int32_t>(nd, nd + m.elementSize(static_cast<std::size_t>(e))));
+            }
+            return out;
+          },
+          py::arg("elements"),
+          "The node ids (0-based, the handle's) of each element of `elements`, in Gmsh order: "
+          "after edge flips (optimize's rewired_elements), their new node lists")
+      .def(
           "release_node_search",
           [](MeshHandle& h) {
             if (CadMesh* cm = h.cadMesh()) cm->releaseNodeSearch();

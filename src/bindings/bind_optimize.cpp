@@ -50,6 +50,7 @@ const std::vector<OptionField>& optionFields() {
       field("monotone", &OptimizeOptions::monotone),
       field("threads", &OptimizeOptions::threads),
       field("high_order", &OptimizeOptions::highOrder),
+      field("topology", &OptimizeOptions::topology),
   };
   return fields;
 }
@@ -175,6 +176,9 @@ void bind_optimize(MeshClass& cls) {
         d["straightened_elements"] = r.straightenedElements;
         d["tangled_unmovable"] = r.tangledUnmovable;
         d["tangled_movable"] = r.tangledMovable;
+        d["flips"] = r.flips;
+        d["rewired_elements"] = r.rewiredElements;
+        d["needles"] = r.needles;
         d["warnings"] = r.warnings;
         return d;
       },
@@ -187,7 +191,10 @@ void bind_optimize(MeshClass& cls) {
       "straightened_elements (tangled high-order triangles untangled by straight sides in "
       "(u,v)), "
       "tangled_unmovable / tangled_movable (ids of the elements left tangled without / with a "
-      "movable node) and warnings (a line for each non-empty list). before: the stats dict of "
+      "movable node), flips, rewired_elements (ids of the elements whose node lists edge flips "
+      "changed: element_nodes() gives them), needles (elements with every corner on one CAD "
+      "edge, topology 'flip') and warnings (a line for each non-empty list). before: the stats "
+      "dict of "
       "measure(measure) on the mesh as it is, when the caller has it (not measured again). "
       "fixed: None or a bool per node, True for the nodes the run leaves where they are.");
 }

@@ -163,8 +163,14 @@ try:
           and panel.over_relaxation.value() == SurfMesh.OPTIMIZE_DEFAULTS["over_relaxation"],
           "panel starts from the optimizer's defaults")
     panel.over_relaxation.setValue(1.5)
-    check("over_relaxation=1.5" in panel.command() and "monotone" not in panel.command(),
+    check("over_relaxation=1.5" in panel.command() and "monotone" not in panel.command()
+          and "topology" not in panel.command(),
           f"panel passes the options changed, only those ({panel.command()})")
+    flip_box = panel.form.findChild(_QtGui.QCheckBox, "topology")
+    check(flip_box is panel.topology and flip_box.text() == "Flip edges"
+          and not flip_box.isChecked() and panel.options()["topology"] == "none"
+          and flip_box in panel.inputs,
+          "\"Flip edges\" shown, off by default, disabled with the other inputs during a run")
     from SurfMesh.app import progress as _progress
 
     stages = []
@@ -198,6 +204,8 @@ try:
     check("over_relaxation=1.5" in new.SurfMeshRun.get("options", "")
           and "max_sweeps=200" in new.SurfMeshRun.get("options", ""),
           f"the run's options stored on the result ({dict(new.SurfMeshRun)})")
+    check(new.SurfMeshRun.get("topology") == "none" and "flips" not in new.SurfMeshRun,
+          f"a run without \"Flip edges\" records topology none ({dict(new.SurfMeshRun)})")
     again = OptimizePanel(mesh, tor)
     check(again.over_relaxation.value() == 1.5 and again.max_sweeps.value() == 200
           and again.boundary.currentData() == "fixed" and again.monotone.isChecked(),
@@ -452,6 +460,39 @@ try:
     left = pixels(shot7)[150:450, 5:30]  # the scale's bar, left of the mesh
     check(float(np.mean((left[..., 0] > 0.6) & (left[..., 2] < 0.3))) > 0.3,
           "the scale is drawn (red to green bar at the left)")
+    FreeCAD.closeDocument(doc.Name)
+
+    # ---- optimize with "Flip edges" ticked --------------------------------------------------
+    doc = FreeCAD.newDocument("SurfMeshFlips")
+    tor = examples.make_torus(doc)
+    fem = examples.make_gmsh_mesh(doc, tor, 2.0, name="TorusMesh")
+    examples.tangle_to(fem, tor.Shape, target=25, seed=1)
+    doc.recompute()
+    preferences.set_optimize_settings(dict(SurfMesh.OPTIMIZE_DEFAULTS, boundary="fixed"))
+    panel = OptimizePanel(fem, tor)
+    FreeCADGui.Control.showDialog(panel)
+    FreeCADGui.updateGui()
+    check(not panel.topology.isChecked(), "\"Flip edges\" starts off (the default)")
+    panel.topology.setChecked(True)
+    check(panel.options()["topology"] == "flip" and "topology='flip'" in panel.command(),
+          f"ticked, the panel passes topology='flip' ({panel.command()})")
+    check(panel.accept() is False and panel.result is not None, "the run with flips made")
+    flipped = panel.result
+    run = dict(flipped.SurfMeshRun)
+    check(run.get("topology") == "flip", f"the result records topology flip ({run})")
+    check(("flips" in run) == ("rewired_elements" in run)
+          and ("flips" not in run or (int(run["flips"]) > 0 and run["rewired_elements"])),
+          f"and the flips made, with the elements they rewired ({run})")
+    check(SurfMesh.stats_of(flipped)["tangled"] == 0, "the mesh with flips untangled")
+    check(panel.accept() is True and not FreeCADGui.Control.activeDialog(), "closed")
+    remembered = OptimizePanel(fem, tor)
+    check(remembered.topology.isChecked(), "the panel remembers \"Flip edges\"")
+    preferences.params().SetString("OptimizeTopology", "bogus")
+    check(preferences.optimize_settings()["topology"] == "none",
+          "an unknown stored value reads as the default")
+    preferences.set_optimize_settings(dict(SurfMesh.OPTIMIZE_DEFAULTS, boundary="fixed"))
+    reset = OptimizePanel(fem, tor)
+    check(not reset.topology.isChecked(), "reset to the default: off")
     FreeCAD.closeDocument(doc.Name)
     code = 0
 except BaseException:

@@ -159,10 +159,12 @@ class TestRunWarnings(unittest.TestCase):
 
     def test_tangled_unmovable_hints(self):
         w = messages.tangled_unmovable([5], "", "fixed", held=True)
-        self.assertIn("or poles, held by faces= or fixed_nodes=; try boundary='slide', or change "
-                      "the mesh there): elements 5", w)
-        self.assertIn("or poles; change the mesh there",
+        self.assertIn("or poles, held by faces= or fixed_nodes=; try boundary='slide' or "
+                      "topology='flip', or change the mesh there): elements 5", w)
+        self.assertIn("or poles; try topology='flip', or change the mesh there",
                       messages.tangled_unmovable([5], "", "slide", held=False))
+        self.assertIn("or poles; change the mesh there",
+                      messages.tangled_unmovable([5], "", "slide", held=False, topology="flip"))
 
 
 class TestNumberText(unittest.TestCase):

@@ -605,7 +605,7 @@ class TestDefaults(unittest.TestCase):
             "max_sweeps": 100, "rel_tol": 1e-3, "move_tol": 1e-3, "inner_iterations": 1,
             "max_line_search": 30, "over_relaxation": 1.9, "delta_policy": "auto",
             "delta_epsilon": 1e-2, "delta": 1e-2, "monotone": True, "threads": 0,
-            "high_order": "reference"})
+            "high_order": "reference", "topology": "none"})
         # The signatures' defaults are the same ones.
         for fn in (api.measure, api.optimize, document.measure_object,
                    document.tangled_elements, document.optimize_object):

@@ -203,6 +203,33 @@ class TestCli(unittest.TestCase):
         self.assertEqual(code, 2)
         self.assertIn("'9-3' is neither a node id nor a range", se)
 
+    def test_topology_flip(self):
+        # --topology reaches the run: the report's options and flip counts (the torus's Gmsh
+        # mesh needs no flip: none made, the output written as without the option)
+        src = os.path.join(self.dir, "torus4.msh")
+        out = os.path.join(self.dir, "out_flip.msh")
+        rep = os.path.join(self.dir, "flip.json")
+        code, so, se = run_cli("optimize", self.brep, src, "-o", out, "--report", rep,
+                               "--topology", "flip")
+        self.assertEqual(code, 0, se)
+        data = json.load(open(rep))
+        self.assertEqual(data["options"]["topology"], "flip")
+        self.assertEqual(data["after"]["tangled"], 0)
+        self.assertEqual((data["flips"], data["rewired_elements"]), (0, []))
+        self.assertNotIn("edge flip", so)  # the summary names flips only when there are some
+        t0, _, e0, n0 = read_msh(src)
+        t1, _, e1, n1 = read_msh(out)
+        np.testing.assert_array_equal(t1, t0)
+        np.testing.assert_array_equal(e1, e0)
+        np.testing.assert_array_equal(n1, n0)
+        # without it: the core's default ("none")
+        code, _, se = run_cli("optimize", self.brep, src, "-o", out, "--report", rep)
+        self.assertEqual(code, 0, se)
+        self.assertEqual(json.load(open(rep))["options"]["topology"], "none")
+        code, _, se = run_cli("optimize", self.brep, src, "-o", out, "--topology", "swap")
+        self.assertEqual(code, 2)
+        self.assertIn("invalid choice: 'swap'", se)
+
     def test_errors(self):
         src = os.path.join(self.dir, "torus4.msh")
         code, _, se = run_cli("measure", self.brep, os.path.join(self.dir, "missing.msh"))
@@ -246,14 +273,18 @@ class TestCliDefaults(unittest.TestCase):
         self.assertEqual(actions["boundary"].default, options.DEFAULT_BOUNDARY)
         self.assertEqual(tuple(actions["boundary"].choices), options.BOUNDARY_MODES)
         # the optimizer's options are not set unless given: the core's defaults apply
-        for dest in ("max_sweeps", "rel_tol", "over_relaxation", "threads"):
+        for dest in ("max_sweeps", "rel_tol", "over_relaxation", "threads", "high_order",
+                     "topology"):
             self.assertIsNone(actions[dest].default, dest)
+        self.assertEqual(tuple(actions["topology"].choices), options.TOPOLOGY_MODES)
         text = " ".join(opt.format_help().split())
         d = options.optimize_defaults()
         self.assertIn(f"by less than this fraction (default {messages.number_text(d['rel_tol'])})",
                       text)
         self.assertIn("(default 1e-3)", text)
         self.assertIn(f"(in [1, 2), default {d['over_relaxation']}; 1: plain Gauss-Seidel)", text)
+        self.assertIn("'flip': edge flips between the smoothing runs", text)
+        self.assertIn(f"'none': node moves alone (default {d['topology']})", text)
 
 
 if __name__ == "__main__":

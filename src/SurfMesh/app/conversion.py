@@ -77,6 +77,9 @@ class MeshData:
     # such a mesh (the interior nodes would not follow: boundary elements would be inverted).
     volume_elements: int = 0
     volume_types: str = ""
+    # Set by with_rewired: the 0-based indices of the elements whose node lists edge flips
+    # changed (``conn`` holds the new lists); rebuild writes them.
+    rewired: Optional[np.ndarray] = None
 
     @property
     def node_count(self) -> int:
@@ -504,6 +507,20 @@ def _vector_list(nodes: np.ndarray):
     return [vec(float(x), float(y), float(z)) for x, y, z in nodes]
 
 
+def with_rewired(data: MeshData, elements, node_lists) -> MeshData:
+    """A copy of ``data`` in which the elements of 0-based indices ``elements`` have the node
+    lists ``node_lists`` (0-based, as ``conn``; each as long as the element's): what edge
+    flips made of them. Their types, ids and order are kept."""
+    conn = data.conn.copy()
+    elements = np.asarray(elements, dtype=np.int64)
+    for e, nodes in zip(elements.tolist(), node_lists):
+        a, b = int(data.offsets[e]), int(data.offsets[e + 1])
+        if len(nodes) != b - a:
+            raise ValueError(f"element {e}: {len(nodes)} nodes for an element of {b - a}")
+        conn[a:b] = nodes
+    return dataclasses.replace(data, conn=conn, rewired=np.sort(elements))
+
+
 def rebuild(data: MeshData, new_nodes: np.ndarray):
     """A NEW mesh of the input's kind with the node positions ``new_nodes`` (N, 3); ids,
     element order, segments / groups and non-face elements are kept; ``data.source`` is not
@@ -521,12 +538,35 @@ def rebuild(data: MeshData, new_nodes: np.ndarray):
 def _rebuild_mesh_kernel(data: MeshData, new_nodes: np.ndarray):
     import FreeCAD
 
+    if data.rewired is not None and len(data.rewired):
+        return _rebuild_mesh_rewired(data, new_nodes)
     mesh = data.source.copy()  # keeps facets, segments and placement
     vec = FreeCAD.Vector
     changed = np.nonzero(np.any(new_nodes != data.nodes, axis=1))[0]
     set_point = mesh.setPoint
     for i, (x, y, z) in zip(changed.tolist(), new_nodes[changed].tolist()):
         set_point(i, vec(x, y, z))  # global coordinates
+    return mesh
+
+
+def _rebuild_mesh_rewired(data: MeshData, new_nodes: np.ndarray):
+    """A Mesh.Mesh with the facets of ``data.conn`` (edge flips changed some) at ``new_nodes``
+    (global coordinates: the new mesh has no placement of its own) and the source's
+    segments (facet indices, kept)."""
+    import FreeCAD
+    import Mesh
+
+    if data.glued is not None:
+        raise ValueError("edge flips in a Mesh with coincident points are not written back")
+    vec = FreeCAD.Vector
+    points = [vec(x, y, z) for x, y, z in new_nodes.tolist()]
+    facets = [tuple(t) for t in data.conn.reshape(-1, 3).tolist()]
+    mesh = Mesh.Mesh((points, facets))
+    if mesh.CountPoints != len(points) or mesh.CountFacets != len(facets):
+        raise RuntimeError("the rewired Mesh lost points or facets")
+    old = data.source
+    for i in range(old.countSegments()):
+        mesh.addSegment(old.getSegment(i))
     return mesh
 
 
@@ -546,8 +586,14 @@ def _rebuild_fem(data: MeshData, new_nodes: np.ndarray):
     for e in old.Volumes:
         elements.append((e, 3))
     elements.sort()
+    # The face elements edge flips rewired: their new node lists, by FEM ids.
+    rewired = {}
+    if data.rewired is not None:
+        for e in data.rewired.tolist():
+            a, b = int(data.offsets[e]), int(data.offsets[e + 1])
+            rewired[int(data.element_ids[e])] = [int(data.node_ids[n]) for n in data.conn[a:b]]
     for eid, dim in elements:
-        nodes = list(old.getElementNodes(eid))
+        nodes = rewired[eid] if dim == 2 and eid in rewired else list(old.getElementNodes(eid))
         if dim == 1:
             fem.addEdge(nodes, eid)
         elif dim == 2:

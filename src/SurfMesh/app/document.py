@@ -599,6 +599,11 @@ def optimize_object(obj, shape=None, measure=DEFAULT_MEASURE, boundary=DEFAULT_B
             "sweeps": str(res.sweeps),
             "seconds": f"{res.seconds:.3f}",
             "reason": res.reason,
+            "topology": str(res.options.get("topology", "none")),
+            # Edge flips: how many, and the elements they rewired (ids kept).
+            **({"flips": str(res.flips),
+                "rewired_elements": " ".join(str(e) for e in res.rewired_elements)}
+               if res.flips else {}),
             # The options given (the others: SurfMesh.OPTIMIZE_DEFAULTS), to repeat the run.
             **({"options": ", ".join(f"{k}={v!r}" for k, v in sorted(options.items()))}
                if options else {}),

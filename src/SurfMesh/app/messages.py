@@ -203,16 +203,27 @@ def cancelled(sweeps):
     return f"optimization cancelled after {sweeps} sweep(s); nothing changed"
 
 
-def tangled_unmovable(ids, place, boundary, held):
+def tangled_unmovable(ids, place, boundary, held, topology="none"):
     """The result's warning on the elements left tangled where no node may move (``held``:
-    nodes were held by faces= or fixed_nodes=)."""
-    hint = "try boundary='slide', or change" if boundary == "fixed" else "change"
+    nodes were held by faces= or fixed_nodes=; ``topology``: the run's)."""
+    tries = ([] if boundary != "fixed" else ["boundary='slide'"]) + (
+        ["topology='flip'"] if topology != "flip" else [])
+    hint = f"try {' or '.join(tries)}, or change" if tries else "change"
     kept = ", held by faces= or fixed_nodes=" if held else ""
     return (
         f"{len(ids)} element(s) stay tangled with no node that may move where they "
         f"fold (their nodes there are all on CAD vertices, fixed CAD edges or poles{kept}; "
         f"{hint} the mesh there): elements "
         f"{id_list(ids)}{place}"
+    )
+
+
+def needles(ids, place):
+    """The result's warning on the needles left by a run with edge flips."""
+    return (
+        f"{len(ids)} element(s) of quality below 0.2 have every corner on one CAD edge "
+        f"(needles along it): neither edge flips nor node motion opens them, the mesh needs "
+        f"nodes inserted or removed there: elements {id_list(ids)}{place}"
     )
 
 

@@ -21,6 +21,9 @@ BOUNDARY_MODES = ("fixed", "slide")
 #: How curved elements are optimized (OptimizeOptions::highOrder): against their
 #: straight-sided counterpart on the surface, or by the paper's integral measure alone.
 HIGH_ORDER_MODES = ("reference", "integral")
+#: Whether a run may change the connectivity (OptimizeOptions::topology): node motion only, or
+#: edge flips between the smoothing runs.
+TOPOLOGY_MODES = ("none", "flip")
 #: The boundary mode of a run when none is given.
 DEFAULT_BOUNDARY = BOUNDARY_MODES[0]
 #: The quality measure when none is given (the core's OptimizeOptions::measure, checked by
@@ -33,7 +36,8 @@ _defaults = None
 def optimize_defaults() -> dict:
     """The options of :func:`SurfMesh.optimize` that map to the core's OptimizeOptions, with
     the core's defaults (max_sweeps, rel_tol, move_tol, inner_iterations, max_line_search,
-    over_relaxation, delta_policy, delta_epsilon, delta, monotone, threads, high_order).
+    over_relaxation, delta_policy, delta_epsilon, delta, monotone, threads, high_order,
+    topology).
 
     The same dict object on every call (``SurfMesh.OPTIMIZE_DEFAULTS``): copy it to change it.
     """
@@ -103,6 +107,8 @@ def check_options(o):
         raise ValueError(
             f"high_order must be 'reference' or 'integral', got {o['high_order']!r}"
         )
+    if o["topology"] not in TOPOLOGY_MODES:
+        raise ValueError(f"topology must be 'none' or 'flip', got {o['topology']!r}")
     t = o["threads"]
     if isinstance(t, bool) or not isinstance(t, (int, np.integer)) or t < 0:
         raise ValueError(f"threads must be an integer ≥ 0, got {t!r}")

@@ -78,6 +78,13 @@ class OptimizeResult:
     straightened_elements: int = 0
     # Nodes that would have moved but were held by ``faces=`` or ``fixed_nodes=``.
     held_nodes: int = 0
+    # topology="flip": the edge flips made, the elements whose node lists they changed (ids
+    # and faces kept; ``mesh`` has the new lists) and the needles left (elements of quality
+    # below 0.2 with every corner on one CAD edge: only inserting or removing nodes opens them),
+    # by the user's ids as below.
+    flips: int = 0
+    rewired_elements: list = dataclasses.field(default_factory=list)
+    needles: list = dataclasses.field(default_factory=list)
     options: dict = dataclasses.field(default_factory=dict)
     bridge: dict = dataclasses.field(default_factory=dict)
     # Elements still tangled after the run, by their ids (FEM element ids; 0-based indices of
@@ -112,6 +119,9 @@ class OptimizeResult:
             "threads": self.threads,
             "straightened_elements": self.straightened_elements,
             "held_nodes": self.held_nodes,
+            "flips": self.flips,
+            "rewired_elements": list(self.rewired_elements),
+            "needles": list(self.needles),
             "tangled_unmovable": list(self.tangled_unmovable),
             "tangled_movable": list(self.tangled_movable),
             "warnings": list(self.warnings),

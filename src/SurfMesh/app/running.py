@@ -173,6 +173,7 @@ def optimize(
 
     _progress.phase("optimizing")
     r = handle.optimize(measure=measure, progress=track, before=stats, fixed=fixed, **opts)
+    r["topology"] = opts["topology"]
     if r["reason"] == "cancelled":
         raise results.Cancelled(messages.cancelled(r["sweeps"]))
     t2 = time.perf_counter()
@@ -180,6 +181,12 @@ def optimize(
     new_nodes = handle.positions()
     if data.glued is not None:  # a glued node goes where the node it is glued to went
         new_nodes = new_nodes[data.glued]
+    # Edge flips (topology="flip") gave some elements new node lists: the result is built,
+    # and measured in Python, with them.
+    rewired_core = [int(e) for e in r.get("rewired_elements", [])]
+    if rewired_core:
+        data = conversion.with_rewired(data, preparing.input_element_indices(data, rewired_core),
+                                       handle.element_nodes(rewired_core))
     _progress.phase("measuring the result")
     after = results.quality_report(data, handle, measure, bridge)
     new_mesh = conversion.rebuild(data, new_nodes) if data.kind in ("mesh", "fem") else None
@@ -206,6 +213,9 @@ def optimize(
         threads=int(r.get("threads", 1)),
         straightened_elements=int(r.get("straightened_elements", 0)),
         held_nodes=held_nodes,
+        flips=int(r.get("flips", 0)),
+        rewired_elements=preparing.user_element_ids(data, rewired_core),
+        needles=preparing.user_element_ids(data, r.get("needles", [])),
         options=dict(opts, measure=measure, boundary=boundary,
                      **({} if faces is None else {"faces": _face_names(faces)}),
                      **({} if fixed_nodes is None else {"fixed_nodes": len(fixed_nodes)})),
@@ -237,12 +247,17 @@ def _run_warnings(data, handle, nodes, r, boundary, held, quiet, before, after):
     if core_unmovable:
         warnings.append(messages.tangled_unmovable(
             preparing.user_element_ids(data, core_unmovable),
-            _where(data, handle, nodes, core_unmovable), boundary, held))
+            _where(data, handle, nodes, core_unmovable), boundary, held,
+            r.get("topology", "none")))
     if core_movable:
         warnings.append(messages.tangled_movable(
             preparing.user_element_ids(data, core_movable),
             _where(data, handle, nodes, core_movable), boundary, r["reason"], quiet,
             _STILL_DROPPING))
+    core_needles = list(r.get("needles", []))
+    if core_needles:
+        warnings.append(messages.needles(preparing.user_element_ids(data, core_needles),
+                                         _where(data, handle, nodes, core_needles)))
     n_across0, n_across = int(before.stats["across"]), int(after.stats["across"])
     if n_across:
         mask = after.across if data.kept is None else after.across[data.kept]

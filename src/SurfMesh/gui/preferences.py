@@ -1,6 +1,6 @@
 """User preferences of SurfMesh: the last measure used, and the Optimize panel's last settings
-(boundary mode, curved elements, tolerances, sweeps, monotone mode, over-relaxation, threads),
-stored in
+(boundary mode, curved elements, edge flips, tolerances, sweeps, monotone mode, over-relaxation,
+threads), stored in
 FreeCAD's parameters (Tools > Edit parameters: Preferences/Mod/SurfMesh)."""
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ _OPTIMIZE_SETTINGS = {
     "over_relaxation": "Float",
     "threads": "Int",
     "high_order": "String",
+    "topology": "String",
 }
 
 
@@ -57,6 +58,8 @@ def optimize_settings() -> dict:
         if name == "boundary" and value not in options.BOUNDARY_MODES:
             value = d
         if name == "high_order" and value not in options.HIGH_ORDER_MODES:
+            value = d
+        if name == "topology" and value not in options.TOPOLOGY_MODES:
             value = d
         if kind == "Float" and not math.isfinite(value):
             value = d

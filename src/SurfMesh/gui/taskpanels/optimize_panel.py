@@ -1,8 +1,9 @@
 """Task panel of SurfMesh_Optimize: the quality measure, what the nodes on CAD edges do, the
 faces whose elements to optimize (those selected with the mesh; empty: the whole mesh), the
-sweep limit and the monotone mode; for a FEM mesh in an analysis, whether the result replaces
-it there; in an "Advanced" group the distance to the part, the stopping tolerance,
-over-relaxation and threads (the panel opens with the settings of the last run applied).
+sweep limit, the monotone mode and edge flips; for a FEM mesh in an analysis, whether the
+result replaces it there; in an "Advanced" group the distance to the part, the stopping
+tolerance, over-relaxation and threads (the panel opens with the settings of the last run
+applied).
 
 OK runs SurfMesh.optimize_object through FreeCADGui.doCommand with a progress hook that
 drives the panel's progress bar (against the run's stopping rule) while its inputs are
@@ -78,6 +79,15 @@ class OptimizePanel:
             "face puts them: affine on a plane), or by the paper's integral measure, which may "
             "curve straight sides. Linear meshes are the same either way")
         lay.addRow("Curved elements", self.high_order)
+        self.topology = QtGui.QCheckBox("Flip edges")
+        self.topology.setObjectName("topology")
+        self.topology.setChecked(last["topology"] == "flip")
+        self.topology.setToolTip(
+            "Edge flips between the smoothing runs: two triangles of one face swap their "
+            "diagonal when that raises the pair's smaller quality or makes an invalid pair "
+            "valid. Node ids and element ids are kept; quads and triangles of order 3 and "
+            "higher are not flipped (off: the nodes move, the elements keep their nodes)")
+        lay.addRow(self.topology)
         self.faces = QtGui.QLineEdit(", ".join(self.initial_faces))
         self.faces.setObjectName("faces")
         self.faces.setPlaceholderText("all")
@@ -157,9 +167,9 @@ class OptimizePanel:
         adv.addRow("Threads", self.threads)
         lay.addRow(advanced)
         # what a run disables while it lasts
-        self.inputs = [self.measure, self.boundary, self.high_order, self.faces, self.max_sweeps, self.monotone,
-                       self.replace, self.tolerance, self.rel_tol, self.over_relaxation,
-                       self.threads]
+        self.inputs = [self.measure, self.boundary, self.high_order, self.topology, self.faces,
+                       self.max_sweeps, self.monotone, self.replace, self.tolerance,
+                       self.rel_tol, self.over_relaxation, self.threads]
         self.bar = QtGui.QProgressBar()
         self.bar.setObjectName("progress")
         self.bar.setRange(0, 100)
@@ -238,6 +248,7 @@ class OptimizePanel:
             "over_relaxation": self.over_relaxation.value(),
             "threads": self.threads.value(),
             "high_order": self.high_order.currentData(),
+            "topology": "flip" if self.topology.isChecked() else "none",
         }
 
     def command(self):
@@ -251,7 +262,7 @@ class OptimizePanel:
             args.append(f"tolerance={o['tolerance']!r}")
         defaults = options.optimize_defaults()  # (the core's)
         for k in ("rel_tol", "max_sweeps", "monotone", "over_relaxation", "threads",
-                  "high_order"):
+                  "high_order", "topology"):
             if o[k] != defaults[k]:
                 args.append(f"{k}={o[k]!r}")
         faces = self.face_names()

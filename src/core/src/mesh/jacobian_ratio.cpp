@@ -37,56 +37,53 @@ void shapeGradients(ElementType t, double a, double b, Vec2* grad) {
 
 }  // namespace
 
+double jacobianRatioOf(const SurfaceMesh& mesh, std::size_t e, int divisions) {
+  Vec2 grad[kMaxElementNodes];
+  Vec3 x[kMaxElementNodes];
+  const ElementType t = mesh.elemType[e];
+  const int k = mesh.elementSize(e);
+  const std::int32_t* nodes = mesh.elementNodes(e);
+  for (int a = 0; a < k; ++a) x[a] = mesh.xyz[static_cast<std::size_t>(nodes[a])];
+  const bool quad = isQuad(t);
+  Vec3 n = quad ? Vec3((x[1] + x[2] - x[0] - x[3]).cross(x[2] + x[3] - x[0] - x[1]))
+                : Vec3((x[1] - x[0]).cross(x[2] - x[0]));
+  const double len = n.norm();
+  if (!(len > 0.0) || !std::isfinite(len))
+    return std::isfinite(len) ? 0.0 : std::numeric_limits<double>::quiet_NaN();
+  n /= len;
+  std::vector<Vec2> points;
+  auto add = [&](const Vec2& p) { points.push_back(p); };
+  if (quad) {
+    for (double a : {0.0, 1.0})
+      for (double b : {0.0, 1.0}) add(Vec2(a, b));
+    if (t == ElementType::Quad8)  // its side nodes
+      for (const Vec2& p : {Vec2(0.5, 0.0), Vec2(1.0, 0.5), Vec2(0.5, 1.0), Vec2(0.0, 0.5)}) add(p);
+  } else {
+    for (const Vec2& p : lagrangeTriangle(elementOrder(t)).nodes()) add(p);
+  }
+  for (int i = 0; i <= divisions; ++i)
+    for (int j = 0; j <= (quad ? divisions : divisions - i); ++j)
+      add(Vec2(double(i) / divisions, double(j) / divisions));
+  double lo = std::numeric_limits<double>::infinity(), hi = 0.0;
+  for (const Vec2& p : points) {
+    shapeGradients(t, p.x(), p.y(), grad);
+    Vec3 xa = Vec3::Zero(), xb = Vec3::Zero();
+    for (int a = 0; a < k; ++a) {
+      xa += grad[a].x() * x[a];
+      xb += grad[a].y() * x[a];
+    }
+    const double J = n.dot(xa.cross(xb));
+    lo = std::min(lo, J);
+    hi = std::max(hi, std::abs(J));
+  }
+  return hi > 0.0 ? lo / hi : 0.0;
+}
+
 std::vector<double> elementJacobianRatio(const SurfaceMesh& mesh, int divisions) {
   if (divisions < 1)
     throw std::invalid_argument("divisions must be at least 1, got " + std::to_string(divisions));
-  const std::size_t E = mesh.elementCount();
-  std::vector<double> out(E, 0.0);
-  Vec2 grad[kMaxElementNodes];
-  Vec3 x[kMaxElementNodes];
-  std::vector<Vec2> points;
-  for (std::size_t e = 0; e < E; ++e) {
-    const ElementType t = mesh.elemType[e];
-    const int k = mesh.elementSize(e);
-    const std::int32_t* nodes = mesh.elementNodes(e);
-    for (int a = 0; a < k; ++a) x[a] = mesh.xyz[static_cast<std::size_t>(nodes[a])];
-    const bool quad = isQuad(t);
-    Vec3 n = quad ? Vec3((x[1] + x[2] - x[0] - x[3]).cross(x[2] + x[3] - x[0] - x[1]))
-                  : Vec3((x[1] - x[0]).cross(x[2] - x[0]));
-    const double len = n.norm();
-    if (!(len > 0.0) || !std::isfinite(len)) {
-      out[e] = std::isfinite(len) ? 0.0 : std::numeric_limits<double>::quiet_NaN();
-      continue;
-    }
-    n /= len;
-    points.clear();
-    if (quad) {
-      for (double a : {0.0, 1.0})
-        for (double b : {0.0, 1.0}) points.emplace_back(a, b);
-      if (t == ElementType::Quad8)  // its side nodes
-        for (const Vec2& p : {Vec2(0.5, 0.0), Vec2(1.0, 0.5), Vec2(0.5, 1.0), Vec2(0.0, 0.5)})
-          points.push_back(p);
-    } else {
-      const auto& ref = lagrangeTriangle(elementOrder(t)).nodes();
-      points.assign(ref.begin(), ref.end());
-    }
-    for (int i = 0; i <= divisions; ++i)
-      for (int j = 0; j <= (quad ? divisions : divisions - i); ++j)
-        points.emplace_back(double(i) / divisions, double(j) / divisions);
-    double lo = std::numeric_limits<double>::infinity(), hi = 0.0;
-    for (const Vec2& p : points) {
-      shapeGradients(t, p.x(), p.y(), grad);
-      Vec3 xa = Vec3::Zero(), xb = Vec3::Zero();
-      for (int a = 0; a < k; ++a) {
-        xa += grad[a].x() * x[a];
-        xb += grad[a].y() * x[a];
-      }
-      const double J = n.dot(xa.cross(xb));
-      lo = std::min(lo, J);
-      hi = std::max(hi, std::abs(J));
-    }
-    out[e] = hi > 0.0 ? lo / hi : 0.0;
-  }
+  std::vector<double> out(mesh.elementCount(), 0.0);
+  for (std::size_t e = 0; e < out.size(); ++e) out[e] = jacobianRatioOf(mesh, e, divisions);
   return out;
 }
 

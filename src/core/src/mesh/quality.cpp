@@ -33,6 +33,34 @@ QualityStats computeStats(const std::vector<double>& quality,
   return s;
 }
 
+ElementQuality elementQuality(const SurfaceMesh& mesh, std::size_t e, const PlanarMeasure& m,
+                              const std::vector<const Surface*>& surfaces) {
+  const int n = mesh.elementSize(e);
+  const std::int32_t* nd = mesh.elementNodes(e);
+  Vec3 x[kMaxElementNodes];
+  for (int k = 0; k < n; ++k) x[k] = mesh.xyz[static_cast<std::size_t>(nd[k])];
+  Vec3 corners[4];
+  const Vec3 normal = elementReferenceNormal(mesh, e, surfaces, corners);
+  const ElementEval ev = elementDistortion(m, mesh.elemType[e], x, normal, 0.0);
+  const bool bad = ev.tangled || !std::isfinite(ev.eta) || !(ev.eta > 0.0);
+  bool across = standsAcross(mesh.elemType[e], x, corners);
+  if (!across && !bad && isHighOrderTriangle(mesh.elemType[e])) {
+    // Its tangent plane turned across the surface's inside the element (certificate.h).
+    Vec3 nodeNormals[kMaxElementNodes];
+    elementNodeNormals(mesh, e, surfaces, nodeNormals);
+    across =
+        certifyTriangleAgainstNodeNormals(elementOrder(mesh.elemType[e]), x, nodeNormals).sign !=
+        JacobianSign::Positive;
+  }
+  ElementQuality q;
+  q.tangled = bad;
+  q.across = across;
+  q.distortion = bad ? std::numeric_limits<double>::infinity() : ev.eta;
+  q.quality = bad ? 0.0 : std::min(1.0, 1.0 / ev.eta);
+  q.minSigma = ev.minSigma;
+  return q;
+}
+
 MeshQuality measureQuality(const SurfaceMesh& mesh, const PlanarMeasure& m) {
   const std::size_t E = mesh.elementCount();
   MeshQuality r;
@@ -44,30 +72,13 @@ MeshQuality measureQuality(const SurfaceMesh& mesh, const PlanarMeasure& m) {
   // Elements [begin, end) with the surfaces `surfaces` (mesh.surfaces or a thread's clones).
   auto range = [&](std::size_t begin, std::size_t end,
                    const std::vector<const Surface*>& surfaces) {
-    std::vector<Vec3> x;
     for (std::size_t e = begin; e < end; ++e) {
-      const int n = mesh.elementSize(e);
-      const std::int32_t* nd = mesh.elementNodes(e);
-      x.resize(static_cast<std::size_t>(n));
-      for (int k = 0; k < n; ++k) x[static_cast<std::size_t>(k)] = mesh.xyz[nd[k]];
-      Vec3 corners[4];
-      const Vec3 normal = elementReferenceNormal(mesh, e, surfaces, corners);
-      const ElementEval ev = elementDistortion(m, mesh.elemType[e], x.data(), normal, 0.0);
-      const bool bad = ev.tangled || !std::isfinite(ev.eta) || !(ev.eta > 0.0);
-      r.tangled[e] = bad ? 1 : 0;
-      bool across = standsAcross(mesh.elemType[e], x.data(), corners);
-      if (!across && !bad && isHighOrderTriangle(mesh.elemType[e])) {
-        // Its tangent plane turned across the surface's inside the element (certificate.h).
-        Vec3 nodeNormals[kMaxElementNodes];
-        elementNodeNormals(mesh, e, surfaces, nodeNormals);
-        across =
-            certifyTriangleAgainstNodeNormals(elementOrder(mesh.elemType[e]), x.data(), nodeNormals)
-                .sign != JacobianSign::Positive;
-      }
-      r.across[e] = across ? 1 : 0;
-      r.distortion[e] = bad ? std::numeric_limits<double>::infinity() : ev.eta;
-      r.quality[e] = bad ? 0.0 : std::min(1.0, 1.0 / ev.eta);
-      r.minSigma[e] = ev.minSigma;
+      const ElementQuality q = elementQuality(mesh, e, m, surfaces);
+      r.tangled[e] = q.tangled ? 1 : 0;
+      r.across[e] = q.across ? 1 : 0;
+      r.distortion[e] = q.distortion;
+      r.quality[e] = q.quality;
+      r.minSigma[e] = q.minSigma;
     }
   };
   // Elements are independent: big meshes are cut into one contiguous block per hardware

@@ -5,6 +5,8 @@
 #include "surfmesh/measures/certificate.h"
 #include "surfmesh/measures/element_measure.h"
 #include "surfmesh/measures/lagrange_triangle.h"
+#include "tangled_report.h"
+#include "topology.h"
 
 #include <algorithm>
 #include <atomic>
@@ -2417,8 +2419,6 @@ void parallelChunks(Team& team, std::size_t n, std::size_t chunk, Body&& body,
 
 }  // namespace
 
-namespace {
-
 /// Sorts the elements tangled in `q` into those that fold where a movable node acts and those
 /// that fold where none does (foldHeld: no node motion can repair them), with a warning for
 /// each non-empty list.
@@ -2451,6 +2451,8 @@ void reportTangled(const SurfaceMesh& mesh, const MeshQuality& q, OptimizeResult
                             "(elements " +
                             ids(res->tangledMovable) + ")");
 }
+
+namespace {
 
 /// A mesh's node positions and parameters (see optimizeOnce's `previous`).
 struct MeshPositions {
@@ -3044,6 +3046,10 @@ OptimizeResult optimizeUntanglingFirst(SurfaceMesh& mesh, const OptimizeOptions&
 
 OptimizeResult optimizeMesh(SurfaceMesh& mesh, const OptimizeOptions& opt,
                             const ProgressCallback& progress, const QualityStats* before) {
+  if (opt.topology != "none" && opt.topology != "flip")
+    throw std::invalid_argument("topology must be 'none' or 'flip', got '" + opt.topology + "'");
+  if (opt.topology == "flip" && opt.maxSweeps > 0)
+    return optimizeWithFlips(mesh, opt, progress, before);
   if (!opt.fixedNodes.empty()) {
     // Nodes the caller holds: Fixed for the run (their elements' normals and measures are
     // those of any fixed node), their own kinds back afterwards, whatever happens.

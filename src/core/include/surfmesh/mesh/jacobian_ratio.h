@@ -30,4 +30,7 @@ constexpr int kJacobianDivisions = 8;
 std::vector<double> elementJacobianRatio(const SurfaceMesh& mesh,
                                          int divisions = kJacobianDivisions);
 
+/// The same for element e alone (divisions ≥ 1 is not checked).
+double jacobianRatioOf(const SurfaceMesh& mesh, std::size_t e, int divisions = kJacobianDivisions);
+
 }  // namespace surfmesh

@@ -38,6 +38,22 @@ struct MeshQuality {
 QualityStats computeStats(const std::vector<double>& quality,
                           const std::vector<unsigned char>& tangled);
 
+/// One element's entries of MeshQuality.
+struct ElementQuality {
+  double quality = 0.0;
+  double distortion = 0.0;
+  bool tangled = false;
+  double minSigma = 0.0;
+  bool across = false;
+  /// Tangled or standing across: invalid for a solver.
+  bool invalid() const { return tangled || across; }
+};
+
+/// Quality of element e of `mesh` with measure `m` (δ = 0), as measureQuality gives it, with
+/// the surfaces taken from `surfaces` (mesh.surfaces, or a thread's clones).
+ElementQuality elementQuality(const SurfaceMesh& mesh, std::size_t e, const PlanarMeasure& m,
+                              const std::vector<const Surface*>& surfaces);
+
 /// Quality of every element of `mesh` with measure `m` (δ = 0). Never throws for finite input;
 /// elements with non-finite coordinates are reported as tangled.
 MeshQuality measureQuality(const SurfaceMesh& mesh, const PlanarMeasure& m);

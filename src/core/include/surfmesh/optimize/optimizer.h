@@ -159,6 +159,17 @@ struct OptimizeOptions {
   ///    Table 4); it may curve the sides of a straight-sided element to improve the measure.
   /// Linear meshes are the same in both modes.
   std::string highOrder = "reference";
+  /// Whether the run may change the mesh's connectivity:
+  ///  * "none": node motion only;
+  ///  * "flip": the smoothing run is followed by passes of edge flips (edge_flips.h), each
+  ///    followed by a run over the nodes within two rings of the rewired elements, until a
+  ///    pass flips nothing (at most kMaxFlipRounds passes). A flip swaps the diagonal of two
+  ///    triangles (tri3, or tri6 whose shared side node may move) of one face inside it, when
+  ///    that raises the pair's smaller quality without lowering its smallest scaled Jacobian
+  ///    or Jacobian ratio, or makes an invalid pair valid. Node ids and count, element ids and
+  ///    faces are kept; only the two elements' node lists change (OptimizeResult::
+  ///    rewiredElements). Quadrilaterals and triangles of order 3 and more are not flipped.
+  std::string topology = "none";
   /// Empty, or one entry per node: nonzero for the nodes the run must leave where they are
   /// (held like CAD vertices; e.g. the nodes of the elements outside a region to optimize).
   std::vector<unsigned char> fixedNodes;
@@ -216,6 +227,14 @@ struct OptimizeResult {
   std::vector<std::int32_t> tangledUnmovable;
   /// Elements tangled after the run with at least one movable node.
   std::vector<std::int32_t> tangledMovable;
+  /// Edge flips made (topology "flip"), and the elements whose node lists they changed
+  /// (sorted; ids and faces kept).
+  std::size_t flips = 0;
+  std::vector<std::int32_t> rewiredElements;
+  /// Topology "flip": elements left whose corners all lie on one CAD edge (its nodes and end
+  /// vertices): a needle along the edge that neither flips nor moves can open; inserting or
+  /// removing nodes would (needleElements in edge_flips.h).
+  std::vector<std::int32_t> needles;
   /// One line per non-empty list above (count and element ids).
   std::vector<std::string> warnings;
 };
