@@ -169,6 +169,24 @@ int main(int argc, char** argv) {
             break;
           }
       }
+      // BENCH_WORST=k: the k worst elements on stderr, with where their nodes lie.
+      if (const char* v = std::getenv("BENCH_WORST")) {
+        std::vector<std::size_t> order(mq.quality.size());
+        for (std::size_t e = 0; e < order.size(); ++e) order[e] = e;
+        std::sort(order.begin(), order.end(),
+                  [&](std::size_t a, std::size_t b) { return mq.quality[a] < mq.quality[b]; });
+        for (int k = 0; k < std::atoi(v) && k < static_cast<int>(order.size()); ++k) {
+          const std::size_t e = order[static_cast<std::size_t>(k)];
+          std::fprintf(stderr, "element %zu q %.4f face %d:", e, mq.quality[e], m.elemFace[e]);
+          const std::int32_t* nd = m.elementNodes(e);
+          for (int j = 0; j < m.elementSize(e); ++j) {
+            const auto n = static_cast<std::size_t>(nd[j]);
+            std::fprintf(stderr, "  n%d kind %d face %d edge %d", nd[j], int(m.nodeKind[n]),
+                         m.nodeFace[n], m.nodeEdge[n]);
+          }
+          std::fprintf(stderr, "\n");
+        }
+      }
       std::printf(
           "{\"elements\": %zu, \"nodes\": %zu, \"min\": %.6f, \"min_with_face_node\": %.6f, "
           "\"max\": %.6f, "

@@ -8,7 +8,8 @@
 # 2. SurfMesh vs Gmsh Laplace2D / Relocate2D on the same perturbed meshes (paper's torus, the
 #    engine block of ../shared/data/cad at 1×, 10×, 100× the elements);
 # 3. every CAD part of ../shared/data/cad, two perturbations each (bench/parts_compare.py) and
-#    the paper's Table 3 on a crank shaft and a gear-box housing (bench/paper_table3.py);
+#    the paper's Table 3 on a crank shaft and a gear-box housing (bench/paper_table3.py), and
+#    edge flips against node motion alone, Laplace2D and Netgen (bench/flips_compare.py);
 # 4. FreeCAD conversion cost vs optimization (bench/python/bench_conversion.py, freecadcmd);
 # 5. (not in quick) FreeCAD's Gmsh second-order meshes of four parts, Face nodes perturbed in
 #    (u,v), through SurfMesh.optimize (bench/python/perturbed_fem.py, freecadcmd);
@@ -54,6 +55,16 @@ if [ "$1" != "quick" ]; then
 fi
 echo "## The paper's Table 3"
 /usr/bin/python3 "$ROOT/bench/paper_table3.py" --bench-dir "$B" 2>&1 | grep -v '^Info'
+echo
+echo "## Edge flips (topology flip) against node motion alone, Laplace2D and Netgen"
+if [ "$1" = "quick" ]; then
+  /usr/bin/python3 "$ROOT/bench/flips_compare.py" --bench-dir "$B" --parts occt_crankarm.brep \
+    --sizes 21 2>&1 | grep -E '^\||rror'
+else
+  /usr/bin/python3 "$ROOT/bench/flips_compare.py" --bench-dir "$B" 2>&1 | grep -E '^\||rror'
+  BENCH_BOUNDARY=slide /usr/bin/python3 "$ROOT/bench/flips_compare.py" --bench-dir "$B" \
+    2>&1 | grep -E '^\||rror'
+fi
 echo
 echo "## FreeCAD conversion vs optimization"
 if [ -f "$ROOT/bench/python/bench_conversion.py" ]; then

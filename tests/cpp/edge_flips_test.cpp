@@ -255,6 +255,28 @@ bool outward(const SurfaceMesh& m, std::size_t e) {
 
 }  // namespace
 
+TEST(EdgeFlips, AnEdgeBetweenTwoFacesIsNeverFlipped) {
+  // The rhombus of the plane a (0,−2), b (0,2), c (−0.5,0), d (0.5,0): flipping a–b to the
+  // short diagonal c–d would raise the quality, but a–b is the CAD edge between face 0 (A)
+  // and face 1 (B).
+  const PlaneSurface plane;
+  SurfaceMesh m = emptyMesh(plane);
+  m.surfaces = {&plane, &plane};
+  m.faceOrientation = {1, 1};
+  const std::int32_t a = cadNode(m, plane, Vec2(0, -2)), b = cadNode(m, plane, Vec2(0, 2));
+  const std::int32_t c = cadNode(m, plane, Vec2(-0.5, 0)), d = cadNode(m, plane, Vec2(0.5, 0));
+  const std::int32_t A[3] = {a, b, c}, B[3] = {b, a, d};
+  m.addElement(ElementType::Tri3, A, 0);
+  m.addElement(ElementType::Tri3, B, 1);
+  m.validate();
+  const SurfaceMesh input = m;
+  EXPECT_EQ(flipEdges(m, measureByName("shape"), {}).flips, 0u);
+  EXPECT_EQ(m.elemNodes, input.elemNodes);
+  // The same two elements on one face flip.
+  m.elemFace = {0, 0};
+  EXPECT_EQ(flipEdges(m, measureByName("shape"), {}).flips, 1u);
+}
+
 TEST(EdgeFlips, AnEdgeOnTheSeamIsNeverFlipped) {
   const CylinderSurface cyl(1.0, 0.0, 1.0);
   SurfaceMesh m = rhombusAcrossTheSeam(cyl, true);
@@ -324,7 +346,9 @@ TEST(EdgeFlips, Tri6FlipPutsTheSharedSideNodeOnTheNewSide) {
   EXPECT_EQ(n0, n1);
   EXPECT_NEAR((m.xyz[4] - Vec3(0.0, 0.5, 0.0)).norm(), 0.0, 1e-12);
   for (std::size_t i = 0; i < m.nodeCount(); ++i)
-    if (i != 4) EXPECT_EQ(m.xyz[i], input.xyz[i]) << "node " << i;
+    if (i != 4) {
+      EXPECT_EQ(m.xyz[i], input.xyz[i]) << "node " << i;
+    }
   EXPECT_EQ(m.uv[4], Vec2(0.0, 0.5));
   // Every side node at its side's midpoint, every element counter-clockwise.
   for (std::size_t e = 0; e < 2; ++e) {

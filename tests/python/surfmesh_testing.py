@@ -231,3 +231,28 @@ def fem_snapshot(fem):
 def mesh_snapshot(mesh):
     pts, tris = mesh.Topology
     return [(p.x, p.y, p.z) for p in pts], [tuple(t) for t in tris]
+
+
+def gmsh_second_order(part, msh, options):
+    """Gmsh's raw second-order surface mesh of the part (no high-order optimization) with the
+    given options, written to msh (Gmsh's other options are restored afterwards)."""
+    from SurfMesh.app import fileio
+
+    gmsh = fileio._gmsh()
+    gmsh.clear()
+    gmsh.model.occ.importShapes(part)
+    gmsh.model.occ.synchronize()
+    opts = dict({"Mesh.HighOrderOptimize": 0, "Mesh.SaveAll": 0, "Mesh.MshFileVersion": 4.1},
+                **options)
+    saved = {k: gmsh.option.getNumber(k) for k in opts}
+    try:
+        for k, v in opts.items():
+            gmsh.option.setNumber(k, v)
+        gmsh.model.mesh.generate(2)
+        gmsh.model.mesh.setOrder(2)
+        gmsh.write(msh)
+    finally:
+        for k, v in saved.items():
+            gmsh.option.setNumber(k, v)
+        gmsh.clear()
+    return msh

@@ -2,6 +2,7 @@
 object, its element node lists, undo, and the quality judged without SurfMesh
 (run: freecadcmd -t test_edge_flips)."""
 
+import os
 import unittest
 
 import FreeCAD
@@ -97,6 +98,13 @@ class TestEdgeFlips(unittest.TestCase):
         self.assertAlmostEqual(stats["min"], q1.min(), places=9)
         self.assertEqual(stats["tangled"], 0)
         self.assertEqual(len(new.SurfMeshColors), len(ids))
+        # The outcome line names the flips; the run is not "nothing to do" (every node fixed,
+        # but the mesh changed).
+        from SurfMesh.app import document
+
+        line = document.outcome_of(new)
+        self.assertIn(f"; {flips} edge flip", line)
+        self.assertEqual(run["reason"], "converged")
         # The original is unchanged; undo removes the result.
         self.assertEqual(T.fem_snapshot(obj.FemMesh), snap)
         self.doc.undo()
@@ -124,6 +132,145 @@ class TestEdgeFlips(unittest.TestCase):
         self.assertFalse(t1.any())
         self.assertAlmostEqual(res.after.stats["min"], q1.min(), places=6)
         self.assertEqual(res.options["topology"], "flip")
+
+    def test_flat_slivers_along_cad_edges_are_kept_and_repaired(self):
+        """FreeCAD's Gmsh mesh of the crank arm has flat slivers along CAD edges (every corner
+        on one edge: no motion repairs them), which a run without flips leaves out. With
+        flips they stay in the run, and flips with their neighbours across their chords
+        repair them: judged with FreeCAD's normalAt (no element wound against its face or
+        standing across it)."""
+        import Part
+
+        from SurfMesh.app import conversion, examples
+
+        part = self.doc.addObject("Part::Feature", "CrankArm")
+        part.Shape = Part.read(os.path.join(T.data_dir(), "occt_crankarm.brep"))
+        mesh = examples.make_gmsh_mesh(self.doc, part, part.Shape.BoundBox.DiagonalLength / 17,
+                                       name="CrankMesh")
+        plain = SurfMesh.optimize(mesh, part)
+        res = SurfMesh.optimize(mesh, part, topology="flip")
+        # The flat slivers: left out without flips, in the run (tangled) with them.
+        flat = int(res.before.stats["tangled"]) - int(plain.before.stats["tangled"])
+        self.assertGreater(flat, 0)
+        self.assertEqual(int(res.before.skipped.sum()) + flat, int(plain.before.skipped.sum()))
+        self.assertEqual(int(res.after.stats["tangled"]), 0, res.warnings)
+        self.assertGreater(res.flips, 0)
+        self.assertGreaterEqual(res.after.stats["mean"], plain.after.stats["mean"])
+        # Independent: the elements that were flat, and every rewired one, wound along their
+        # face's normal at every corner.
+        data = conversion.read_mesh(res.mesh)
+        ids = np.asarray(res.after.element_ids)
+        was_flat = ids[np.asarray(res.before.tangled)]
+        check = np.union1d(was_flat, np.asarray(res.rewired_elements))
+        rows = np.searchsorted(ids, check)
+        tris = np.array([data.element(int(np.searchsorted(data.element_ids, e)))[:3]
+                         for e in check])
+        faces = np.asarray(res.after.element_faces)[rows]
+        nodes = data.nodes
+        import FreeCAD
+
+        for t, f, e in zip(tris, faces, check):
+            face = part.Shape.Faces[int(f)]
+            c = np.cross(nodes[t[1]] - nodes[t[0]], nodes[t[2]] - nodes[t[0]])
+            for k in t:
+                u, v = face.Surface.parameter(FreeCAD.Vector(*map(float, nodes[k])))
+                n = face.normalAt(u, v)
+                self.assertGreater(float(np.dot(c, (n.x, n.y, n.z))), 0.0, f"element {e}")
+
+    def test_the_returned_mesh_measures_as_the_result_says(self):
+        """Gmsh's meshes of the bottle and of the housing (CAD edges between faces, thin faces,
+        a few tangled elements) as FEM meshes: the mesh returned, measured again from scratch
+        (its faces found anew from its nodes), has the result's figures. A flip that made an
+        element whose corners all lie on CAD edges between two faces could be read back on the
+        other face, folded."""
+        import Part
+
+        from SurfMesh.app import fileio
+
+        for name in ("occt_bottle.brep", "occt_housing_bottom.brep"):
+            with self.subTest(part=name):
+                path = os.path.join(T.data_dir(), name)
+                shape = Part.read(path)
+                gmsh = fileio._gmsh()
+                opts = {"Mesh.MeshSizeMax": shape.BoundBox.DiagonalLength / 21,
+                        "Mesh.MeshSizeFromCurvature": 0, "Mesh.Algorithm": 6}
+                saved = {k: gmsh.option.getNumber(k) for k in opts}
+                try:
+                    gmsh.clear()
+                    gmsh.model.occ.importShapes(path)
+                    gmsh.model.occ.synchronize()
+                    for k, v in opts.items():
+                        gmsh.option.setNumber(k, v)
+                    gmsh.model.mesh.generate(2)
+                    tags, coords, _ = gmsh.model.mesh.getNodes()
+                    _, _, enodes = gmsh.model.mesh.getElements(2)
+                finally:
+                    for k, v in saved.items():
+                        gmsh.option.setNumber(k, v)
+                    gmsh.clear()
+                order = np.argsort(tags)
+                nodes = coords.reshape(-1, 3)[order]
+                tris = np.searchsorted(tags[order], np.concatenate(enodes)).reshape(-1, 3)
+                obj = fem_of(self.doc, nodes, tris)
+                res = SurfMesh.optimize(obj, shape, topology="flip")
+                self.assertGreater(res.flips, 0)
+                again = SurfMesh.measure(res.mesh, shape)
+                for key in ("tangled", "across", "elements"):
+                    self.assertEqual(again.stats[key], res.after.stats[key], key)
+                for key in ("min", "mean"):
+                    self.assertAlmostEqual(again.stats[key], res.after.stats[key], places=9)
+                self.assertLessEqual(res.after.stats["tangled"], res.before.stats["tangled"])
+
+    def test_tri6_flips_on_a_gmsh_second_order_mesh(self):
+        """Gmsh's second-order mesh of NIST's PMI part 1: after tri6 flips the mesh still
+        conforms (each side has one side node, named by both its elements), the reused side
+        nodes lie on the part (FreeCAD's distToShape), no element is left invalid, and the
+        minimum quality is the run without flips' or better."""
+        import Part
+
+        from SurfMesh.app import conversion, fileio
+
+        path = os.path.join(T.data_dir(), "nist_pmi_1.step")
+        shape = Part.read(path)
+        diag = shape.BoundBox.DiagonalLength
+        msh = T.gmsh_second_order(path, os.path.join(T.output_dir(), "flips_pmi1_o2.msh"),
+                                  {"Mesh.MeshSizeMax": diag / 17})
+        data = fileio.read_mesh(msh).data
+        self.assertTrue(np.all(data.types == conversion.ELEMENT_TYPES["tri6"]))
+        plain = SurfMesh.optimize(data, shape)
+        res = SurfMesh.optimize(data, shape, topology="flip")
+        self.assertGreater(res.flips, 0)
+        self.assertEqual(res.after.stats["tangled"] + res.after.stats["across"], 0, res.warnings)
+        self.assertGreaterEqual(res.after.stats["min"], plain.after.stats["min"] - 1e-12)
+        x = res.nodes
+        # The result conforms: every side (pair of corners) has one side node, whichever of
+        # its elements names it (by the file's ids: Gmsh's element and node tags).
+        conn = {int(data.element_ids[e]): [int(n) for n in data.node_ids[data.element(e)]]
+                for e in range(data.element_count)}
+        given = dict(conn)
+        for e, nodes in zip(res.rewired_elements, res.rewired_nodes):
+            self.assertEqual(len(nodes), 6)
+            conn[e] = list(nodes)
+
+        def sides(conn):
+            side_node, uses = {}, {}
+            for e, nodes in conn.items():
+                for k in range(3):
+                    side = tuple(sorted((nodes[k], nodes[(k + 1) % 3])))
+                    self.assertEqual(side_node.setdefault(side, nodes[3 + k]), nodes[3 + k],
+                                     f"element {e} side {side}")
+                    uses[side] = uses.get(side, 0) + 1
+            self.assertEqual(len(set(side_node.values())), len(side_node))  # one side a node
+            return sorted(uses.values())
+
+        # As many sides, used as often, as in the input (a flip trades one side for another).
+        self.assertEqual(sides(conn), sides(given))
+        index = {int(n): i for i, n in enumerate(data.node_ids)}
+        moved_side = {index[n[3 + k]] for n in res.rewired_nodes for k in range(3)
+                      if np.any(x[index[n[3 + k]]] != data.nodes[index[n[3 + k]]])}
+        self.assertGreater(len(moved_side), 0)
+        idx = sorted(moved_side)
+        self.assertLess(T.distance_to_shape(shape, x[idx]).max(), 1e-7 * diag)
 
     def test_bad_topology_is_refused_before_anything_runs(self):
         part = square(self.doc)

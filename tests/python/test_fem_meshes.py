@@ -312,31 +312,6 @@ def quad8_folded(x, normal_at, n=16):
     return False
 
 
-def gmsh_second_order(part, msh, options):
-    """Gmsh's raw second-order surface mesh of the part (no high-order optimization) with the
-    given options, written to msh (Gmsh's other options are restored afterwards)."""
-    from SurfMesh.app import fileio
-
-    gmsh = fileio._gmsh()
-    gmsh.clear()
-    gmsh.model.occ.importShapes(part)
-    gmsh.model.occ.synchronize()
-    opts = dict({"Mesh.HighOrderOptimize": 0, "Mesh.SaveAll": 0, "Mesh.MshFileVersion": 4.1},
-                **options)
-    saved = {k: gmsh.option.getNumber(k) for k in opts}
-    try:
-        for k, v in opts.items():
-            gmsh.option.setNumber(k, v)
-        gmsh.model.mesh.generate(2)
-        gmsh.model.mesh.setOrder(2)
-        gmsh.write(msh)
-    finally:
-        for k, v in saved.items():
-            gmsh.option.setNumber(k, v)
-        gmsh.clear()
-    return msh
-
-
 def cylinder_quad8_msh(path, size=4.0):
     """Gmsh's second-order incomplete (quad8) recombined mesh of a cylinder (r 10, h 30)."""
     import gmsh
@@ -453,7 +428,7 @@ class Quad8(unittest.TestCase):
         if path is None:
             self.skipTest("occt_bottle.brep not found")
         shape = Part.read(path)
-        msh = gmsh_second_order(path, os.path.join(T.output_dir(), "fem41_bottle_q8.msh"), {
+        msh = T.gmsh_second_order(path, os.path.join(T.output_dir(), "fem41_bottle_q8.msh"), {
             "Mesh.MeshSizeMax": shape.BoundBox.DiagonalLength / 20, "Mesh.RecombineAll": 1,
             "Mesh.SecondOrderIncomplete": 1})
         data = fileio.read_mesh(msh).data
@@ -509,7 +484,7 @@ class Quad8(unittest.TestCase):
         if path is None:
             self.skipTest("occt_propeller.brep not found")
         shape = Part.read(path)
-        msh = gmsh_second_order(path, os.path.join(T.output_dir(), "fem39_propeller_o2.msh"),
+        msh = T.gmsh_second_order(path, os.path.join(T.output_dir(), "fem39_propeller_o2.msh"),
                                 {"Mesh.MeshSizeMax": shape.BoundBox.DiagonalLength / 21})
         data = fileio.read_mesh(msh).data
         res = SurfMesh.optimize(data, shape, boundary="fixed")

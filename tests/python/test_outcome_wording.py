@@ -55,6 +55,10 @@ class Outcome(unittest.TestCase):
                          "48 sweeps, 5.5 s (converged)")
         self.assertIn("(stopped at the sweep limit)",
                       reports.outcome_text(before, after, 100, 12.0, "max_sweeps"))
+        self.assertTrue(reports.outcome_text(before, after, 48, 5.5, "converged", flips=12)
+                        .endswith("48 sweeps, 5.5 s (converged); 12 edge flips"))
+        self.assertTrue(reports.outcome_text(before, after, 48, 5.5, "converged", flips=1)
+                        .endswith("(converged); 1 edge flip"))
 
     def test_optimize_object_stores_and_prints_its_outcome(self):
         tor, mesh = T.torus_fem(self.doc, tangled=True)

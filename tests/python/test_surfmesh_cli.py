@@ -203,6 +203,67 @@ class TestCli(unittest.TestCase):
         self.assertEqual(code, 2)
         self.assertIn("'9-3' is neither a node id nor a range", se)
 
+    def test_topology_flip_writes_the_rewired_elements(self):
+        """A fan of slivers on a square (every node on a CAD edge: only flips improve it),
+        through the CLI into .msh 4.1, .msh 2.2 and UNV: the files hold the rewired node lists
+        the report gives, the same element ids, and a valid mesh better than the input's,
+        judged without SurfMesh."""
+        import Part
+
+        from SurfMesh.app import fileio
+
+        square = os.path.join(self.dir, "square.brep")
+        Part.makePlane(10, 10).exportBrep(square)
+        nodes = np.array([(float(i), 0.0, 0.0) for i in range(11)]
+                         + [(float(i), 10.0, 0.0) for i in range(11)])
+        tris = np.array([(i, i + 1, 11) for i in range(10)]
+                        + [(10, 12 + j, 11 + j) for j in range(10)])
+        gmsh = fileio._gmsh()
+        gmsh.clear()
+        gmsh.model.add("fan")
+        gmsh.model.addDiscreteEntity(2, 1)
+        gmsh.model.mesh.addNodes(2, 1, list(range(1, 23)), nodes.reshape(-1).tolist())
+        gmsh.model.mesh.addElementsByType(1, 2, list(range(1, 21)), (tris + 1).reshape(-1).tolist())
+        src = os.path.join(self.dir, "fan.msh")
+        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+        gmsh.write(src)
+        face = Part.makePlane(10, 10)
+        q0, _ = T.reference_tri_quality(nodes, tris, face)
+        for name, extra in (("fan_out4.msh", []), ("fan_out2.msh", ["--msh-version", "2.2"]),
+                            ("fan_out.unv", [])):
+            out = os.path.join(self.dir, name)
+            rep = os.path.join(self.dir, name + ".json")
+            code, so, se = run_cli("optimize", square, src, "-o", out, "--report", rep,
+                                   "--topology", "flip", *extra)
+            self.assertEqual(code, 0, se)
+            data = json.load(open(rep))
+            self.assertGreater(data["flips"], 0)
+            self.assertIn(f"{data['flips']} edge flip(s)", so)
+            rewired = dict(zip(data["rewired_elements"], map(tuple, data["rewired_nodes"])))
+            if name.endswith(".msh"):
+                t1, x1, e1, n1 = read_msh(out)
+                np.testing.assert_array_equal(t1, np.arange(1, 23))
+                np.testing.assert_array_equal(np.sort(e1), np.arange(1, 21))
+                conn = dict(zip(e1.tolist(), map(tuple, n1.reshape(-1, 3).tolist())))
+                got = np.array([conn[e] for e in range(1, 21)]) - 1
+            else:
+                import Fem
+
+                fem = Fem.read(out)
+                self.assertEqual(sorted(fem.Faces), list(range(1, 21)))
+                conn = {e: tuple(fem.getElementNodes(e)) for e in fem.Faces}
+                got = np.array([conn[e] for e in range(1, 21)]) - 1
+            # The report's ids (a .msh: Gmsh's tags; UNV input ids are the .msh's too).
+            for e, ns in rewired.items():
+                self.assertEqual(tuple(conn[e]), ns, name)
+            unchanged = [e for e in range(1, 21) if e not in rewired]
+            for e in unchanged:
+                self.assertEqual(tuple(got[e - 1]), tuple(tris[e - 1]), name)
+            q1, t1_ = T.reference_tri_quality(nodes, got, face)
+            self.assertFalse(t1_.any(), name)
+            self.assertGreater(q1.min(), 1.5 * q0.min(), name)
+            self.assertAlmostEqual(data["after"]["min"], q1.min(), places=6)
+
     def test_topology_flip(self):
         # --topology reaches the run: the report's options and flip counts (the torus's Gmsh
         # mesh needs no flip: none made, the output written as without the option)

@@ -663,7 +663,8 @@ def outcome_of(obj):
         return None
     run = dict(obj.SurfMeshRun)
     return reports.outcome_text(before, after, int(run.get("sweeps", 0)),
-                                float(run.get("seconds", 0.0)), run.get("reason", ""))
+                                float(run.get("seconds", 0.0)), run.get("reason", ""),
+                                flips=int(run.get("flips", 0)))
 
 
 def run_warnings(obj):

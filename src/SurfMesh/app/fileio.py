@@ -559,11 +559,15 @@ def _check_format_holds(data, ext):
                          f"triangle mesh ({ext}): write .msh or a FEM format")
 
 
-def write_mesh(out, src: MeshFile, new_nodes, msh_version=None):
+def write_mesh(out, src: MeshFile, new_nodes, msh_version=None, rewired=None):
     """Writes the mesh of ``src`` with node positions ``new_nodes`` to ``out`` (format by
-    extension). Ids and element order are kept where the format stores them."""
+    extension). Ids and element order are kept where the format stores them. ``rewired``: None,
+    or (element ids, node id lists) of the elements edge flips gave new node lists (an
+    OptimizeResult's ``rewired_elements`` and ``rewired_nodes``, in the input's ids)."""
     new_nodes = np.asarray(new_nodes, dtype=np.float64)
     ext = _ext(out)
+    if rewired is not None and len(rewired[0]):
+        src = dataclasses.replace(src, data=_with_rewired_ids(src.data, *rewired))
     data = src.data
     _check_writer(out, ext)
     _check_format_holds(data, ext)
@@ -616,6 +620,59 @@ def _z88_full_precision(path, node_ids, nodes):
         f.write("\n".join(lines))
 
 
+def _with_rewired_ids(data, element_ids, node_lists):
+    """``data`` with the elements of ids ``element_ids`` given the node lists ``node_lists``
+    (node ids), see conversion.with_rewired."""
+    elements, missing = conversion.positions_of(data.element_ids, np.asarray(element_ids))
+    if missing.any():
+        raise ValueError(f"rewired element(s) not in the mesh: {np.asarray(element_ids)[missing]}")
+    lists = []
+    for nodes in node_lists:
+        pos, miss = conversion.positions_of(data.node_ids, np.asarray(nodes))
+        if miss.any():
+            raise ValueError(f"rewired node(s) not in the mesh: {np.asarray(nodes)[miss]}")
+        lists.append(pos)
+    return conversion.with_rewired(data, elements, lists)
+
+
+def _rewire_msh_text(path, elements):
+    """Gives the elements of ``path`` (an ASCII .msh 2.2 or 4.1) whose tags are keys of
+    ``elements`` the node tags of their values (Gmsh 4.8 cannot remove elements from a model:
+    the file Gmsh wrote is patched). Every key must be found once."""
+    with open(path) as fh:
+        lines = fh.read().split("\n")
+    version = 4.1
+    for i, ln in enumerate(lines):
+        if ln.strip() == "$MeshFormat":
+            version = float(lines[i + 1].split()[0])
+            break
+    start = lines.index("$Elements") + 1
+    end = lines.index("$EndElements", start)
+    found = set()
+    i = start + 1  # the section's header line
+    while i < end:
+        f = lines[i].split()
+        if version >= 4:
+            count = int(f[3])  # block: entity dim, entity tag, element type, element count
+            for j in range(i + 1, i + 1 + count):
+                tag = int(lines[j].split()[0])
+                if tag in elements:
+                    lines[j] = " ".join(str(int(x)) for x in [tag, *elements[tag]]) + " "
+                    found.add(tag)
+            i += 1 + count
+        else:
+            tag = int(f[0])
+            if tag in elements:
+                keep = 3 + int(f[2])  # tag, type, number of tags, the tags
+                lines[i] = " ".join(f[:keep] + [str(int(x)) for x in elements[tag]])
+                found.add(tag)
+            i += 1
+    if found != set(elements):
+        raise ValueError(f"elements {sorted(set(elements) - found)} not found in {path}")
+    with open(path, "w") as fh:
+        fh.write("\n".join(lines))
+
+
 def _write_gmsh(out, src, new_nodes, version):
     """Gmsh writes ``out`` (in its own process): ``src``'s .msh with its nodes moved, or a new
     model of one discrete surface for other inputs. Written in a temporary folder, then moved:
@@ -643,6 +700,11 @@ def _write_gmsh(out, src, new_nodes, version):
         _run_gmsh("write", f"writing {out}", request, arrays, source=src.path)
         if not os.path.exists(request["out"]):
             raise ValueError(f"Gmsh wrote nothing for {out}")
+        if src.fmt == "gmsh" and data.rewired is not None and len(data.rewired):
+            # The source's elements, but those edge flips rewired.
+            _rewire_msh_text(request["out"], {
+                int(data.element_ids[e]): data.node_ids[data.element(e)].tolist()
+                for e in data.rewired.tolist()})
         shutil.move(request["out"], out)
 
 

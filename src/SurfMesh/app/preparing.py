@@ -112,11 +112,13 @@ def glue_coincident(data):
 
 
 def prepare_measured(mesh, shape, boundary, tolerance, hints, collapsed, duplicates="glue",
-                     timings=None, moving=False):
+                     timings=None, moving=False, keep_flat=False):
     """:func:`prepare`, and the "shape" measure of the returned handle when it was taken on
     the way (else None): measuring it again would give the same result. ``timings`` (a dict),
     when given, receives the seconds of reading the mesh ("read") and of the rest ("recovery").
     ``moving``: for a run that moves nodes (a mesh with volume elements is refused).
+    ``keep_flat``: the flat slivers along a CAD edge stay in the mesh (a run with edge flips,
+    which can repair them, instead of leaving them out as ``collapsed="skip"`` does).
     """
     t0 = time.perf_counter()
     options.check_prepare_arguments(boundary, tolerance, collapsed, duplicates)
@@ -156,7 +158,8 @@ def prepare_measured(mesh, shape, boundary, tolerance, hints, collapsed, duplica
     handle = build(work, keep=collapsed == "skip")
     shape_measure = None
     if collapsed == "skip":
-        handle, bad, shape_measure, more = _leave_out_flat(data, work, handle, bad, build)
+        handle, bad, shape_measure, more = _leave_out_flat(data, work, handle, bad, build,
+                                                           keep_flat)
         reasons += more
     handle.release_node_search()  # kept only for the second recovery
     if data.kept is not None:
@@ -239,7 +242,7 @@ def _bridge(cshape, data, w, tolerance, boundary, tolerance_hints, keep=False,
     return h
 
 
-def _leave_out_flat(data, work, handle, bad, build):
+def _leave_out_flat(data, work, handle, bad, build, keep_flat=False):
     """The second recovery of ``collapsed="skip"``, when the first (``handle``, of ``work``)
     shows flat or miswound elements to leave out; returns (the handle, the mask of the
     elements left out, the "shape" measure taken on the way or None, the reasons added)."""
@@ -247,6 +250,8 @@ def _leave_out_flat(data, work, handle, bad, build):
     # "invalid" elements along some edges): no node can leave the edge, so no optimizer can
     # make them valid. They are left out like collapsed elements.
     flat, shape_measure = flat_boundary_elements(work, handle)
+    if keep_flat:  # edge flips may repair them
+        flat[:] = False
     # Elements wound against their face's mesh next to the elements left out (a mesher's
     # degenerate spot): tangled wherever their nodes are. Elsewhere (an STL with flipped
     # facets) they stay: measure counts them, optimize refuses and names them.

@@ -198,16 +198,18 @@ def outcome_rows(before, after):
     ]
 
 
-def outcome_text(before, after, sweeps, seconds, reason):
+def outcome_text(before, after, sweeps, seconds, reason, flips=0):
     """One line saying what an optimization did, from the statistics before and after it:
     "49 invalid (49 tangled, 0 standing across) → 0 invalid (0 tangled, 0 standing across),
-    min quality 2.8e-06 → 0.31, mean 0.85 → 0.90; 48 sweeps, 5.5 s (converged)"."""
+    min quality 2.8e-06 → 0.31, mean 0.85 → 0.90; 48 sweeps, 5.5 s (converged)", and
+    "; 12 edge flips" when edge flips were made."""
     def arrow(key, fmt):
         return f"{fmt(before[key])} → {fmt(after[key])}"
 
     return (f"{validity_text(before)} → {validity_text(after)}, "
             f"min quality {arrow('min', format_value)}, mean {arrow('mean', format_value)}; "
-            f"{run_text(sweeps, seconds, reason)}")
+            f"{run_text(sweeps, seconds, reason)}"
+            + (f"; {int(flips)} edge flip{'s' if int(flips) != 1 else ''}" if flips else ""))
 
 
 def measure_text(stats, measure):

@@ -84,6 +84,9 @@ class OptimizeResult:
     # by the user's ids as below.
     flips: int = 0
     rewired_elements: list = dataclasses.field(default_factory=list)
+    # The new node lists of ``rewired_elements`` (the same order; node ids as the input's:
+    # FEM node ids, 0-based indices of a Mesh or of arrays).
+    rewired_nodes: list = dataclasses.field(default_factory=list)
     needles: list = dataclasses.field(default_factory=list)
     options: dict = dataclasses.field(default_factory=dict)
     bridge: dict = dataclasses.field(default_factory=dict)
@@ -121,6 +124,7 @@ class OptimizeResult:
             "held_nodes": self.held_nodes,
             "flips": self.flips,
             "rewired_elements": list(self.rewired_elements),
+            "rewired_nodes": [list(n) for n in self.rewired_nodes],
             "needles": list(self.needles),
             "tangled_unmovable": list(self.tangled_unmovable),
             "tangled_movable": list(self.tangled_movable),

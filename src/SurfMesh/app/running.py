@@ -141,7 +141,7 @@ def optimize(
     timings = {}
     data, handle, measured = preparing.prepare_measured(
         mesh, shape, boundary, tolerance, hints, collapsed, duplicates, timings=timings,
-        moving=True,
+        moving=True, keep_flat=opts["topology"] == "flip",
     )
     bridge = preparing.bridge_report(handle, data)
     _refuse_miswound(data, handle)
@@ -184,9 +184,12 @@ def optimize(
     # Edge flips (topology="flip") gave some elements new node lists: the result is built,
     # and measured in Python, with them.
     rewired_core = [int(e) for e in r.get("rewired_elements", [])]
+    rewired_nodes = []
     if rewired_core:
+        lists = handle.element_nodes(rewired_core)
         data = conversion.with_rewired(data, preparing.input_element_indices(data, rewired_core),
-                                       handle.element_nodes(rewired_core))
+                                       lists)
+        rewired_nodes = [[int(data.node_ids[n]) for n in nodes] for nodes in lists]
     _progress.phase("measuring the result")
     after = results.quality_report(data, handle, measure, bridge)
     new_mesh = conversion.rebuild(data, new_nodes) if data.kind in ("mesh", "fem") else None
@@ -215,6 +218,7 @@ def optimize(
         held_nodes=held_nodes,
         flips=int(r.get("flips", 0)),
         rewired_elements=preparing.user_element_ids(data, rewired_core),
+        rewired_nodes=rewired_nodes,
         needles=preparing.user_element_ids(data, r.get("needles", [])),
         options=dict(opts, measure=measure, boundary=boundary,
                      **({} if faces is None else {"faces": _face_names(faces)}),

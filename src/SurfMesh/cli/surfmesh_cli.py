@@ -282,13 +282,8 @@ def run(argv, prog="surfmesh_cli.py"):
         res = sm.optimize(mf.data, shape, measure=args.measure, boundary=args.boundary,
                           tolerance=args.tolerance, hints=hints, duplicates=args.duplicates,
                           **options)
-        if res.flips:
-            # fileio.write_mesh writes the input's elements with the new node positions: not
-            # the node lists edge flips gave some of them (a .msh keeps its source's elements).
-            raise ValueError(
-                f"--topology flip: {res.flips} edge flip(s) made, but writing the rewired "
-                f"elements to a file is not supported yet; nothing written to {args.output}")
-        fileio.write_mesh(args.output, mf, res.nodes, msh_version=args.msh_version)
+        fileio.write_mesh(args.output, mf, res.nodes, msh_version=args.msh_version,
+                          rewired=(res.rewired_elements, res.rewired_nodes))
         print(reports.format_table([(args.measure, "Initial", res.before.stats),
                                     (args.measure, "Optimized", res.after.stats)]))
         phases = (" (fixed boundary, then sliding: up to twice --max-sweeps)"

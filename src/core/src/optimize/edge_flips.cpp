@@ -1,5 +1,6 @@
 #include "surfmesh/optimize/edge_flips.h"
 
+#include "surfmesh/measures/element_measure.h"
 #include "surfmesh/mesh/distance_to_face.h"
 #include "surfmesh/mesh/jacobian_ratio.h"
 #include "surfmesh/mesh/quality.h"
@@ -41,7 +42,29 @@ struct Judged {
   bool invalid = true;
 };
 
-Judged judge(const SurfaceMesh& mesh, std::size_t e, const PlanarMeasure& m) {
+/// A linear triangle's quality in its own plane: the report's quality of a valid triangle
+/// (the measure takes a linear triangle in its own plane and only its orientation from the
+/// surface), computed without the surface; 0 for a degenerate one.
+double planarQuality(const PlanarMeasure& m, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 x[3] = {a, b, c};
+  const ElementEval ev = elementDistortion(m, ElementType::Tri3, x, (b - a).cross(c - a), 0.0);
+  return ev.tangled || !std::isfinite(ev.eta) || !(ev.eta > 0.0) ? 0.0
+                                                                 : std::min(1.0, 1.0 / ev.eta);
+}
+
+/// `valid`: the element is known to be valid (a linear one is then judged without the surface).
+Judged judge(const SurfaceMesh& mesh, std::size_t e, const PlanarMeasure& m, bool valid = false) {
+  if (valid && mesh.elemType[e] == ElementType::Tri3) {
+    const std::int32_t* nd = mesh.elementNodes(e);
+    const Vec3 &a = mesh.xyz[static_cast<std::size_t>(nd[0])],
+               &b = mesh.xyz[static_cast<std::size_t>(nd[1])],
+               &c = mesh.xyz[static_cast<std::size_t>(nd[2])];
+    Judged j;
+    j.quality = planarQuality(m, a, b, c);
+    j.invalid = !(j.quality > 0.0);
+    j.scaledJacobian = triangleScaledJacobian(a, b, c);
+    return j;
+  }
   const ElementQuality q = elementQuality(mesh, e, m, mesh.surfaces);
   const std::int32_t* nd = mesh.elementNodes(e);
   Judged j;
@@ -95,34 +118,26 @@ struct ElementCopy {
 
 class Flipper {
  public:
-  Flipper(SurfaceMesh& mesh, const PlanarMeasure& measure, const std::vector<unsigned char>& held)
-      : m_(mesh), measure_(measure), held_(held) {}
+  Flipper(SurfaceMesh& mesh, const PlanarMeasure& measure, const std::vector<unsigned char>& held,
+          bool valid)
+      : m_(mesh),
+        measure_(measure),
+        held_(held),
+        valid_(valid),
+        cornerElems_(mesh.nodeCount()),
+        judged_(mesh.elementCount()),
+        known_(mesh.elementCount(), 0) {
+    for (std::size_t e = 0; e < m_.elementCount(); ++e)
+      for (int k = 0; k < cornerCount(m_.elemType[e]); ++k)
+        cornerElems_[static_cast<std::size_t>(m_.elementNodes(e)[k])].push_back(
+            static_cast<std::int32_t>(e));
+  }
 
   /// One round; returns the flips made and adds the rewired elements to `rewired`.
   std::size_t round(std::vector<std::int32_t>* rewired) {
     const std::size_t E = m_.elementCount();
-    // Every mesh edge (corner to corner), and the uses of the flippable elements' edges.
-    edges_.clear();
-    struct Use {
-      std::uint64_t key;
-      std::int32_t e;
-      int k;
-    };
-    std::vector<Use> uses;
-    for (std::size_t e = 0; e < E; ++e) {
-      const int nc = cornerCount(m_.elemType[e]);
-      const std::int32_t* nd = m_.elementNodes(e);
-      for (int k = 0; k < nc; ++k) {
-        const std::uint64_t key = edgeKey(nd[k], nd[(k + 1) % nc]);
-        edges_.push_back(key);
-        if (flippable(m_.elemType[e])) uses.push_back({key, static_cast<std::int32_t>(e), k});
-      }
-    }
-    std::sort(edges_.begin(), edges_.end());
-    std::sort(uses.begin(), uses.end(), [](const Use& x, const Use& y) {
-      return std::tie(x.key, x.e, x.k) < std::tie(y.key, y.e, y.k);
-    });
-    // Pairs: an edge used by exactly two flippable elements (and by no other element).
+    // Pairs: a corner-to-corner edge of a marked flippable element used by exactly one other
+    // element (of any type), each pair once.
     struct Pair {
       double worst;
       std::uint64_t key;
@@ -130,47 +145,50 @@ class Flipper {
       int ka, kb;
     };
     std::vector<Pair> pairs;
-    judged_.assign(E, Judged{});
-    known_.assign(E, 0);
-    for (std::size_t i = 0; i < uses.size();) {
-      std::size_t j = i;
-      while (j < uses.size() && uses[j].key == uses[i].key) ++j;
-      const auto all = std::equal_range(edges_.begin(), edges_.end(), uses[i].key);
-      if (j - i == 2 && all.second - all.first == 2 &&
-          (dirty_.empty() || dirty_[static_cast<std::size_t>(uses[i].e)] ||
-           dirty_[static_cast<std::size_t>(uses[i + 1].e)]) &&
-          candidate(uses[i].e, uses[i + 1].e)) {
-        const double w = std::min(judged(static_cast<std::size_t>(uses[i].e)).quality,
-                                  judged(static_cast<std::size_t>(uses[i + 1].e)).quality);
-        pairs.push_back({w, uses[i].key, uses[i].e, uses[i + 1].e, uses[i].k, uses[i + 1].k});
+    for (std::size_t e = 0; e < E; ++e) {
+      if ((!dirty_.empty() && !dirty_[e]) || !flippable(m_.elemType[e])) continue;
+      const std::int32_t* nd = m_.elementNodes(e);
+      for (int k = 0; k < 3; ++k) {
+        std::int32_t other = -1;
+        int ko = -1, uses = 0;
+        forEdgeUse(nd[k], nd[(k + 1) % 3], [&](std::int32_t g, int kg) {
+          ++uses;
+          if (g != static_cast<std::int32_t>(e)) other = g, ko = kg;
+        });
+        // Each pair once: from its element of the smaller id when both are marked.
+        if (uses != 2 || other < 0 ||
+            (other < static_cast<std::int32_t>(e) &&
+             (dirty_.empty() || dirty_[static_cast<std::size_t>(other)])) ||
+            !candidate(static_cast<std::int32_t>(e), other))
+          continue;
+        const double w =
+            std::min(judged(e).quality, judged(static_cast<std::size_t>(other)).quality);
+        pairs.push_back(
+            {w, edgeKey(nd[k], nd[(k + 1) % 3]), static_cast<std::int32_t>(e), other, k, ko});
       }
-      i = j;
     }
     std::sort(pairs.begin(), pairs.end(), [](const Pair& x, const Pair& y) {
       return std::tie(x.worst, x.key) < std::tie(y.worst, y.key);
     });
-    created_.clear();
+    std::vector<std::int32_t> flipped;
     std::vector<unsigned char> done(E, 0);
-    std::size_t flips = 0;
     for (const Pair& p : pairs) {
       if (done[static_cast<std::size_t>(p.a)] || done[static_cast<std::size_t>(p.b)]) continue;
       if (!tryFlip(p.a, p.ka, p.b, p.kb)) continue;
       done[static_cast<std::size_t>(p.a)] = done[static_cast<std::size_t>(p.b)] = 1;
+      flipped.push_back(p.a);
+      flipped.push_back(p.b);
       rewired->push_back(p.a);
       rewired->push_back(p.b);
-      ++flips;
     }
-    // The next round weighs the pairs with an element next to one rewired now.
-    std::vector<unsigned char> touched(m_.nodeCount(), 0);
-    for (std::size_t e = 0; e < E; ++e)
-      if (done[e])
-        for (int k = 0; k < m_.elementSize(e); ++k)
-          touched[static_cast<std::size_t>(m_.elementNodes(e)[k])] = 1;
+    // The next round weighs the pairs with an element sharing a corner with one rewired now.
     dirty_.assign(E, 0);
-    for (std::size_t e = 0; e < E; ++e)
-      for (int k = 0; k < m_.elementSize(e) && !dirty_[e]; ++k)
-        dirty_[e] = touched[static_cast<std::size_t>(m_.elementNodes(e)[k])];
-    return flips;
+    for (std::int32_t e : flipped)
+      for (int k = 0; k < 3; ++k)
+        for (std::int32_t g : cornerElems_[static_cast<std::size_t>(
+                 m_.elementNodes(static_cast<std::size_t>(e))[k])])
+          dirty_[static_cast<std::size_t>(g)] = 1;
+    return flipped.size() / 2;
   }
 
   /// Only pairs with an element marked here are weighed (empty: all).
@@ -179,7 +197,7 @@ class Flipper {
  private:
   const Judged& judged(std::size_t e) {
     if (!known_[e]) {
-      judged_[e] = judge(m_, e, measure_);
+      judged_[e] = judge(m_, e, measure_, valid_);
       known_[e] = 1;
     }
     return judged_[e];
@@ -199,9 +217,69 @@ class Flipper {
            !allHeld(B);
   }
 
-  bool edgeExists(std::uint64_t key) const {
-    return std::binary_search(edges_.begin(), edges_.end(), key) ||
-           std::find(created_.begin(), created_.end(), key) != created_.end();
+  /// Calls use(element, k) for every element with corners a, b as its corners k, k + 1 (in
+  /// either direction).
+  template <class Use>
+  void forEdgeUse(std::int32_t a, std::int32_t b, Use&& use) const {
+    for (std::int32_t g : cornerElems_[static_cast<std::size_t>(a)]) {
+      const auto G = static_cast<std::size_t>(g);
+      const int nc = cornerCount(m_.elemType[G]);
+      const std::int32_t* nd = m_.elementNodes(G);
+      for (int k = 0; k < nc; ++k)
+        if ((nd[k] == a && nd[(k + 1) % nc] == b) || (nd[k] == b && nd[(k + 1) % nc] == a)) {
+          use(g, k);
+          break;
+        }
+    }
+  }
+
+  bool edgeExists(std::int32_t a, std::int32_t b) const {
+    bool found = false;
+    forEdgeUse(a, b, [&](std::int32_t, int) { found = true; });
+    return found;
+  }
+
+  /// Whether a triangle of face f with corners p, q, r would be known as face f's from its
+  /// corners alone, as a recovery of the mesh from its nodes finds faces: a corner inside f,
+  /// or corners on CAD edges whose faces have f alone in common, and not every corner on one
+  /// CAD edge (a needle along it). A triangle between nodes of one edge and its vertices, or
+  /// of an edge between two faces, could be read back on the other face (where it is
+  /// folded). Where the mesh has no CAD edges (nodeEdge empty), every triangle is f's.
+  bool ownFace(std::int32_t p, std::int32_t q, std::int32_t r, int f) const {
+    if (m_.nodeEdge.size() != m_.nodeCount()) return true;
+    int common[2] = {-1, -1};  // the faces the edge corners so far have in common (≤ 2 kept)
+    int edges = 0, firstEdge = -1;
+    bool sameEdge = true;
+    for (std::int32_t n : {p, q, r}) {
+      const auto N = static_cast<std::size_t>(n);
+      if (m_.nodeFace[N] == f) return true;
+      const int e = m_.nodeEdge[N];
+      if (e < 0 || static_cast<std::size_t>(e) >= m_.curves.size() || !m_.curves[e]) continue;
+      sameEdge = sameEdge && (firstEdge < 0 || e == firstEdge);
+      if (firstEdge < 0) firstEdge = e;
+      const Curve& C = *m_.curves[static_cast<std::size_t>(e)];
+      int faces[2] = {-1, -1}, k = 0;
+      for (int j = 0; j < C.faceCount() && k < 2; ++j)
+        if (C.faceId(j) != faces[0]) faces[k++] = C.faceId(j);
+      if (edges++ == 0) {
+        common[0] = faces[0];
+        common[1] = faces[1];
+      } else {
+        for (int& c : common)
+          if (c != faces[0] && c != faces[1]) c = -1;
+      }
+    }
+    if (edges == 0 || sameEdge) return false;  // vertices alone, or a needle along one edge
+    const bool hasF = common[0] == f || common[1] == f;
+    const bool other = (common[0] >= 0 && common[0] != f) || (common[1] >= 0 && common[1] != f);
+    return hasF && !other;
+  }
+
+  /// Element e's corner `from` becomes `to` (in the corner-to-elements lists).
+  void moveCorner(std::int32_t e, std::int32_t from, std::int32_t to) {
+    auto& v = cornerElems_[static_cast<std::size_t>(from)];
+    v.erase(std::find(v.begin(), v.end(), e));
+    cornerElems_[static_cast<std::size_t>(to)].push_back(e);
   }
 
   bool tryFlip(std::int32_t ia, int kA, std::int32_t ib, int kB) {
@@ -217,7 +295,7 @@ class Flipper {
     const std::int32_t a = oldA.nodes[a1], b = oldA.nodes[b1], c = oldA.nodes[c1];
     if (oldB.nodes[b2] != b || oldB.nodes[a2] != a) return false;  // wound against A
     const std::int32_t d = oldB.nodes[d2];
-    if (c == d || edgeExists(edgeKey(c, d))) return false;
+    if (c == d || edgeExists(c, d)) return false;
     // B's parameters onto A's: the shift of the shared nodes (whole periods).
     const Vec2 s = oldA.uv[a1] - oldB.uv[a2];
     if ((s - (oldA.uv[b1] - oldB.uv[b2])).norm() > 1e-9 * (1.0 + s.norm())) return false;
@@ -261,10 +339,23 @@ class Flipper {
       newB.nodes[4] = oldA.nodes[3 + b1], newB.uv[4] = oldA.uv[3 + b1] - s;  // b-c
       newB.nodes[5] = mid, newB.uv[5] = midUV - s;                           // c-d
     }
+    if (!ownFace(a, d, c, f) || !ownFace(d, b, c, f)) return false;
     newA.startWith(oldA.nodes[0]);
     newB.startWith(oldB.nodes[0]);
 
     const Judged jA = judged(A), jB = judged(B);
+    if (!six && !jA.invalid && !jB.invalid) {
+      // The new triangles' qualities if valid, without the surface: most pairs stop here.
+      const Vec3 &xa = m_.xyz[static_cast<std::size_t>(a)],
+                 &xb = m_.xyz[static_cast<std::size_t>(b)],
+                 &xc = m_.xyz[static_cast<std::size_t>(c)],
+                 &xd = m_.xyz[static_cast<std::size_t>(d)];
+      if (!(std::min(planarQuality(measure_, xa, xd, xc), planarQuality(measure_, xd, xb, xc)) >
+            std::min(jA.quality, jB.quality) * (1.0 + 1e-6)) ||
+          std::min(triangleScaledJacobian(xa, xd, xc), triangleScaledJacobian(xd, xb, xc)) <
+              std::min(jA.scaledJacobian, jB.scaledJacobian) - 1e-12)
+        return false;
+    }
     Vec3 midXYZ = Vec3::Zero();
     Vec2 midOld = Vec2::Zero();
     if (six) {
@@ -297,15 +388,16 @@ class Flipper {
     }
     judged_[A] = nA;
     judged_[B] = nB;
-    created_.push_back(edgeKey(c, d));
+    moveCorner(ia, b, d);  // A = (a, d, c)
+    moveCorner(ib, a, c);  // B = (d, b, c)
     return true;
   }
 
   SurfaceMesh& m_;
   const PlanarMeasure& measure_;
   const std::vector<unsigned char>& held_;
-  std::vector<std::uint64_t> edges_;    // sorted, with repeats: one per use
-  std::vector<std::uint64_t> created_;  // new diagonals of this round
+  const bool valid_;  // every element of the mesh is valid (flips keep them so)
+  std::vector<std::vector<std::int32_t>> cornerElems_;  // node → elements with it as a corner
   std::vector<Judged> judged_;
   std::vector<unsigned char> known_;
 };
@@ -314,7 +406,7 @@ class Flipper {
 
 FlipPass flipEdges(SurfaceMesh& mesh, const PlanarMeasure& measure,
                    const std::vector<unsigned char>& heldNodes, int maxRounds,
-                   const std::vector<unsigned char>& elements) {
+                   const std::vector<unsigned char>& elements, bool valid) {
   if (!heldNodes.empty() && heldNodes.size() != mesh.nodeCount())
     throw std::invalid_argument("heldNodes has " + std::to_string(heldNodes.size()) +
                                 " entries for " + std::to_string(mesh.nodeCount()) + " nodes");
@@ -323,7 +415,7 @@ FlipPass flipEdges(SurfaceMesh& mesh, const PlanarMeasure& measure,
     throw std::invalid_argument("elements has " + std::to_string(elements.size()) +
                                 " entries for " + std::to_string(mesh.elementCount()) +
                                 " elements");
-  Flipper flipper(mesh, measure, heldNodes);
+  Flipper flipper(mesh, measure, heldNodes, valid);
   flipper.dirty_ = elements;
   for (int r = 0; r < maxRounds; ++r) {
     const std::size_t n = flipper.round(&out.rewired);

@@ -170,7 +170,9 @@ OptimizeResult optimizeWithFlips(SurfaceMesh& mesh, const OptimizeOptions& opt,
     std::vector<std::int32_t> rewired;
     std::vector<unsigned char> changed;  // the elements the last run could change (empty: all)
     for (int round = 0; round < kMaxFlipRounds; ++round) {
-      const FlipPass pass = flipEdges(mesh, measure, opt.fixedNodes, 16, changed);
+      // Valid after the first run, valid after every flip and run (never worse).
+      const bool valid = res.after.tangled == 0 && res.after.across == 0;
+      const FlipPass pass = flipEdges(mesh, measure, opt.fixedNodes, 16, changed, valid);
       if (pass.flips == 0) break;
       res.flips += pass.flips;
       rewired.insert(rewired.end(), pass.rewired.begin(), pass.rewired.end());
@@ -201,6 +203,8 @@ OptimizeResult optimizeWithFlips(SurfaceMesh& mesh, const OptimizeOptions& opt,
     throw;
   }
   if (res.flips > 0) {
+    // The mesh changed: not "nothing to do" (every node fixed) any more.
+    if (res.reason == StopReason::NothingToDo) res.reason = StopReason::Converged;
     const MeshQuality q = measureQuality(mesh, measure);
     res.after = q.stats;
     reportTangled(mesh, q, &res);

@@ -13,7 +13,11 @@
 //     midpoint of its new ends (the straight-sided place);
 //   * a pair whose new diagonal is already a mesh edge, or whose new elements are not both
 //     wound as the face in (u,v);
-//   * a pair in which an element has every node held (heldNodes: outside a region to optimize).
+//   * a pair in which an element has every node held (heldNodes: outside a region to optimize);
+//   * a pair that would make an element whose corners do not tell its face: every corner on
+//     CAD edges that bound this face and another one too, or every corner on one CAD edge (a
+//     recovery of the mesh from its nodes, as any later measure is, could put it on the other
+//     face, folded).
 // A flip is kept when both new elements are valid (untangled, not standing across their
 // surface, as the quality report judges) and either an old one was invalid, or the pair's
 // smaller quality rises (by a relative 1e-6) while neither its smallest scaled Jacobian
@@ -46,10 +50,12 @@ struct FlipPass {
 /// one entry per node (nonzero: held). Updates elemNodes, cornerUV and, for tri6, the reused
 /// side node's uv and xyz. `elements`: empty, or one entry per element: the first round weighs
 /// only the pairs with a marked element (later rounds: those next to the elements rewired by
-/// the round before).
+/// the round before). `valid`: the caller knows every element of the mesh to be valid (as the
+/// quality report judges): a linear triangle is then weighed without evaluating the surface
+/// (the measure takes it in its own plane), the new elements of a flip always with it.
 FlipPass flipEdges(SurfaceMesh& mesh, const PlanarMeasure& measure,
                    const std::vector<unsigned char>& heldNodes, int maxRounds = 16,
-                   const std::vector<unsigned char>& elements = {});
+                   const std::vector<unsigned char>& elements = {}, bool valid = false);
 
 /// Needles: triangles and quadrilaterals whose corners all lie on one CAD edge (nodes on that
 /// edge, nodeEdge, and vertex nodes at its ends) and that are invalid or of quality below
