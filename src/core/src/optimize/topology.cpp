@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <sstream>
 #include <stdexcept>
 
 namespace surfmesh {
@@ -222,11 +223,12 @@ OptimizeResult optimizeWithFlips(SurfaceMesh& mesh, const OptimizeOptions& opt,
     const std::size_t shown = std::min<std::size_t>(res.needles.size(), 20);
     for (std::size_t k = 0; k < shown; ++k) t += (k ? ", " : "") + std::to_string(res.needles[k]);
     if (shown < res.needles.size()) t += ", …";
-    res.warnings.push_back(std::to_string(res.needles.size()) +
-                           " element(s) of quality below 0.2 have every corner on one CAD edge "
-                           "(needles along it) that neither flips nor moves open: nodes would "
-                           "have to be inserted or removed there (elements " +
-                           t + ")");
+    std::ostringstream os;
+    os << res.needles.size() << " element(s) of quality below " << kNeedleQuality
+       << " have every corner on one CAD edge (needles along it) that neither flips nor moves "
+          "open: nodes would have to be inserted or removed there (elements "
+       << t << ")";
+    res.warnings.push_back(os.str());
   }
   res.sweeps = done;
   res.seconds = seconds();

@@ -57,12 +57,15 @@ FlipPass flipEdges(SurfaceMesh& mesh, const PlanarMeasure& measure,
                    const std::vector<unsigned char>& heldNodes, int maxRounds = 16,
                    const std::vector<unsigned char>& elements = {}, bool valid = false);
 
+/// Quality below which an element with every corner on one CAD edge counts as a needle.
+constexpr double kNeedleQuality = 0.2;
+
 /// Needles: triangles and quadrilaterals whose corners all lie on one CAD edge (nodes on that
 /// edge, nodeEdge, and vertex nodes at its ends) and that are invalid or of quality below
 /// `below` (sorted). Their sides along the edge are fixed by the CAD; only their chord may be
 /// flipped. (A disk's fan between the nodes of its one circular edge is not one.)
 std::vector<std::int32_t> needleElements(const SurfaceMesh& mesh, const PlanarMeasure& measure,
-                                         double below = 0.2);
+                                         double below = kNeedleQuality);
 
 /// Verdict's scaled Jacobian of a triangle with corners a, b, c (the smallest corner's sine
 /// over sin 60°, at most 1; 0 for a degenerate one).
