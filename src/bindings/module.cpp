@@ -1,9 +1,12 @@
 // SurfMesh bindings — the `SurfMesh._surfmesh` module: registers one binding file per topic.
 #include "handle.h"
 
+#include <Standard_Failure.hxx>
+#include <Standard_Type.hxx>
 #include <pybind11/pybind11.h>
 
 #include <stdexcept>
+#include <string>
 
 namespace py = pybind11;
 
@@ -12,11 +15,20 @@ PYBIND11_MODULE(_surfmesh, m) {
       "SurfMesh core: quality measures, smoothing and untangling of surface meshes on CAD "
       "surfaces. Arrays: positions float64 (N, 3) row-major, integers int64.";
   // std::invalid_argument is translated to ValueError by pybind11 itself; keep that explicit.
+  // An OpenCASCADE exception that escapes the core (it is not a std::exception, so pybind11
+  // would say only "Caught an unknown exception!") names its type and message.
   py::register_exception_translator([](std::exception_ptr p) {
     try {
       if (p) std::rethrow_exception(p);
     } catch (const std::invalid_argument& e) {
       PyErr_SetString(PyExc_ValueError, e.what());
+    } catch (const Standard_Failure& e) {
+      const Handle(Standard_Type) type = e.DynamicType();
+      const char* what = e.GetMessageString();
+      std::string text = "OpenCASCADE raised ";
+      text += type.IsNull() ? "Standard_Failure" : type->Name();
+      if (what != nullptr && *what != '\0') text += std::string(": ") + what;
+      PyErr_SetString(PyExc_RuntimeError, text.c_str());
     }
   });
   surfmesh::bindings::bind_geometry(m);
