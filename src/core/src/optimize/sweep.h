@@ -1,0 +1,41 @@
+// One optimization run: the nonlinear Gauss–Seidel sweeps over the node colours with the δ
+// policy, the escapes and the stopping rules (optimizer internals).
+#pragma once
+
+#include "surfmesh/optimize/optimizer.h"
+
+#include <utility>
+#include <vector>
+
+namespace surfmesh {
+namespace detail {
+
+/// A mesh's node positions and parameters (see optimizeOnce's `previous`).
+struct MeshPositions {
+  std::vector<Vec3> xyz;
+  std::vector<Vec2> uv;
+  std::vector<double> nodeT;
+  std::vector<Vec2> cornerUV;
+  /// A copy of the mesh's positions.
+  static MeshPositions of(const SurfaceMesh& mesh) {
+    return {mesh.xyz, mesh.uv, mesh.nodeT, mesh.cornerUV};
+  }
+  bool empty() const { return xyz.empty(); }
+  void restore(SurfaceMesh& mesh) {
+    mesh.xyz = std::move(xyz);
+    mesh.uv = std::move(uv);
+    if (!mesh.nodeT.empty()) mesh.nodeT = std::move(nodeT);
+    mesh.cornerUV = std::move(cornerUV);
+  }
+};
+/// One run. `before`, when given, is the quality the caller already measured on this mesh
+/// (the sliding phase starts from the held phase's result): it is not measured again.
+/// `holdAcross`: hold linear triangles from standing across their surface (acrossArea).
+/// `previous`, when given, receives the positions the mesh had before a completed run (the
+/// arrays the run replaced: no copy).
+OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
+                            const ProgressCallback& progress, const QualityStats* before,
+                            bool holdAcross, MeshPositions* previous = nullptr);
+
+}  // namespace detail
+}  // namespace surfmesh

@@ -1,0 +1,151 @@
+// What the optimizer's sweeps run on: the node → element incidence, the node colouring, the
+// per-thread geometry and the team of worker threads (optimizer internals).
+#pragma once
+
+#include "surfmesh/mesh/surface_mesh.h"
+
+#include <algorithm>
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <exception>
+#include <limits>
+#include <memory>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+namespace surfmesh {
+namespace detail {
+
+inline bool isMovable(NodeKind k) { return k == NodeKind::Face || k == NodeKind::Edge; }
+/// Node → (element, local index) incidence in CSR form: the compact neighbour data of the
+/// sweep (a node's submesh is elem[offset[i] .. offset[i+1]), its place in each element local).
+struct Incidence {
+  std::vector<std::int64_t> offset;
+  std::vector<std::int32_t> elem;
+  std::vector<std::int8_t> local;
+};
+Incidence buildIncidence(const SurfaceMesh& m);
+
+/// Greedy coloring on a given incidence (see colorMovableNodes).
+std::vector<std::vector<std::int32_t>> colorNodes(const SurfaceMesh& mesh, const Incidence& inc);
+
+/// Per-thread geometry: clones of the surfaces and curves (OCC adaptors are not shared).
+struct ThreadGeometry {
+  std::vector<std::unique_ptr<Surface>> surfaces;
+  std::vector<std::unique_ptr<Curve>> curves;
+  explicit ThreadGeometry(const SurfaceMesh& m) {
+    for (const Surface* s : m.surfaces) surfaces.push_back(s ? s->clone() : nullptr);
+    for (const Curve* c : m.curves) curves.push_back(c ? c->clone() : nullptr);
+  }
+};
+
+/// A persistent team of worker threads for the whole run: run(job) executes job(tid) on
+/// every member (the caller is member 0) and returns when all are done — the barrier between
+/// colors. Waiting members spin briefly, then sleep (so an oversubscribed machine is not
+/// burnt by spinning).
+class Team {
+ public:
+  explicit Team(int n) : n_(n) {
+    for (int t = 1; t < n_; ++t) workers_.emplace_back([this, t] { loop(t); });
+  }
+  ~Team() {
+    {
+      std::lock_guard<std::mutex> lock(m_);
+      stop_ = true;
+      gen_.fetch_add(1, std::memory_order_release);
+    }
+    cv_.notify_all();
+    for (auto& w : workers_) w.join();
+  }
+  Team(const Team&) = delete;
+  Team& operator=(const Team&) = delete;
+
+  int size() const { return n_; }
+
+  template <class F>
+  void run(F& job) {
+    if (n_ == 1) {
+      job(0);
+      return;
+    }
+    job_ = [](void* ctx, int tid) { (*static_cast<F*>(ctx))(tid); };
+    ctx_ = &job;
+    pending_.store(n_ - 1, std::memory_order_relaxed);
+    {
+      std::lock_guard<std::mutex> lock(m_);
+      gen_.fetch_add(1, std::memory_order_release);
+    }
+    cv_.notify_all();
+    job(0);
+    for (int spin = 0; pending_.load(std::memory_order_acquire) != 0; ++spin) {
+      if (spin < 4000) continue;
+      std::unique_lock<std::mutex> lock(m_);
+      doneCv_.wait(lock, [this] { return pending_.load(std::memory_order_acquire) == 0; });
+    }
+  }
+
+ private:
+  void loop(int tid) {
+    std::uint64_t seen = 0;
+    for (;;) {
+      std::uint64_t g = gen_.load(std::memory_order_acquire);
+      for (int spin = 0; g == seen && spin < 4000; ++spin) g = gen_.load(std::memory_order_acquire);
+      if (g == seen) {
+        std::unique_lock<std::mutex> lock(m_);
+        cv_.wait(lock, [&] { return gen_.load(std::memory_order_acquire) != seen; });
+        g = gen_.load(std::memory_order_acquire);
+      }
+      seen = g;
+      if (stop_) return;
+      job_(ctx_, tid);
+      if (pending_.fetch_sub(1, std::memory_order_acq_rel) == 1) {
+        std::lock_guard<std::mutex> lock(m_);
+        doneCv_.notify_one();
+      }
+    }
+  }
+
+  int n_;
+  std::vector<std::thread> workers_;
+  std::mutex m_;
+  std::condition_variable cv_, doneCv_;
+  std::atomic<std::uint64_t> gen_{0};
+  std::atomic<int> pending_{0};
+  bool stop_ = false;
+  void (*job_)(void*, int) = nullptr;
+  void* ctx_ = nullptr;
+};
+inline int resolveThreads(int requested) {
+  if (requested > 0) return requested;
+  const unsigned hc = std::thread::hardware_concurrency();
+  return hc > 0 ? static_cast<int>(hc) : 1;
+}
+
+/// Runs `body(begin, end)` over [0, n) in chunks of fixed size taken dynamically by the team
+/// (chunk boundaries do not depend on the thread count).
+template <class Body>
+void parallelChunks(Team& team, std::size_t n, std::size_t chunk, Body&& body,
+                    std::exception_ptr& error, std::mutex& errorMutex) {
+  std::atomic<std::size_t> next{0};
+  auto job = [&](int) {
+    try {
+      for (;;) {
+        const std::size_t a = next.fetch_add(chunk, std::memory_order_relaxed);
+        if (a >= n) break;
+        body(a, std::min(n, a + chunk));
+      }
+    } catch (...) {
+      std::lock_guard<std::mutex> lock(errorMutex);
+      if (!error) error = std::current_exception();
+    }
+  };
+  if (n <= chunk)
+    job(0);  // one chunk: no worker to wake
+  else
+    team.run(job);
+  if (error) std::rethrow_exception(error);
+}
+}  // namespace detail
+}  // namespace surfmesh
