@@ -12,41 +12,18 @@ std::size_t NodeUpdater::escapeTangledElements(const std::vector<unsigned char>&
                                                int sweep, int epsilonLevel,
                                                const std::vector<unsigned char>& held) {
   std::size_t gained = 0;
-  std::vector<std::size_t> patch, elems;
-  std::vector<Vec2> uvSave, iter;
-  std::vector<Vec3> xyzSave, nSave;
-  std::vector<std::int64_t> nbrOffset;
-  std::vector<std::int32_t> nbrIndex;  // index in the patch, −1 for a held node
-  std::vector<Vec2> nbrUV;             // held neighbours: their (u,v) next to the node's
+  EscapeScratch x;
   for (std::size_t e = 0; e < s_.mesh.elementCount(); ++e) {
     if (frozen[e] || s_.minSigma[e] > 0.0) continue;
     const int face = s_.mesh.elemFace[e];
     const Surface& surf = *w_.geo.surfaces[static_cast<std::size_t>(face)];
-    auto inPatch = [&](std::size_t j) {
-      return std::find(patch.begin(), patch.end(), j) != patch.end();
-    };
-    auto movableHere = [&](std::size_t j) {
-      return s_.mesh.nodeKind[j] == NodeKind::Face && s_.mesh.nodeFace[j] == face;
-    };
-    // Adds to `nodes` the Face nodes of this face of the elements around them (one ring).
-    auto growRing = [&](std::vector<std::size_t>& nodes) {
-      const std::size_t n0 = nodes.size();
-      for (std::size_t q = 0; q < n0; ++q)
-        for (std::int64_t p = s_.begin(nodes[q]); p < s_.end(nodes[q]); ++p) {
-          const std::size_t f = static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
-          const std::int32_t* fn = s_.mesh.elementNodes(f);
-          for (int k = 0; k < s_.mesh.elementSize(f); ++k) {
-            const std::size_t j = static_cast<std::size_t>(fn[k]);
-            if (movableHere(j) && std::find(nodes.begin(), nodes.end(), j) == nodes.end())
-              nodes.push_back(j);
-          }
-        }
-    };
+    std::vector<std::size_t>& patch = x.patch;
     patch.clear();
     const std::int32_t* nd = s_.mesh.elementNodes(e);
     for (int k = 0; k < s_.mesh.elementSize(e); ++k) {
       const std::size_t j = static_cast<std::size_t>(nd[k]);
-      if (movableHere(j) && !inPatch(j)) patch.push_back(j);
+      if (movableOn(j, face) && std::find(patch.begin(), patch.end(), j) == patch.end())
+        patch.push_back(j);
     }
     if (patch.empty()) continue;
     auto backoff = s_.relaxBackoff.find(e);
@@ -56,159 +33,29 @@ std::size_t NodeUpdater::escapeTangledElements(const std::vector<unsigned char>&
     auto hBackoff = s_.harmonicBackoff.find(e);
     if (!relaxHere && hBackoff != s_.harmonicBackoff.end() && sweep < hBackoff->second.nextSweep)
       continue;
-    bool kept = false, relaxed = false;
+    std::size_t g = 0;
+    bool relaxed = false;
     auto wBackoff = s_.widenBackoff.find(e);
     if (relaxHere && !held[e] &&  // (a held element cannot become valid)
         (wBackoff == s_.widenBackoff.end() || sweep >= wBackoff->second.nextSweep)) {
       // e's own nodes, then with the Face nodes of the elements around them
-      std::size_t g = widenElement(e, patch, face, surf);
+      g = widenElement(e, patch, face, surf);
       if (g == 0) {
         std::vector<std::size_t> wider = patch;
-        growRing(wider);
+        growRing(wider, face);
         if (wider.size() > patch.size() && wider.size() <= kMaxWidenNodes)
           g = widenElement(e, wider, face, surf);
       }
       if (g > 0) {
-        gained += g;
-        kept = true;
         if (wBackoff != s_.widenBackoff.end()) s_.widenBackoff.erase(wBackoff);
       } else {
         s_.widenBackoff[e].failed(sweep, 1 << 20);  // retried after 1, 2, 4, 8… sweeps
       }
     }
-    for (int ring = 0; ring <= 3 && !kept; ++ring) {
-      if (ring > 0) {  // grow by one ring of Face nodes of this face
-        const std::size_t n0 = patch.size();
-        growRing(patch);
-        if (patch.size() == n0 || patch.size() > 256) break;
-      }
-      elementsAround(patch, &elems);
-      auto countTangled = [&]() { return tangledAmong(elems); };
-      const std::size_t t0 = countTangled();
-      if (t0 == 0) continue;  // nothing to gain here (the cache is from the last sweep)
-      // Neighbour lists of the patch nodes (corners of their elements).
-      nbrOffset.assign(1, 0);
-      nbrIndex.clear();
-      nbrUV.clear();
-      for (std::size_t j : patch) {
-        for (std::int64_t p = s_.begin(j); p < s_.end(j); ++p) {
-          const std::size_t f = static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
-          const std::int32_t* fn = s_.mesh.elementNodes(f);
-          for (int k = 0; k < cornerCount(s_.mesh.elemType[f]); ++k) {
-            const std::size_t o = static_cast<std::size_t>(fn[k]);
-            if (o == j) continue;
-            const auto it = std::find(patch.begin(), patch.end(), o);
-            nbrIndex.push_back(it == patch.end() ? -1
-                                                 : static_cast<std::int32_t>(it - patch.begin()));
-            nbrUV.push_back(cornerOnFace(f, k, face, surf, s_.uv[j]));
-          }
-        }
-        nbrOffset.push_back(static_cast<std::int64_t>(nbrIndex.size()));
-      }
-      // Gauss–Seidel on the uniform Laplacian of the patch (its outline held).
-      iter.clear();
-      for (std::size_t j : patch) iter.push_back(s_.uv[j]);
-      for (int sweep = 0; sweep < 200; ++sweep) {
-        double change = 0.0;
-        for (std::size_t q = 0; q < patch.size(); ++q) {
-          Vec2 c = Vec2::Zero();
-          const std::int64_t b0 = nbrOffset[q], b1 = nbrOffset[q + 1];
-          for (std::int64_t r = b0; r < b1; ++r) {
-            const std::int32_t o = nbrIndex[static_cast<std::size_t>(r)];
-            c += o < 0 ? nbrUV[static_cast<std::size_t>(r)]
-                       : surf.unwrapNear(iter[static_cast<std::size_t>(o)], iter[q]);
-          }
-          if (b1 > b0) {
-            c /= static_cast<double>(b1 - b0);
-            change = std::max(change, (c - iter[q]).lpNorm<Eigen::Infinity>());
-            iter[q] = c;
-          }
-        }
-        if (change == 0.0) break;
-      }
-      straightSides(patch, face, surf, &iter);
-      // Place, count, keep or put back.
-      save(patch, &uvSave, &xyzSave, &nSave);
-      const bool ok = placeAll(patch, iter, face, surf);
-      const std::size_t t1 = ok ? countTangled() : t0;
-      if (ok && t1 < t0) {
-        kept = true;
-        gained += t0 - t1;
-        continue;
-      }
-      // The harmonic layout did not help (a non-convex outline in (u,v), or elements valid
-      // in (u,v) but not on the surface): untangle the patch by local Newton steps on f̂
-      // that may pass through tangled states, from the input positions and from the
-      // harmonic layout when it was placeable.
-      std::size_t t2 = t0;
-      if (!relaxHere || patch.size() > kMaxRelaxPatchNodes) {
-        restore(patch, uvSave, xyzSave, nSave);
-        continue;
-      }
-      if (ok && relaxTries_ < kMaxRelaxPatches) {
-        ++relaxTries_;
-        relaxed = true;
-        t2 = relaxPatch(patch, countTangled, t0);
-        if (t2 < t0) {
-          kept = true;
-          gained += t0 - t2;
-          continue;
-        }
-      }
-      restore(patch, uvSave, xyzSave, nSave);
-      if (relaxTries_ < kMaxRelaxPatches) {
-        ++relaxTries_;
-        relaxed = true;
-        t2 = relaxPatch(patch, countTangled, t0);
-        if (t2 < t0) {
-          kept = true;
-          gained += t0 - t2;
-          continue;
-        }
-        restore(patch, uvSave, xyzSave, nSave);
-      }
-    }
-    // Last: each Face node of the element alone, at the best point of a grid over its
-    // neighbours (sampleNeighbourhood).
-    for (int k = 0; k < s_.mesh.elementSize(e) && !kept; ++k) {
-      const std::size_t j = static_cast<std::size_t>(nd[k]);
-      if (!movableHere(j)) continue;
-      const std::size_t g = sampleNeighbourhood(j, face, surf);
-      if (g > 0) {
-        kept = true;
-        gained += g;
-      }
-    }
-    // Then, with the joint untangling allowed: a Face node of the element where the element
-    // is valid (sampleNeighbourhood), the other Face nodes of its elements untangled around
-    // it (relaxPatch), kept when fewer elements around them all are tangled.
-    for (int k = 0; k < s_.mesh.elementSize(e) && !kept && relaxHere; ++k) {
-      const std::size_t j = static_cast<std::size_t>(nd[k]);
-      Vec2 target;
-      if (!movableHere(j) || relaxTries_ >= kMaxRelaxPatches ||
-          !sampleNeighbourhood(j, face, surf, static_cast<std::int64_t>(e), &target))
-        continue;
-      patch.assign(1, j);
-      growRing(patch);
-      if (patch.size() == 1 || patch.size() - 1 > kMaxRelaxPatchNodes) continue;
-      std::rotate(patch.begin(), patch.begin() + 1, patch.end());  // j last
-      elementsAround(patch, &elems);
-      auto countTangled = [&]() { return tangledAmong(elems); };
-      const std::size_t t0 = countTangled();
-      save(patch, &uvSave, &xyzSave, &nSave);
-      patch.pop_back();  // j stays at the target
-      ++relaxTries_;
-      relaxed = true;
-      const std::size_t t1 =
-          placeAll({j}, {target}, face, surf) ? relaxPatch(patch, countTangled, t0) : t0;
-      patch.push_back(j);
-      if (t1 < t0) {
-        kept = true;
-        gained += t0 - t1;
-      } else {
-        restore(patch, uvSave, xyzSave, nSave);
-      }
-    }
+    if (g == 0) g = escapeByPatches(face, surf, relaxHere, x, &relaxed);
+    if (g == 0) g = escapeBySampling(e, face, surf, relaxHere, x, &relaxed);
+    gained += g;
+    const bool kept = g > 0;
     if (kept && backoff != s_.relaxBackoff.end()) s_.relaxBackoff.erase(backoff);
     if (kept && hBackoff != s_.harmonicBackoff.end()) s_.harmonicBackoff.erase(hBackoff);
     if (!kept && !relaxed) s_.harmonicBackoff[e].failed(sweep, s_.opt.deltaStallSweeps);
@@ -220,6 +67,152 @@ std::size_t NodeUpdater::escapeTangledElements(const std::vector<unsigned char>&
     }
   }
   return gained;
+}
+
+void NodeUpdater::growRing(std::vector<std::size_t>& nodes, int face) const {
+  const std::size_t n0 = nodes.size();
+  for (std::size_t q = 0; q < n0; ++q)
+    for (std::int64_t p = s_.begin(nodes[q]); p < s_.end(nodes[q]); ++p) {
+      const std::size_t f = static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
+      const std::int32_t* fn = s_.mesh.elementNodes(f);
+      for (int k = 0; k < s_.mesh.elementSize(f); ++k) {
+        const std::size_t j = static_cast<std::size_t>(fn[k]);
+        if (movableOn(j, face) && std::find(nodes.begin(), nodes.end(), j) == nodes.end())
+          nodes.push_back(j);
+      }
+    }
+}
+
+void NodeUpdater::harmonicLayout(EscapeScratch& x, int face, const Surface& surf) {
+  const std::vector<std::size_t>& patch = x.patch;
+  // Neighbour lists of the patch nodes (corners of their elements).
+  x.nbrOffset.assign(1, 0);
+  x.nbrIndex.clear();
+  x.nbrUV.clear();
+  for (std::size_t j : patch) {
+    for (std::int64_t p = s_.begin(j); p < s_.end(j); ++p) {
+      const std::size_t f = static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
+      const std::int32_t* fn = s_.mesh.elementNodes(f);
+      for (int k = 0; k < cornerCount(s_.mesh.elemType[f]); ++k) {
+        const std::size_t o = static_cast<std::size_t>(fn[k]);
+        if (o == j) continue;
+        const auto it = std::find(patch.begin(), patch.end(), o);
+        x.nbrIndex.push_back(it == patch.end() ? -1
+                                               : static_cast<std::int32_t>(it - patch.begin()));
+        x.nbrUV.push_back(cornerOnFace(f, k, face, surf, s_.uv[j]));
+      }
+    }
+    x.nbrOffset.push_back(static_cast<std::int64_t>(x.nbrIndex.size()));
+  }
+  // Gauss–Seidel on the uniform Laplacian of the patch (its outline held).
+  std::vector<Vec2>& iter = x.iter;
+  iter.clear();
+  for (std::size_t j : patch) iter.push_back(s_.uv[j]);
+  for (int sweep = 0; sweep < 200; ++sweep) {
+    double change = 0.0;
+    for (std::size_t q = 0; q < patch.size(); ++q) {
+      Vec2 c = Vec2::Zero();
+      const std::int64_t b0 = x.nbrOffset[q], b1 = x.nbrOffset[q + 1];
+      for (std::int64_t r = b0; r < b1; ++r) {
+        const std::int32_t o = x.nbrIndex[static_cast<std::size_t>(r)];
+        c += o < 0 ? x.nbrUV[static_cast<std::size_t>(r)]
+                   : surf.unwrapNear(iter[static_cast<std::size_t>(o)], iter[q]);
+      }
+      if (b1 > b0) {
+        c /= static_cast<double>(b1 - b0);
+        change = std::max(change, (c - iter[q]).lpNorm<Eigen::Infinity>());
+        iter[q] = c;
+      }
+    }
+    if (change == 0.0) break;
+  }
+}
+
+std::size_t NodeUpdater::escapeByPatches(int face, const Surface& surf, bool relaxHere,
+                                         EscapeScratch& x, bool* relaxed) {
+  std::vector<std::size_t>& patch = x.patch;
+  for (int ring = 0; ring <= 3; ++ring) {
+    if (ring > 0) {  // grow by one ring of Face nodes of this face
+      const std::size_t n0 = patch.size();
+      growRing(patch, face);
+      if (patch.size() == n0 || patch.size() > 256) break;
+    }
+    elementsAround(patch, &x.elems);
+    auto countTangled = [&]() { return tangledAmong(x.elems); };
+    const std::size_t t0 = countTangled();
+    if (t0 == 0) continue;  // nothing to gain here (the cache is from the last sweep)
+    harmonicLayout(x, face, surf);
+    straightSides(patch, face, surf, &x.iter);
+    // Place, count, keep or put back.
+    save(patch, &x.uvSave, &x.xyzSave, &x.nSave);
+    const bool ok = placeAll(patch, x.iter, face, surf);
+    const std::size_t t1 = ok ? countTangled() : t0;
+    if (ok && t1 < t0) return t0 - t1;
+    // The harmonic layout did not help (a non-convex outline in (u,v), or elements valid
+    // in (u,v) but not on the surface): untangle the patch by local Newton steps on f̂
+    // that may pass through tangled states, from the input positions and from the
+    // harmonic layout when it was placeable.
+    std::size_t t2 = t0;
+    if (!relaxHere || patch.size() > kMaxRelaxPatchNodes) {
+      restore(patch, x.uvSave, x.xyzSave, x.nSave);
+      continue;
+    }
+    if (ok && relaxTries_ < kMaxRelaxPatches) {
+      ++relaxTries_;
+      *relaxed = true;
+      t2 = relaxPatch(patch, countTangled, t0);
+      if (t2 < t0) return t0 - t2;
+    }
+    restore(patch, x.uvSave, x.xyzSave, x.nSave);
+    if (relaxTries_ < kMaxRelaxPatches) {
+      ++relaxTries_;
+      *relaxed = true;
+      t2 = relaxPatch(patch, countTangled, t0);
+      if (t2 < t0) return t0 - t2;
+      restore(patch, x.uvSave, x.xyzSave, x.nSave);
+    }
+  }
+  return 0;
+}
+
+std::size_t NodeUpdater::escapeBySampling(std::size_t e, int face, const Surface& surf,
+                                          bool relaxHere, EscapeScratch& x, bool* relaxed) {
+  const std::int32_t* nd = s_.mesh.elementNodes(e);
+  // Each Face node of the element alone, at the best point of a grid over its neighbours.
+  for (int k = 0; k < s_.mesh.elementSize(e); ++k) {
+    const std::size_t j = static_cast<std::size_t>(nd[k]);
+    if (!movableOn(j, face)) continue;
+    const std::size_t g = sampleNeighbourhood(j, face, surf);
+    if (g > 0) return g;
+  }
+  // Then, with the joint untangling allowed: a Face node of the element where the element
+  // is valid, the other Face nodes of its elements untangled around it (relaxPatch), kept
+  // when fewer elements around them all are tangled.
+  std::vector<std::size_t>& patch = x.patch;
+  for (int k = 0; k < s_.mesh.elementSize(e) && relaxHere; ++k) {
+    const std::size_t j = static_cast<std::size_t>(nd[k]);
+    Vec2 target;
+    if (!movableOn(j, face) || relaxTries_ >= kMaxRelaxPatches ||
+        !sampleNeighbourhood(j, face, surf, static_cast<std::int64_t>(e), &target))
+      continue;
+    patch.assign(1, j);
+    growRing(patch, face);
+    if (patch.size() == 1 || patch.size() - 1 > kMaxRelaxPatchNodes) continue;
+    std::rotate(patch.begin(), patch.begin() + 1, patch.end());  // j last
+    elementsAround(patch, &x.elems);
+    auto countTangled = [&]() { return tangledAmong(x.elems); };
+    const std::size_t t0 = countTangled();
+    save(patch, &x.uvSave, &x.xyzSave, &x.nSave);
+    patch.pop_back();  // j stays at the target
+    ++relaxTries_;
+    *relaxed = true;
+    const std::size_t t1 =
+        placeAll({j}, {target}, face, surf) ? relaxPatch(patch, countTangled, t0) : t0;
+    patch.push_back(j);
+    if (t1 < t0) return t0 - t1;
+    restore(patch, x.uvSave, x.xyzSave, x.nSave);
+  }
+  return 0;
 }
 
 std::size_t NodeUpdater::straightenHighOrder(const std::vector<unsigned char>& frozen,

@@ -13,6 +13,39 @@ constexpr double kFallbackEta = 4.0;
 /// The line search stops halving once the step's first-order 3D length is below this fraction
 /// of moveTol × the node's local size (moveTol = 0: it always runs maxLineSearch halvings).
 constexpr double kMinStepFraction = 0.1;
+
+namespace {
+
+/// The tangent basis of a Face node's (u,v) from its surface derivatives.
+Tangent tangentOf(const NodeD2& d) {
+  Tangent T;
+  T.du = d.du;
+  T.dv = d.dv;
+  T.metric(0, 0) = d.du.squaredNorm();
+  T.metric(0, 1) = T.metric(1, 0) = d.du.dot(d.dv);
+  T.metric(1, 1) = d.dv.squaredNorm();
+  return T;
+}
+
+/// The fallback steps of a Face node (updateFaceNode) in (u,v): along ±φ_u, ±φ_v and the
+/// diagonals, a quarter of the local size L long. False at a degenerate point.
+bool compassSteps(const NodeD2& d, double L, Vec2* dirs) {
+  const double lu = d.du.norm(), lv = d.dv.norm();
+  if (!(lu > 0.0 && lv > 0.0)) return false;
+  const Vec2 eu(0.25 * L / lu, 0.0), ev(0.0, 0.25 * L / lv);
+  dirs[0] = eu;
+  dirs[1] = -eu;
+  dirs[2] = ev;
+  dirs[3] = -ev;
+  dirs[4] = (eu + ev) * 0.7071067811865476;
+  dirs[5] = (eu - ev) * 0.7071067811865476;
+  dirs[6] = (ev - eu) * 0.7071067811865476;
+  dirs[7] = -(eu + ev) * 0.7071067811865476;
+  return true;
+}
+
+}  // namespace
+
 double NodeUpdater::updateFaceNode(std::size_t i) {
   const int face = s_.mesh.nodeFace[i];
   const Surface& surf = *w_.geo.surfaces[static_cast<std::size_t>(face)];
@@ -34,12 +67,7 @@ double NodeUpdater::updateFaceNode(std::size_t i) {
     const NodeD2& d = s_.d2[i];
     if (isDegenerate(d.du, d.dv)) return moved;  // a pole: stays fixed
     const Vec3 n0 = s_.nodeNormal[i];
-    Tangent T;
-    T.du = d.du;
-    T.dv = d.dv;
-    T.metric(0, 0) = d.du.squaredNorm();
-    T.metric(0, 1) = T.metric(1, 0) = d.du.dot(d.dv);
-    T.metric(1, 1) = d.dv.squaredNorm();
+    const Tangent T = tangentOf(d);
     Vec3 gx, hJ;
     const Vec3 x0 = s_.xyz[i];
     const LocalEval cur = evalLocal(
@@ -119,21 +147,11 @@ double NodeUpdater::updateFaceNode(std::size_t i) {
       // by untangling, where the barrier's curvature makes Newton steps tiny). Try steps
       // along ±φ_u, ±φ_v and the diagonals, a quarter of the local size long, and keep the
       // best acceptable (it must beat the Newton step's result).
-      const double lu = d.du.norm(), lv = d.dv.norm();
-      if (lu > 0.0 && lv > 0.0) {
-        const Vec2 eu(0.25 * L / lu, 0.0), ev(0.0, 0.25 * L / lv);
-        const Vec2 dirs[8] = {eu,
-                              -eu,
-                              ev,
-                              -ev,
-                              (eu + ev) * 0.7071067811865476,
-                              (eu - ev) * 0.7071067811865476,
-                              (ev - eu) * 0.7071067811865476,
-                              -(eu + ev) * 0.7071067811865476};
+      Vec2 dirs[8];
+      if (compassSteps(d, L, dirs))
         for (double scale : {1.0, 0.5, 0.25})
           for (const Vec2& dd : dirs)
             if (tryStep(scale * dd)) accepted = true;
-      }
     }
     const bool creeping =
         accepted && best.tangled >= cur.tangled && (dn.p - x0).norm() < s_.opt.moveTol * L;
@@ -147,34 +165,11 @@ double NodeUpdater::updateFaceNode(std::size_t i) {
       // quarter of the way there. The candidate leaving the fewest elements of the submesh
       // tangled (then the lowest f̂) is taken when it leaves fewer tangled than the current
       // position and the Newton step — strict progress, so it cannot cycle.
-      Vec2 targets[2];
-      int nt = 0;
-      if (kernelCenter(i, face, surf, uv0, d, orient, &targets[nt])) ++nt;
-      if (neighbourCentroid(i, face, surf, uv0, &targets[nt])) ++nt;
-      int bestTangled = accepted ? best.tangled : cur.tangled;
-      double bestF = kInf;
-      for (int k = 0; k < nt; ++k)
-        for (double a : {1.0, 0.5, 0.25}) {
-          const Vec2 uvT = surf.wrap(uv0 + a * (targets[k] - uv0));
-          if (!surf.containsNearBoundary(uvT.x(), uvT.y())) continue;
-          const SurfaceD2 dT = surf.d2(uvT.x(), uvT.y());
-          if (isDegenerate(dT.du, dT.dv)) continue;
-          const Vec3 cr = dT.du.cross(dT.dv);
-          const Vec3 nT = (orient / cr.norm()) * cr;
-          const LocalEval tr = evalLocal(
-              i, dT.p, [&](std::size_t) { return nT; }, zero, false, nullptr, nullptr, nullptr);
-          if (!tr.finite) continue;
-          if (tr.tangled < bestTangled ||
-              (tr.tangled == bestTangled && tr.f < bestF && bestF < kInf)) {
-            bestTangled = tr.tangled;
-            bestF = tr.f;
-            accepted = true;
-            acceptedStep = Vec2::Zero();
-            uvNew = uvT;
-            dn = dT;
-            nn = nT;
-          }
-        }
+      if (foldTarget(i, face, surf, uv0, d, orient, accepted ? best.tangled : cur.tangled, &uvNew,
+                     &dn, &nn)) {
+        accepted = true;
+        acceptedStep = Vec2::Zero();
+      }
     }
     const bool newton = accepted && acceptedStep == newtonStep;
     s_.lastStep[i] = newton ? Eigen::Vector2f(newtonStep.cast<float>()) : Eigen::Vector2f::Zero();
@@ -189,6 +184,40 @@ double NodeUpdater::updateFaceNode(std::size_t i) {
     if (step < 1e-14 * L) break;
   }
   return moved;
+}
+
+bool NodeUpdater::foldTarget(std::size_t i, int face, const Surface& surf, const Vec2& uv0,
+                             const NodeD2& d, double orient, int threshold, Vec2* uv, SurfaceD2* dn,
+                             Vec3* nn) {
+  auto zero = [](std::size_t) { return Vec3::Zero().eval(); };
+  Vec2 targets[2];
+  int nt = 0;
+  if (kernelCenter(i, face, surf, uv0, d, orient, &targets[nt])) ++nt;
+  if (neighbourCentroid(i, face, surf, uv0, &targets[nt])) ++nt;
+  int bestTangled = threshold;
+  double bestF = kInf;
+  bool found = false;
+  for (int k = 0; k < nt; ++k)
+    for (double a : {1.0, 0.5, 0.25}) {
+      const Vec2 uvT = surf.wrap(uv0 + a * (targets[k] - uv0));
+      if (!surf.containsNearBoundary(uvT.x(), uvT.y())) continue;
+      const SurfaceD2 dT = surf.d2(uvT.x(), uvT.y());
+      if (isDegenerate(dT.du, dT.dv)) continue;
+      const Vec3 cr = dT.du.cross(dT.dv);
+      const Vec3 nT = (orient / cr.norm()) * cr;
+      const LocalEval tr = evalLocal(
+          i, dT.p, [&](std::size_t) { return nT; }, zero, false, nullptr, nullptr, nullptr);
+      if (!tr.finite) continue;
+      if (tr.tangled < bestTangled || (tr.tangled == bestTangled && tr.f < bestF && bestF < kInf)) {
+        bestTangled = tr.tangled;
+        bestF = tr.f;
+        found = true;
+        *uv = uvT;
+        *dn = dT;
+        *nn = nT;
+      }
+    }
+  return found;
 }
 
 double NodeUpdater::updateEdgeNode(std::size_t i) {

@@ -45,6 +45,42 @@ class NodeUpdater {
   std::size_t escapeTangledElements(const std::vector<unsigned char>& frozen, bool relax, int sweep,
                                     int epsilonLevel, const std::vector<unsigned char>& held);
 
+  /// Work arrays of escapeTangledElements, reused across its elements.
+  struct EscapeScratch {
+    std::vector<std::size_t> patch, elems;
+    std::vector<Vec2> uvSave, iter;
+    std::vector<Vec3> xyzSave, nSave;
+    std::vector<std::int64_t> nbrOffset;
+    std::vector<std::int32_t> nbrIndex;  // index in the patch, −1 for a held node
+    std::vector<Vec2> nbrUV;             // held neighbours: their (u,v) next to the node's
+  };
+
+  /// Whether node j is a Face node of `face` (what the escapes of its elements move).
+  bool movableOn(std::size_t j, int face) const {
+    return s_.mesh.nodeKind[j] == NodeKind::Face && s_.mesh.nodeFace[j] == face;
+  }
+
+  /// Adds to `nodes` the Face nodes of `face` of the elements around them (one ring).
+  void growRing(std::vector<std::size_t>& nodes, int face) const;
+
+  /// x.iter: the harmonic (uniform Tutte) layout in (u,v) of the patch x.patch of Face nodes
+  /// of `face`, the nodes around it held (Gauss–Seidel on the uniform Laplacian).
+  void harmonicLayout(EscapeScratch& x, int face, const Surface& surf);
+
+  /// escapeTangledElements' patches around a tangled element (its Face nodes x.patch, then
+  /// with 1, 2, 3 rings): the harmonic layout, then (`relaxHere`) the joint untangling by
+  /// relaxPatch from it and from the current positions. Returns the elements untangled by the
+  /// first patch kept (0: none; the positions as they were); *relaxed when relaxPatch ran.
+  std::size_t escapeByPatches(int face, const Surface& surf, bool relaxHere, EscapeScratch& x,
+                              bool* relaxed);
+
+  /// escapeTangledElements' last resort for tangled element e: each of its Face nodes alone at
+  /// the best point of a grid over its neighbours (sampleNeighbourhood); then, with
+  /// `relaxHere`, a Face node where e is valid and the Face nodes around it untangled
+  /// (relaxPatch). Returns the elements untangled (0: none; the positions as they were).
+  std::size_t escapeBySampling(std::size_t e, int face, const Surface& surf, bool relaxHere,
+                               EscapeScratch& x, bool* relaxed);
+
   /// Straightens tangled high-order triangles and quad8 in (u,v): a curved element whose
   /// corner triangle (quad8: each corner's triangle of its corner quadrilateral) is valid but
   /// whose edge or interior nodes fold it (a mesher's second-order nodes projected across a
@@ -328,6 +364,14 @@ class NodeUpdater {
 
   double updateFaceNode(std::size_t i);
 
+  /// Where a Face node of `face` at uv0 (surface derivatives d, orientation `orient`) whose
+  /// fold the Newton step cannot open goes (updateFaceNode): the candidate among the centre of
+  /// its kernel in (u,v) (kernelCenter), the parametric centroid of its neighbours
+  /// (neighbourCentroid) and the points halfway and a quarter of the way there that leaves the
+  /// fewest elements of its submesh tangled (then the lowest f̂), when fewer than `threshold`.
+  /// Fills *uv, *dn, *nn (its parameters, derivatives and normal); false when none does.
+  bool foldTarget(std::size_t i, int face, const Surface& surf, const Vec2& uv0, const NodeD2& d,
+                  double orient, int threshold, Vec2* uv, SurfaceD2* dn, Vec3* nn);
   double updateEdgeNode(std::size_t i);
 
   /// The corner normals of sliding node i in each incident element at curve parameter t, into

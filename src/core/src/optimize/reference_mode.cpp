@@ -159,6 +159,60 @@ void placeStraightSided(SurfaceMesh& mesh, const SurfaceMesh& L) {
   }
 }
 
+/// The elements around each node.
+std::vector<std::vector<std::int32_t>> nodeElements(const SurfaceMesh& mesh) {
+  std::vector<std::vector<std::int32_t>> nodeElems(mesh.nodeCount());
+  for (std::size_t e = 0; e < mesh.elementCount(); ++e)
+    for (int k = 0; k < mesh.elementSize(e); ++k)
+      nodeElems[static_cast<std::size_t>(mesh.elementNodes(e)[k])].push_back(
+          static_cast<std::int32_t>(e));
+  return nodeElems;
+}
+
+/// Stage 3's fixedNodes: every node held (1) but those of the elements invalid in q1 (tangled
+/// or standing across) and of the elements within `rings` rings around them, and the
+/// high-order nodes on CAD edges. *any: whether a freed node may move.
+std::vector<unsigned char> heldOutside(const SurfaceMesh& mesh, const MeshQuality& q1,
+                                       const std::vector<std::vector<std::int32_t>>& nodeElems,
+                                       int rings, bool* any) {
+  std::vector<unsigned char> region(mesh.elementCount(), 0);
+  for (std::size_t e = 0; e < mesh.elementCount(); ++e)
+    region[e] = (q1.tangled[e] || q1.across[e]) ? 1 : 0;
+  for (int r = 0; r < rings; ++r) {
+    std::vector<unsigned char> next = region;
+    for (std::size_t e = 0; e < mesh.elementCount(); ++e) {
+      if (!region[e]) continue;
+      for (int k = 0; k < mesh.elementSize(e); ++k)
+        for (std::int32_t f : nodeElems[static_cast<std::size_t>(mesh.elementNodes(e)[k])])
+          next[static_cast<std::size_t>(f)] = 1;
+    }
+    region.swap(next);
+  }
+  std::vector<unsigned char> held(mesh.nodeCount(), 1);
+  *any = false;
+  for (std::size_t e = 0; e < mesh.elementCount(); ++e) {
+    const std::int32_t* nd = mesh.elementNodes(e);
+    const int nc = cornerCount(mesh.elemType[e]);
+    for (int k = 0; k < mesh.elementSize(e); ++k) {
+      const std::size_t j = static_cast<std::size_t>(nd[k]);
+      if (region[e] || (k >= nc && mesh.nodeKind[j] == NodeKind::Edge)) {
+        held[j] = 0;
+        *any = *any || mesh.nodeKind[j] != NodeKind::Fixed;
+      }
+    }
+  }
+  return held;
+}
+
+/// Whether an element valid in the input (q0) is invalid in q, and how many are (*invalid).
+bool judge(const SurfaceMesh& mesh, const MeshQuality& q0, const MeshQuality& q,
+           std::size_t* invalid) {
+  *invalid = invalidCount(q);
+  for (std::size_t e = 0; e < mesh.elementCount(); ++e)
+    if ((q.tangled[e] || q.across[e]) && !(q0.tangled[e] || q0.across[e])) return true;
+  return false;
+}
+
 }  // namespace
 
 bool hasCurvedElements(const SurfaceMesh& mesh) {
@@ -224,57 +278,17 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
   // makes an element of the input invalid.
   const MeshQuality q1 = measureQuality(mesh, measure);
   const Positions placed = Positions::of(mesh);
-  std::vector<std::vector<std::int32_t>> nodeElems(mesh.nodeCount());
-  for (std::size_t e = 0; e < mesh.elementCount(); ++e)
-    for (int k = 0; k < mesh.elementSize(e); ++k)
-      nodeElems[static_cast<std::size_t>(mesh.elementNodes(e)[k])].push_back(
-          static_cast<std::int32_t>(e));
-  auto freeNodes = [&](int rings, bool* any) {
-    std::vector<unsigned char> region(mesh.elementCount(), 0);
-    for (std::size_t e = 0; e < mesh.elementCount(); ++e)
-      region[e] = (q1.tangled[e] || q1.across[e]) ? 1 : 0;
-    for (int r = 0; r < rings; ++r) {
-      std::vector<unsigned char> next = region;
-      for (std::size_t e = 0; e < mesh.elementCount(); ++e) {
-        if (!region[e]) continue;
-        for (int k = 0; k < mesh.elementSize(e); ++k)
-          for (std::int32_t f : nodeElems[static_cast<std::size_t>(mesh.elementNodes(e)[k])])
-            next[static_cast<std::size_t>(f)] = 1;
-      }
-      region.swap(next);
-    }
-    std::vector<unsigned char> held(mesh.nodeCount(), 1);
-    *any = false;
-    for (std::size_t e = 0; e < mesh.elementCount(); ++e) {
-      const std::int32_t* nd = mesh.elementNodes(e);
-      const int nc = cornerCount(mesh.elemType[e]);
-      for (int k = 0; k < mesh.elementSize(e); ++k) {
-        const std::size_t j = static_cast<std::size_t>(nd[k]);
-        if (region[e] || (k >= nc && mesh.nodeKind[j] == NodeKind::Edge)) {
-          held[j] = 0;
-          *any = *any || mesh.nodeKind[j] != NodeKind::Fixed;
-        }
-      }
-    }
-    return held;
-  };
-  // Whether an element valid in the input is invalid now, and how many are invalid.
-  auto judge = [&](const MeshQuality& q, std::size_t* invalid) {
-    *invalid = invalidCount(q);
-    for (std::size_t e = 0; e < mesh.elementCount(); ++e)
-      if ((q.tangled[e] || q.across[e]) && !(q0.tangled[e] || q0.across[e])) return true;
-    return false;
-  };
+  const std::vector<std::vector<std::int32_t>> nodeElems = nodeElements(mesh);
   OptimizeResult r2;
   bool ran2 = false;
   MeshQuality q2 = q1;
   std::size_t invalid2 = 0;
-  bool madeInvalid = judge(q2, &invalid2);
+  bool madeInvalid = judge(mesh, q0, q2, &invalid2);
   for (int rings : {1, 3}) {
     if (ran2 && !madeInvalid) break;
     bool any = false;
     OptimizeOptions rest = inner;
-    rest.fixedNodes = freeNodes(rings, &any);
+    rest.fixedNodes = heldOutside(mesh, q1, nodeElems, rings, &any);
     if (!any) break;
     placed.restore(mesh);
     try {
@@ -295,7 +309,7 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
       return res;
     }
     q2 = measureQuality(mesh, measure);
-    madeInvalid = judge(q2, &invalid2);
+    madeInvalid = judge(mesh, q0, q2, &invalid2);
   }
   // 4. Never worse: no element valid in the input invalid, no more invalid elements, no lower
   // minimum quality without tangled elements in the input (the monotone mode's guarantee), on
