@@ -281,10 +281,11 @@ struct State {
   }
 
   /// evalElement with the Hessian projected on the tangent basis T (as (h00, h01, h11)).
-  ElemOut evalElementUV(std::size_t e, int local, const Vec3& x, const Vec3& n, double delta,
-                        bool wantEta0, const Tangent& T, Vec3* grad, Vec3* hessUV,
-                        const HighOrderJacobians* pre = nullptr,
-                        const Vec3* corners = nullptr) const {
+  SURFMESH_HOT_INLINE ElemOut evalElementUV(std::size_t e, int local, const Vec3& x, const Vec3& n,
+                                            double delta, bool wantEta0, const Tangent& T,
+                                            Vec3* grad, Vec3* hessUV,
+                                            const HighOrderJacobians* pre = nullptr,
+                                            const Vec3* corners = nullptr) const {
     if (mesh.elemType[e] == ElementType::Tri3) {
       const std::int32_t* nd = mesh.elementNodes(e);
       const int k1 = local == 2 ? 0 : local + 1, k2 = local == 0 ? 2 : local - 1;

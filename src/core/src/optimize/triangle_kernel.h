@@ -9,6 +9,11 @@
 #include <cmath>
 #include <limits>
 
+/// The hot path's small functions that were file-local before the optimizer was split: GCC
+/// inlined them into their one caller then, and keeps them out of line at -O2 now that they
+/// have (vague) external linkage; this keeps them inlined.
+#define SURFMESH_HOT_INLINE [[gnu::always_inline]] inline
+
 namespace surfmesh {
 namespace detail {
 
@@ -224,10 +229,11 @@ inline Vec3 sym2(double a, double b, double c, const Vec2& x, const Vec2& y) {
 
 /// triangleCore with the 3D gradient and the Hessian projected on the tangent basis, Jᵀ H J,
 /// assembled from projected vectors (2×2 arithmetic instead of 3×3).
-inline ElemOut triangleKernelUV(const PlanarMeasure& m, const Vec3& x0, const Vec3& x1,
-                                const Vec3& x2, const Vec3& n, double delta, bool wantEta0,
-                                const Tangent& T, Vec3* grad, Vec3* hessUV, bool projected = false,
-                                const Vec3* corners = nullptr) {
+SURFMESH_HOT_INLINE ElemOut triangleKernelUV(const PlanarMeasure& m, const Vec3& x0, const Vec3& x1,
+                                             const Vec3& x2, const Vec3& n, double delta,
+                                             bool wantEta0, const Tangent& T, Vec3* grad,
+                                             Vec3* hessUV, bool projected = false,
+                                             const Vec3* corners = nullptr) {
   TriPieces P;
   const ElemOut r = triangleCore(m, x0, x1, x2, n, delta, wantEta0, &P, projected, corners);
   if (std::isfinite(r.eta)) {
@@ -249,7 +255,7 @@ inline ElemOut triangleKernelUV(const PlanarMeasure& m, const Vec3& x0, const Ve
 
 /// Closed-form symmetric 2×2 eigen-decomposition → safeguarded Newton direction −|H|⁻¹ g
 /// (eigenvalues replaced by their absolute values, floored at 1e-8 of the largest).
-inline Vec2 newtonDirection(const Vec2& g, const Mat2& Hin) {
+SURFMESH_HOT_INLINE Vec2 newtonDirection(const Vec2& g, const Mat2& Hin) {
   const double a = Hin(0, 0), b = 0.5 * (Hin(0, 1) + Hin(1, 0)), c = Hin(1, 1);
   const double tr = 0.5 * (a + c), df = 0.5 * (a - c);
   const double rad = std::sqrt(df * df + b * b);
