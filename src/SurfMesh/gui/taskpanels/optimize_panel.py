@@ -125,6 +125,17 @@ class OptimizePanel:
             "brings it back")
         if self.analysis is not None:
             lay.addRow(self.replace)
+        lay.addRow(self._build_advanced(last))
+        # what a run disables while it lasts
+        self.inputs = [self.measure, self.boundary, self.high_order, self.topology, self.faces,
+                       self.max_sweeps, self.monotone, self.replace, self.tolerance,
+                       self.rel_tol, self.over_relaxation, self.threads]
+        self._add_run_controls(lay)
+        return w
+
+    def _build_advanced(self, last):
+        """The "Advanced" group: distance to the part, stopping tolerance, over-relaxation,
+        threads (``last``: the settings of the last run applied)."""
         advanced = QtGui.QGroupBox("Advanced")
         advanced.setObjectName("advanced")
         adv = QtGui.QFormLayout(advanced)
@@ -165,11 +176,10 @@ class OptimizePanel:
         self.threads.setToolTip("Processor threads the run uses (the result does not depend on "
                                 "it)")
         adv.addRow("Threads", self.threads)
-        lay.addRow(advanced)
-        # what a run disables while it lasts
-        self.inputs = [self.measure, self.boundary, self.high_order, self.topology, self.faces,
-                       self.max_sweeps, self.monotone, self.replace, self.tolerance,
-                       self.rel_tol, self.over_relaxation, self.threads]
+        return advanced
+
+    def _add_run_controls(self, lay):
+        """The progress bar, the status line, the Stop button and the (hidden) result table."""
         self.bar = QtGui.QProgressBar()
         self.bar.setObjectName("progress")
         self.bar.setRange(0, 100)
@@ -189,7 +199,6 @@ class OptimizePanel:
         self.result_grid = QtGui.QGridLayout(self.result_box)
         self.result_box.setVisible(False)
         lay.addRow(self.result_box)
-        return w
 
     def _show_result(self, new):
         """Fills the "Result" table (once: the panel closes after its run) with what the run
