@@ -19,7 +19,9 @@
 // maxSweeps, the measure, the monotone option, moveTol and overRelaxation; BENCH_REPEAT=n optimizes
 // n − 1 copies of the mesh first (profiling); BENCH_BOUNDARY ("fixed" or "slide") the boundary mode
 // of the CAD recovery; BENCH_TRACE=1 prints each sweep's progress on stderr; BENCH_TOPOLOGY=flip
-// adds edge flips (OUT.bin then has the rewired elements' node lists).
+// adds edge flips (OUT.bin then has the rewired elements' node lists); BENCH_WITHOUT=widen,relax
+// turns those escapes off (kEscapeNames; "all": every one), for ablations; BENCH_WORST=k (measure)
+// prints the k worst elements on stderr with where their nodes lie.
 #include "bench_common.h"
 #include "surfmesh/cad/cad_bridge.h"
 #include "surfmesh/cad/cad_shape.h"
@@ -32,6 +34,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <iterator>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -130,6 +133,27 @@ MeshInput inputWithoutDuplicates(const Dump& d, std::size_t* leftOut,
 
 }  // namespace
 
+/// The Escape bits named in a comma-separated list of kEscapeNames ("all": every escape).
+unsigned escapeBits(const std::string& list) {
+  unsigned bits = 0;
+  std::size_t a = 0;
+  while (a <= list.size()) {
+    const std::size_t b = std::min(list.find(',', a), list.size());
+    const std::string name = list.substr(a, b - a);
+    a = b + 1;
+    if (name.empty()) continue;
+    if (name == "all") {
+      bits |= kAllEscapes;
+      continue;
+    }
+    const auto* it = std::find_if(std::begin(kEscapeNames), std::end(kEscapeNames),
+                                  [&](const char* n) { return name == n; });
+    if (it == std::end(kEscapeNames)) throw std::invalid_argument("unknown escape: " + name);
+    bits |= 1u << (it - std::begin(kEscapeNames));
+  }
+  return bits;
+}
+
 int main(int argc, char** argv) {
   if (argc < 4) {
     std::fprintf(stderr, "usage: bench_cad measure|optimize SHAPE MESH.bin [OUT.bin THREADS]\n");
@@ -207,6 +231,7 @@ int main(int argc, char** argv) {
     if (const char* v = std::getenv("BENCH_MOVETOL")) opt.moveTol = std::atof(v);
     if (const char* v = std::getenv("BENCH_OMEGA")) opt.overRelaxation = std::atof(v);
     if (const char* v = std::getenv("BENCH_TOPOLOGY")) opt.topology = v;
+    if (const char* v = std::getenv("BENCH_WITHOUT")) opt.escapes &= ~escapeBits(v);
     // Floors of the speed issue (bench_common.h): one first-derivative evaluation per Face
     // node, and that plus one value of each triangle around it.
     const Floors floors = measureFloors(m);

@@ -36,7 +36,8 @@ std::size_t NodeUpdater::escapeTangledElements(const std::vector<unsigned char>&
     std::size_t g = 0;
     bool relaxed = false;
     auto wBackoff = s_.widenBackoff.find(e);
-    if (relaxHere && !held[e] &&  // (a held element cannot become valid)
+    if ((s_.opt.escapes & kEscapeWiden) && relaxHere &&
+        !held[e] &&  // (a held element cannot become valid)
         (wBackoff == s_.widenBackoff.end() || sweep >= wBackoff->second.nextSweep)) {
       // e's own nodes, then with the Face nodes of the elements around them
       g = widenElement(e, patch, face, surf);
@@ -141,11 +142,14 @@ std::size_t NodeUpdater::escapeByPatches(int face, const Surface& surf, bool rel
     auto countTangled = [&]() { return tangledAmong(x.elems); };
     const std::size_t t0 = countTangled();
     if (t0 == 0) continue;  // nothing to gain here (the cache is from the last sweep)
-    harmonicLayout(x, face, surf);
-    straightSides(patch, face, surf, &x.iter);
+    const bool layout = (s_.opt.escapes & kEscapeHarmonic) != 0;
+    if (layout) {
+      harmonicLayout(x, face, surf);
+      straightSides(patch, face, surf, &x.iter);
+    }
     // Place, count, keep or put back.
     save(patch, &x.uvSave, &x.xyzSave, &x.nSave);
-    const bool ok = placeAll(patch, x.iter, face, surf);
+    const bool ok = layout && placeAll(patch, x.iter, face, surf);
     const std::size_t t1 = ok ? countTangled() : t0;
     if (ok && t1 < t0) return t0 - t1;
     // The harmonic layout did not help (a non-convex outline in (u,v), or elements valid
@@ -153,7 +157,7 @@ std::size_t NodeUpdater::escapeByPatches(int face, const Surface& surf, bool rel
     // that may pass through tangled states, from the input positions and from the
     // harmonic layout when it was placeable.
     std::size_t t2 = t0;
-    if (!relaxHere || patch.size() > kMaxRelaxPatchNodes) {
+    if (!relaxHere || patch.size() > kMaxRelaxPatchNodes || !(s_.opt.escapes & kEscapeRelaxPatch)) {
       restore(patch, x.uvSave, x.xyzSave, x.nSave);
       continue;
     }
@@ -177,6 +181,7 @@ std::size_t NodeUpdater::escapeByPatches(int face, const Surface& surf, bool rel
 
 std::size_t NodeUpdater::escapeBySampling(std::size_t e, int face, const Surface& surf,
                                           bool relaxHere, EscapeScratch& x, bool* relaxed) {
+  if (!(s_.opt.escapes & kEscapeSample)) return 0;
   const std::int32_t* nd = s_.mesh.elementNodes(e);
   // Each Face node of the element alone, at the best point of a grid over its neighbours.
   for (int k = 0; k < s_.mesh.elementSize(e); ++k) {
@@ -189,7 +194,8 @@ std::size_t NodeUpdater::escapeBySampling(std::size_t e, int face, const Surface
   // is valid, the other Face nodes of its elements untangled around it (relaxPatch), kept
   // when fewer elements around them all are tangled.
   std::vector<std::size_t>& patch = x.patch;
-  for (int k = 0; k < s_.mesh.elementSize(e) && relaxHere; ++k) {
+  const bool relaxAllowed = relaxHere && (s_.opt.escapes & kEscapeRelaxPatch);
+  for (int k = 0; k < s_.mesh.elementSize(e) && relaxAllowed; ++k) {
     const std::size_t j = static_cast<std::size_t>(nd[k]);
     Vec2 target;
     if (!movableOn(j, face) || relaxTries_ >= kMaxRelaxPatches ||

@@ -148,14 +148,15 @@ double NodeUpdater::updateFaceNode(std::size_t i) {
       // along ±φ_u, ±φ_v and the diagonals, a quarter of the local size long, and keep the
       // best acceptable (it must beat the Newton step's result).
       Vec2 dirs[8];
-      if (compassSteps(d, L, dirs))
+      if ((s_.opt.escapes & kEscapeCompass) && compassSteps(d, L, dirs))
         for (double scale : {1.0, 0.5, 0.25})
           for (const Vec2& dd : dirs)
             if (tryStep(scale * dd)) accepted = true;
     }
     const bool creeping =
         accepted && best.tangled >= cur.tangled && (dn.p - x0).norm() < s_.opt.moveTol * L;
-    if (s_.deltaHat > 0.0 && cur.tangled > 0 && (!accepted || creeping)) {
+    if (s_.deltaHat > 0.0 && cur.tangled > 0 && (!accepted || creeping) &&
+        (s_.opt.escapes & kEscapeFoldTarget)) {
       // A fold the local Newton step cannot open (every step that lowers f̂ tangles another
       // element of the submesh, or the steps only creep towards a local minimum of f̂ with
       // an element still tangled — e.g. the node pulled onto the face boundary next to a
@@ -285,13 +286,13 @@ double NodeUpdater::updateEdgeNode(std::size_t i) {
     keepTrial();
     double tb = tn;
     if (s_.deltaHat > 0.0 && cur.tangled > 0 && tr.tangled >= cur.tangled &&
-        (xn - x0).norm() < s_.opt.moveTol * L)
+        (xn - x0).norm() < s_.opt.moveTol * L && (s_.opt.escapes & kEscapeSlide))
       slideEscape(i, curve, lo + margin, hi - margin, tr.tangled, &tb);
     if (tb == tn) s_.lastStep[i].x() = static_cast<float>(tn - t0);
     return commitEdgeMove(i, curve, tb, x0);
   }
   double tb = t0;
-  if (s_.deltaHat > 0.0 && cur.tangled > 0 &&
+  if (s_.deltaHat > 0.0 && cur.tangled > 0 && (s_.opt.escapes & kEscapeSlide) &&
       slideEscape(i, curve, lo + margin, hi - margin, cur.tangled, &tb))
     return commitEdgeMove(i, curve, tb, x0);
   return 0.0;

@@ -322,7 +322,9 @@ void SweepRun::sweepColor(const std::vector<std::int32_t>& color) {
 /// NodeUpdater::escapeTangledElements); returns the elements they untangled.
 std::size_t SweepRun::escape(int stuckSweeps, int sweep, int epsilonLevel) {
   NodeUpdater up(s_, *workers_[0]);
-  std::size_t gained = s_.allTri3 ? 0 : up.straightenHighOrder(noEscape_, true);
+  std::size_t gained = s_.allTri3 || !(opt_.escapes & kEscapeStraighten)
+                           ? 0
+                           : up.straightenHighOrder(noEscape_, true);
   gained += up.escapeTangledElements(noEscape_, stuckSweeps >= 3, sweep, epsilonLevel, frozen_);
   return gained;
 }
@@ -361,7 +363,7 @@ OptimizeResult SweepRun::run(OptimizeResult res, MeshPositions* previous,
   freezeScales();
   setDeltaScales();
   // Tangled high-order triangles with valid corners: straight sides in (u,v) first.
-  if (!s_.allTri3 && movable_ > 0 && opt_.maxSweeps > 0)
+  if (!s_.allTri3 && movable_ > 0 && opt_.maxSweeps > 0 && (opt_.escapes & kEscapeStraighten))
     NodeUpdater(s_, *workers_[0]).straightenHighOrder(frozen_, false);
   holdFolds();
   GlobalEval g = fullEval(0.0);

@@ -83,6 +83,33 @@
 
 namespace surfmesh {
 
+/// The escapes of the sweeps from states the node-by-node Newton steps cannot leave with
+/// elements tangled, one bit each of OptimizeOptions::escapes. Every escape keeps a move only
+/// when fewer elements around it are tangled (strict progress).
+enum Escape : unsigned {
+  /// Curved elements' movable high-order nodes at their straight-sided places in (u,v).
+  kEscapeStraighten = 1u << 0,
+  /// A joint compass search over a stuck element's nodes (and one ring around them).
+  kEscapeWiden = 1u << 1,
+  /// The harmonic layout in (u,v) of a patch of 0–3 rings around a stuck element.
+  kEscapeHarmonic = 1u << 2,
+  /// The joint untangling of such a patch by Newton steps that may pass through folds.
+  kEscapeRelaxPatch = 1u << 3,
+  /// A stuck element's node at the best point of a grid over its neighbours.
+  kEscapeSample = 1u << 4,
+  /// A Face node's kernel centre or its neighbours' centroid when its Newton step stalls.
+  kEscapeFoldTarget = 1u << 5,
+  /// A Face node's fallback steps along ±φ_u, ±φ_v and the diagonals in a poor submesh.
+  kEscapeCompass = 1u << 6,
+  /// A sliding node's scan of its interval on its CAD edge when its Newton step stalls.
+  kEscapeSlide = 1u << 7,
+  kAllEscapes = (1u << 8) - 1,
+};
+
+/// The escapes' names, in the order of their bits (kEscapeNames[k] is bit 1 << k).
+inline constexpr const char* kEscapeNames[] = {"straighten", "widen",       "harmonic", "relax",
+                                               "sample",     "fold-target", "compass",  "slide"};
+
 struct OptimizeOptions {
   /// Distortion measure (a name of measureNames()).
   std::string measure = "shape";
@@ -170,6 +197,9 @@ struct OptimizeOptions {
   ///    faces are kept; only the two elements' node lists change (OptimizeResult::
   ///    rewiredElements). Quadrilaterals and triangles of order 3 and more are not flipped.
   std::string topology = "none";
+  /// The escapes the sweeps may take (Escape bits, all by default). For ablation studies
+  /// (bench_cad's BENCH_WITHOUT): not offered by the bindings.
+  unsigned escapes = kAllEscapes;
   /// Empty, or one entry per node: nonzero for the nodes the run must leave where they are
   /// (held like CAD vertices; e.g. the nodes of the elements outside a region to optimize).
   std::vector<unsigned char> fixedNodes;
