@@ -1,7 +1,8 @@
 // SurfMesh — the CAD bridge (see cad_bridge.h for the algorithm).
 #include "surfmesh/cad/cad_bridge.h"
 
-#include "projector.h"
+#include "recovery.h"
+#include "winding.h"
 
 #include <BRep_Tool.hxx>
 #include <Standard_Failure.hxx>
@@ -22,331 +23,28 @@ namespace surfmesh {
 
 using cad_detail::Box;
 using cad_detail::BoxGrid;
+using cad_detail::EdgePair;
+using cad_detail::ElementEdges;
+using cad_detail::elementEdges;
 using cad_detail::FaceHit;
+using cad_detail::faceName;
+using cad_detail::faceNames;
+using cad_detail::faceWindingSigns;
+using cad_detail::fail;
+using cad_detail::givenHint;
+using cad_detail::includesAll;
+using cad_detail::kHighOrderReach;
 using cad_detail::kInf;
 using cad_detail::kNaN;
+using cad_detail::looseNodesNote;
+using cad_detail::manifoldEdgePairs;
+using cad_detail::miswoundElements;
 using cad_detail::parallelFor;
 using cad_detail::Projector;
 using cad_detail::projectorGeometry;
 using cad_detail::ProjectorPool;
+using cad_detail::settleDoubtfulFaces;
 using cad_detail::toBox;
-
-namespace {
-
-/// Faces named as users know them: by their 1-based position in the shape's face map
-/// (TopExp::MapShapes order, FreeCAD's Face1, Face2, ...), where the core counts from 0.
-std::string faceName(int f) { return "Face" + std::to_string(f + 1); }
-
-std::string faceNames(const std::vector<int>& v) {
-  std::string s;
-  for (std::size_t i = 0; i < v.size(); ++i)
-    s += (i ? (i + 1 == v.size() ? " and " : ", ") : "") + faceName(v[i]);
-  return s.empty() ? "no face" : s;
-}
-
-/// Whether the caller gave node n a hint (a vertex, edge or face of its own; the tolerance
-/// rule's are not given ones).
-bool givenHint(const MeshInput& input, std::size_t n) {
-  return (!input.hintVertex.empty() && input.hintVertex[n] >= 0) ||
-         (!input.hintEdge.empty() && input.hintEdge[n] >= 0) ||
-         (!input.hintFace.empty() && input.hintFace[n] >= 0);
-}
-
-bool includesAll(const std::vector<int>& sortedSuper, const std::vector<int>& sortedSub) {
-  return std::includes(sortedSuper.begin(), sortedSuper.end(), sortedSub.begin(), sortedSub.end());
-}
-
-// Local node index pairs of the element's boundary edges, with the high-order nodes on each
-// edge (Gmsh ordering: corners, then edge nodes edge by edge).
-struct ElementEdges {
-  int corners = 3;
-  int perEdge = 0;  // high-order nodes per edge
-};
-
-ElementEdges elementEdges(ElementType t) {
-  ElementEdges r;
-  r.corners = cornerCount(t);
-  r.perEdge = t == ElementType::Quad4 ? 0 : elementOrder(t) - 1;
-  return r;
-}
-
-void fail(const std::string& msg) { throw std::invalid_argument(msg); }
-
-/// A high-order element's side and interior nodes (those that are no element's corner) may lie
-/// up to this fraction of the element's longest corner-to-corner side off its face, beyond the
-/// tolerance. A mesher that curves an element puts a side node on the face's surface at the
-/// midpoint of its ends in (u,v) (Gmsh), which can fall outside the face's trimmed domain:
-/// by the sagitta of the face's boundary over the side where that boundary is concave, or
-/// onto a neighbouring face of the same surface (Gmsh's order-2 meshes of eight of the twelve
-/// CAD parts at diagonal / 17 have such nodes, up to 0.49 × the side off their element's
-/// face). Such a node is taken at its nearest point on the element's face; the corners of
-/// every element must still lie within the tolerance (a mesh of another shape, or placed
-/// elsewhere, is refused as before).
-constexpr double kHighOrderReach = 1.0;
-
-/// A corner edge used by exactly two elements: whether they run along it in opposite
-/// directions (wound alike) or in the same one (wound oppositely).
-struct EdgePair {
-  std::int32_t e0, e1;
-  bool alike;
-};
-
-/// The manifold corner edges of the mesh (edges of two distinct elements), in node order.
-std::vector<EdgePair> manifoldEdgePairs(const MeshInput& input,
-                                        const std::vector<std::int64_t>& offsets) {
-  struct Side {
-    std::uint64_t key;  // the edge's two nodes, smaller first
-    std::int32_t elem;
-    std::int32_t dir;  // +1 when the element runs from the smaller node to the larger one
-  };
-  std::vector<Side> sides;
-  sides.reserve(input.conn.size());
-  for (std::size_t e = 0; e < input.types.size(); ++e) {
-    const int nc = cornerCount(input.types[e]);
-    const std::int32_t* nd = input.conn.data() + offsets[e];
-    for (int k = 0; k < nc; ++k) {
-      const std::uint32_t a = static_cast<std::uint32_t>(nd[k]);
-      const std::uint32_t b = static_cast<std::uint32_t>(nd[(k + 1) % nc]);
-      if (a == b) continue;
-      const std::uint64_t key = a < b ? (std::uint64_t(a) << 32 | b) : (std::uint64_t(b) << 32 | a);
-      sides.push_back({key, static_cast<std::int32_t>(e), a < b ? 1 : -1});
-    }
-  }
-  std::sort(sides.begin(), sides.end(), [](const Side& p, const Side& q) { return p.key < q.key; });
-  std::vector<EdgePair> out;
-  for (std::size_t i = 0; i < sides.size();) {
-    std::size_t j = i + 1;
-    while (j < sides.size() && sides[j].key == sides[i].key) ++j;
-    if (j - i == 2 && sides[i].elem != sides[i + 1].elem)
-      out.push_back({sides[i].elem, sides[i + 1].elem, sides[i].dir != sides[i + 1].dir});
-    i = j;
-  }
-  return out;
-}
-
-/// Winding of each face against its outward normal (+1 as the normal, −1 against it, +1 for
-/// a face without elements), from the per-face element votes `agree` / `disagree` and the
-/// relations between faces across shared mesh edges (see step 5 of CadMesh's constructor).
-std::vector<int> faceWindingSigns(const std::vector<EdgePair>& edges,
-                                  const std::vector<std::int32_t>& elemFace, int NF,
-                                  const std::vector<std::int64_t>& agree,
-                                  const std::vector<std::int64_t>& disagree) {
-  const std::size_t F = static_cast<std::size_t>(NF);
-  // Relations between face pairs (f < g): + (same winding) / − votes over the manifold mesh
-  // edges between them.
-  struct Pair {
-    std::int32_t f, g;
-    std::int32_t vote;
-  };
-  std::vector<Pair> pairs;
-  for (const EdgePair& p : edges) {
-    const std::int32_t f = elemFace[static_cast<std::size_t>(p.e0)];
-    const std::int32_t g = elemFace[static_cast<std::size_t>(p.e1)];
-    if (f != g) pairs.push_back({std::min(f, g), std::max(f, g), p.alike ? 1 : -1});
-  }
-  std::sort(pairs.begin(), pairs.end(),
-            [](const Pair& p, const Pair& q) { return p.f != q.f ? p.f < q.f : p.g < q.g; });
-  // Adjacency with one relation per face pair (ties: no relation).
-  std::vector<std::vector<std::pair<std::int32_t, int>>> adj(F);
-  for (std::size_t i = 0; i < pairs.size();) {
-    std::size_t j = i;
-    int sum = 0;
-    while (j < pairs.size() && pairs[j].f == pairs[i].f && pairs[j].g == pairs[i].g)
-      sum += pairs[j++].vote;
-    if (sum != 0) {
-      const int r = sum > 0 ? 1 : -1;
-      adj[static_cast<std::size_t>(pairs[i].f)].push_back({pairs[i].g, r});
-      adj[static_cast<std::size_t>(pairs[i].g)].push_back({pairs[i].f, r});
-    }
-    i = j;
-  }
-  pairs = std::vector<Pair>();
-  // Connected parts: relative signs by a breadth-first walk, checked on every relation.
-  std::vector<int> rel(F, 0), out(F, 1);
-  std::vector<std::int32_t> part, queue;
-  for (std::size_t root = 0; root < F; ++root) {
-    if (rel[root] != 0) continue;
-    part.clear();
-    queue.assign(1, static_cast<std::int32_t>(root));
-    rel[root] = 1;
-    bool consistent = true;
-    for (std::size_t q = 0; q < queue.size(); ++q) {
-      const std::size_t f = static_cast<std::size_t>(queue[q]);
-      part.push_back(static_cast<std::int32_t>(f));
-      for (const auto& [g, r] : adj[f]) {
-        const std::size_t gi = static_cast<std::size_t>(g);
-        if (rel[gi] == 0) {
-          rel[gi] = rel[f] * r;
-          queue.push_back(g);
-        } else if (rel[gi] != rel[f] * r) {
-          consistent = false;
-        }
-      }
-    }
-    std::int64_t total = 0;
-    for (std::int32_t f : part) {
-      const std::size_t fi = static_cast<std::size_t>(f);
-      total += rel[fi] * (agree[fi] - disagree[fi]);
-    }
-    const int sign = total < 0 ? -1 : 1;
-    // Per-face votes, as without relations, when the relations contradict each other or a
-    // face's own elements clearly say otherwise (more than 3 to 1, by at least 3: faces of an
-    // open model whose normals are not oriented alike, joined without a cycle that would
-    // show it).
-    bool perFace = !consistent;
-    for (std::int32_t f : part) {
-      const std::size_t fi = static_cast<std::size_t>(f);
-      const int o = sign * rel[fi];
-      const std::int64_t with = o > 0 ? agree[fi] : disagree[fi];
-      const std::int64_t against = o > 0 ? disagree[fi] : agree[fi];
-      if (against >= 3 && against > 3 * with) perFace = true;
-    }
-    for (std::int32_t f : part) {
-      const std::size_t fi = static_cast<std::size_t>(f);
-      out[fi] = perFace ? (disagree[fi] > agree[fi] ? -1 : 1) : sign * rel[fi];
-    }
-  }
-  return out;
-}
-
-/// Links between elements across manifold edges, CSR by element: adj[deg[e] … deg[e+1]) holds
-/// (the other element, +1 when the two are wound alike, −1 otherwise), for the edge pairs
-/// where keep(pair) holds.
-struct WindingLinks {
-  std::vector<std::int64_t> deg;
-  std::vector<std::pair<std::int32_t, std::int8_t>> adj;
-};
-
-template <class Keep>
-WindingLinks windingLinks(const std::vector<EdgePair>& edges, std::size_t E, Keep keep) {
-  WindingLinks l;
-  l.deg.assign(E + 1, 0);
-  for (const EdgePair& p : edges)
-    if (keep(p)) {
-      ++l.deg[static_cast<std::size_t>(p.e0) + 1];
-      ++l.deg[static_cast<std::size_t>(p.e1) + 1];
-    }
-  for (std::size_t e = 0; e < E; ++e) l.deg[e + 1] += l.deg[e];
-  l.adj.resize(static_cast<std::size_t>(l.deg[E]));
-  std::vector<std::int64_t> fill(l.deg.begin(), l.deg.end() - 1);
-  for (const EdgePair& p : edges) {
-    if (!keep(p)) continue;
-    const std::int8_t r = p.alike ? 1 : -1;
-    l.adj[static_cast<std::size_t>(fill[static_cast<std::size_t>(p.e0)]++)] = {p.e1, r};
-    l.adj[static_cast<std::size_t>(fill[static_cast<std::size_t>(p.e1)]++)] = {p.e0, r};
-  }
-  return l;
-}
-
-/// BridgeReport::miswoundElements: per connected part of a face's mesh (through the manifold
-/// corner edges between two of its elements), the elements of the less common winding.
-std::vector<std::int32_t> miswoundElements(const std::vector<EdgePair>& edges,
-                                           const std::vector<std::int32_t>& elemFace) {
-  const std::size_t E = elemFace.size();
-  // Links between two elements of one face across a manifold edge: r = +1 same winding (the
-  // edge run in opposite directions), −1 opposite windings. CSR by element.
-  const WindingLinks links = windingLinks(edges, E, [&](const EdgePair& p) {
-    return elemFace[static_cast<std::size_t>(p.e0)] == elemFace[static_cast<std::size_t>(p.e1)];
-  });
-  const std::vector<std::int64_t>& deg = links.deg;
-  const auto& adj = links.adj;
-  std::vector<std::int8_t> cls(E, 0);
-  std::vector<std::int32_t> part, out;
-  for (std::size_t root = 0; root < E; ++root) {
-    if (cls[root] != 0 || deg[root + 1] == deg[root]) continue;
-    part.assign(1, static_cast<std::int32_t>(root));
-    cls[root] = 1;
-    bool consistent = true;
-    std::size_t plus = 0;
-    for (std::size_t q = 0; q < part.size(); ++q) {
-      const std::size_t e = static_cast<std::size_t>(part[q]);
-      plus += cls[e] > 0;
-      for (std::int64_t k = deg[e]; k < deg[e + 1]; ++k) {
-        const auto& [f, r] = adj[static_cast<std::size_t>(k)];
-        const std::size_t fi = static_cast<std::size_t>(f);
-        const std::int8_t want = static_cast<std::int8_t>(cls[e] * r);
-        if (cls[fi] == 0) {
-          cls[fi] = want;
-          part.push_back(f);
-        } else if (cls[fi] != want) {
-          consistent = false;  // not orientable (a Möbius-like patch): no winding is "less"
-        }
-      }
-    }
-    const std::size_t minus = part.size() - plus;
-    if (!consistent || plus == minus) continue;
-    const std::int8_t fewer = plus < minus ? 1 : -1;
-    for (std::int32_t e : part)
-      if (cls[static_cast<std::size_t>(e)] == fewer) out.push_back(e);
-  }
-  std::sort(out.begin(), out.end());
-  return out;
-}
-
-/// Settles the faces of the elements whose nodes are all within the tolerance of several faces
-/// (`candidates[e]`, sorted, empty for an element with one face): the nearest face (step 2 of
-/// CadMesh's constructor) is a guess there — on a thin face between faces tangent to it, the
-/// centroid of an element spanning the thin face may be nearer to the neighbour, depending on
-/// where the mesher or a smoother put its nodes. Such an element, when its winding disagrees
-/// with a neighbour on its face f (across a manifold corner edge), goes to the candidate g
-/// where it agrees with more of its neighbours than it disagrees with, by more than on f: an
-/// element of a face meshed with the opposite winding to its neighbour's (Gmsh winds each
-/// surface by its parametrisation), put on the neighbour, is then not read as wound against
-/// that face's mesh (BridgeReport::miswoundElements). An element reversed against all its
-/// neighbours has no such candidate and stays. Every move raises the number of links within a
-/// face wound alike minus those wound oppositely: the loop ends.
-void settleDoubtfulFaces(const std::vector<EdgePair>& edges,
-                         const std::vector<std::vector<int>>& candidates,
-                         std::vector<std::int32_t>& elemFace) {
-  const std::size_t E = elemFace.size();
-  std::vector<std::int32_t> work;
-  for (std::size_t e = 0; e < E; ++e)
-    if (candidates[e].size() > 1) work.push_back(static_cast<std::int32_t>(e));
-  if (work.empty()) return;
-  // Links of each element across manifold edges (CSR): the other element, +1 wound alike.
-  const WindingLinks links = windingLinks(edges, E, [](const EdgePair&) { return true; });
-  const std::vector<std::int64_t>& deg = links.deg;
-  const auto& adj = links.adj;
-  std::vector<unsigned char> queued(E, 0);
-  for (std::int32_t e : work) queued[static_cast<std::size_t>(e)] = 1;
-  std::vector<int> good, bad;
-  for (std::size_t q = 0; q < work.size(); ++q) {
-    const std::size_t e = static_cast<std::size_t>(work[q]);
-    queued[e] = 0;
-    const std::vector<int>& cand = candidates[e];
-    good.assign(cand.size(), 0);
-    bad.assign(cand.size(), 0);
-    for (std::int64_t k = deg[e]; k < deg[e + 1]; ++k) {
-      const auto& [o, r] = adj[static_cast<std::size_t>(k)];
-      const auto it =
-          std::lower_bound(cand.begin(), cand.end(), elemFace[static_cast<std::size_t>(o)]);
-      if (it == cand.end() || *it != elemFace[static_cast<std::size_t>(o)]) continue;
-      ++(r > 0 ? good : bad)[static_cast<std::size_t>(it - cand.begin())];
-    }
-    const std::size_t cur = static_cast<std::size_t>(
-        std::lower_bound(cand.begin(), cand.end(), elemFace[e]) - cand.begin());
-    if (cur >= cand.size() || cand[cur] != elemFace[e] || bad[cur] == 0) continue;
-    std::size_t best = cur;
-    int bestScore = good[cur] - bad[cur];
-    for (std::size_t i = 0; i < cand.size(); ++i)
-      if (good[i] > 0 && good[i] - bad[i] > bestScore) {
-        best = i;
-        bestScore = good[i] - bad[i];
-      }
-    if (best == cur) continue;
-    elemFace[e] = cand[best];
-    // Doubtful neighbours may settle now.
-    for (std::int64_t k = deg[e]; k < deg[e + 1]; ++k) {
-      const std::size_t o = static_cast<std::size_t>(adj[static_cast<std::size_t>(k)].first);
-      if (candidates[o].size() > 1 && !queued[o]) {
-        queued[o] = 1;
-        work.push_back(static_cast<std::int32_t>(o));
-      }
-    }
-  }
-}
-
-}  // namespace
 
 void CadMesh::distancesToShape(const std::vector<Vec3>& points,
                                const std::vector<std::int32_t>& faces, std::vector<double>* toFace,
@@ -376,93 +74,6 @@ void CadMesh::distancesToShape(const std::vector<Vec3>& points,
     int id = -1;
     (*toShape)[k] = pr.wholeShapeDistance(points[k], &kind, &id);
   });
-}
-
-/// The hint a node's classification was forced by.
-enum class Forced : std::uint8_t { None, Vertex, Edge, Face };
-
-/// Step 1 of a recovery, kept for reuse (BridgeOptions::keepNodeSearch): what it depends on
-/// (nodes, hints, tolerance, tolerance-hint option) and what it found per node. Read-only once
-/// made: the recovery that made it and any that reuse it read it in place.
-struct NodeSearch {
-  // what it depends on (filled only when it is kept)
-  std::vector<Vec3> nodes;
-  std::vector<std::int32_t> hintFace, hintEdge, hintVertex;
-  double tol = 0.0;
-  bool toleranceHints = false;
-  // per node: candidate faces, the hint taken (entity, edge parameter), a given hint rejected
-  std::vector<std::vector<FaceHit>> hits;
-  std::vector<Forced> forced;
-  std::vector<std::int32_t> forcedId;
-  std::vector<double> forcedT;
-  std::vector<unsigned char> hintRejected;
-
-  bool matches(const MeshInput& in, double t, bool th) const {
-    return t == tol && th == toleranceHints && in.nodes.size() == nodes.size() &&
-           std::equal(
-               nodes.begin(), nodes.end(), in.nodes.begin(),
-               [](const Vec3& a, const Vec3& b) { return (a.array() == b.array()).all(); }) &&
-           in.hintFace == hintFace && in.hintEdge == hintEdge && in.hintVertex == hintVertex;
-  }
-};
-
-const char* nodeClassName(NodeClass c) {
-  switch (c) {
-    case NodeClass::Vertex:
-      return "vertex";
-    case NodeClass::Edge:
-      return "edge";
-    case NodeClass::Face:
-      return "face";
-    case NodeClass::None:
-      return "none";
-  }
-  return "?";
-}
-
-namespace {
-
-/// The warning on the nodes of no element (BridgeReport::looseNodes): where they lie.
-std::string looseNodesNote(const BridgeReport& r) {
-  std::size_t on[3] = {0, 0, 0}, worst = 0;
-  for (std::size_t k = 0; k < r.looseNodes.size(); ++k) {
-    const NodeClass c = r.looseClass[k];
-    if (c == NodeClass::Vertex || c == NodeClass::Edge || c == NodeClass::Face)
-      ++on[static_cast<int>(c)];
-    if (r.looseDistance[k] > r.looseDistance[worst]) worst = k;
-  }
-  std::ostringstream os;
-  os << r.looseNodes.size()
-     << " nodes belong to no element (e.g. nodes of edge or vertex elements); they are kept "
-        "fixed and lie on the shape: "
-     << on[0] << " on CAD vertices, " << on[1] << " on CAD edges, " << on[2]
-     << " on faces; farthest: node " << r.looseNodes[worst] << " (" << r.looseDistance[worst]
-     << " from " << nodeClassName(r.looseClass[worst]) << " " << r.looseEntity[worst]
-     << "); e.g. nodes";
-  for (std::size_t k = 0; k < std::min<std::size_t>(r.looseNodes.size(), 5); ++k)
-    os << " " << r.looseNodes[k];
-  return os.str();
-}
-
-}  // namespace
-
-std::string BridgeReport::summary() const {
-  std::ostringstream os;
-  os << nodeClass.size() << " nodes: " << vertexNodes << " on vertices (" << poleNodes
-     << " poles), " << edgeNodes << " on edges, " << faceNodes << " inside faces";
-  if (unusedNodes) os << ", " << unusedNodes << " in no element";
-  os << "; " << fixedNodes << " fixed, " << slidingNodes << " sliding\n";
-  std::size_t elems = 0;
-  for (int c : faceElements) elems += static_cast<std::size_t>(c);
-  os << elems << " elements on " << facesUsed << " faces; max distance to the shape " << maxDistance
-     << " (node " << worstNode << ", tolerance " << tolerance << ")\n";
-  if (!flippedFaces.empty()) {
-    os << flippedFaces.size() << " face(s) meshed with the opposite winding (flipped): ";
-    for (std::size_t i = 0; i < flippedFaces.size(); ++i) os << (i ? ", " : "") << flippedFaces[i];
-    os << "\n";
-  }
-  for (const auto& w : warnings) os << "warning: " << w << "\n";
-  return os.str();
 }
 
 MeshInput triangleMeshInput(const std::vector<double>& xyz, const std::vector<std::int32_t>& tris) {
