@@ -5,9 +5,11 @@
 
 #include "projector.h"
 #include "surfmesh/cad/cad_bridge.h"
+#include "winding.h"
 
 #include <algorithm>
 #include <cstdint>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -97,6 +99,89 @@ inline constexpr double kHighOrderReach = 1.0;
 
 /// The warning on the nodes of no element (BridgeReport::looseNodes): where they lie.
 std::string looseNodesNote(const BridgeReport& r);
+
+/// The state of one recovery (CadMesh's constructor), passed from step to step: the input and
+/// options, validated, the projection tools, and what each step found for the next ones.
+struct Recovery {
+  Recovery(const CadShape& shape, const MeshInput& in, const BridgeOptions& opts)
+      : S(shape),
+        input(in),
+        options(opts),
+        N(in.nodes.size()),
+        E(in.types.size()),
+        NF(shape.faceCount()),
+        NE(shape.edgeCount()),
+        NV(shape.vertexCount()),
+        diag(shape.diagonal()) {}
+
+  const CadShape& S;
+  const MeshInput& input;
+  const BridgeOptions& options;
+  const std::size_t N, E;  // nodes, elements
+  const int NF, NE, NV;    // faces, edges, vertices of the shape
+  const double diag;       // the shape's diagonal
+  // validateInput
+  double tol = 0.0;
+  bool slide = false;
+  int threads = 1;
+  std::vector<std::int64_t> offsets;  // E + 1
+  // the projection tools (projectorGeometry, one Projector per thread slot)
+  std::vector<Box> faceBoxes, edgeBoxes;
+  std::vector<double> faceSlack;
+  std::unique_ptr<ProjectorPool> projectors;
+  // highOrderReach: per node, how far off its face a high-order node may lie (0: tol)
+  std::vector<double> reach;
+  // step 1: the node search (fresh or lent), and its hits with the far high-order nodes'
+  std::shared_ptr<const NodeSearch> search;
+  std::vector<std::vector<FaceHit>> withFar;
+  const std::vector<std::vector<FaceHit>>& hits() const {
+    return withFar.empty() ? search->hits : withFar;
+  }
+  // step 2: each element's face, the manifold mesh edges
+  std::vector<std::int32_t> elemFace;
+  std::vector<EdgePair> manifoldEdges;
+  // step 3: the faces of each node's elements, shortest incident mesh edge, mesh boundary
+  // nodes, roles (bit 0 a corner, bit 1 a high-order node); face nodes' (u,v), poles
+  std::vector<std::vector<int>> elemFacesOfNode;
+  std::vector<double> hmin;
+  std::vector<unsigned char> onMeshBoundary, nodeRoles;
+  std::vector<Vec2> nodeUV;
+  std::vector<unsigned char> isPole;
+  // the elements' corner (u,v) and their votes on the winding (+1 along the surface normal)
+  std::vector<Vec2> allCornerUV;
+  std::vector<signed char> vote;
+};
+
+// ---- the steps, in the order CadMesh's constructor runs them -------------------------------
+/// Checks the options and the input (sizes, offsets, node ids, hints): tol, slide, threads,
+/// offsets. Throws std::invalid_argument.
+void validateInput(Recovery& r);
+/// Reach of each high-order node that is no element's corner (kHighOrderReach), 0 otherwise.
+void highOrderReach(Recovery& r);
+/// Fails fast on a mesh of another shape (bounding boxes, a sample of nodes).
+void checkMeshOnShape(const Recovery& r);
+/// Step 1: the faces near every node (hints first).
+std::shared_ptr<const NodeSearch> searchNodes(const Recovery& r);
+/// High-order nodes beyond the tolerance: every face within their reach (kHighOrderReach),
+/// not only the nearest (off its trimmed domain, a node may be nearer to another face than to
+/// its element's). Searched on a copy of the hits (withFar), so that a kept node search (which
+/// depends on the nodes alone, not on the elements that set the reach) stays as it was.
+void farHighOrderNodes(Recovery& r);
+/// Node distances, the nodes of no element located on the whole shape; fails on nodes off the
+/// shape.
+void locateNodes(const Recovery& r, BridgeReport& report);
+/// Counts the hints taken and rejected (with a warning).
+void reportHints(const Recovery& r, BridgeReport& report);
+/// Step 2: the face of every element (elemFace, manifoldEdges).
+void assignElementFaces(Recovery& r, BridgeReport& report);
+/// Step 3, first part: the faces of each node's elements, mesh boundary nodes, shortest
+/// incident mesh edge, node roles.
+void meshTopology(Recovery& r);
+/// Step 3: node classes (BridgeReport::nodeClass, nodeEntity, nodeParam; nodeUV, isPole).
+void classifyNodes(Recovery& r, BridgeReport& report);
+/// The corners' (u,v) of every element on its face and the orientation votes (allCornerUV,
+/// vote).
+void cornerUVs(Recovery& r, const BridgeReport& report);
 
 }  // namespace cad_detail
 
