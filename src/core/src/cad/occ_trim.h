@@ -65,7 +65,13 @@ inline double segmentDistance2(const Vec3& a, const Vec3& b, const Vec3& p) {
   return (a + t * e - p).squaredNorm();
 }
 
-/// The zones of `face` (OccFaceSurface::ToleranceZones), built by occ_zones.cpp.
+/// The zones of `face` (see OccFaceSurface::ToleranceZones): of its edges and vertices more
+/// than twice as tolerant as the face itself (the classifier's band, the face's tolerance,
+/// keeps contains() off the others: on a part built by OCC, whose tolerances are all 1e-7,
+/// there are none). An edge's polyline: its curve cut in 8 pieces, halved until the curve at a
+/// quarter, half and three quarters of a piece is within dev = max(tolerance / 10, 1e-4 × the
+/// diagonal of the edge's box) of its chord. `diag`: the scale of isTrimGap (≤ 0: the face's
+/// own box diagonal); `uvTol`: the face's classifier tolerance. Defined in occ_zones.cpp.
 std::unique_ptr<OccFaceSurface::ToleranceZones> buildToleranceZones(const TopoDS_Face& face,
                                                                     double diag, double uvTol);
 

@@ -38,12 +38,6 @@ using occ_detail::toVec;
 
 namespace {
 
-/// The zones of `face` (see OccFaceSurface::ToleranceZones): of its edges and vertices more
-/// than twice as tolerant as the face itself (the classifier's band, the face's tolerance,
-/// keeps contains() off the others: on a part built by OCC, whose tolerances are all 1e-7,
-/// there are none). An edge's polyline: its curve
-/// cut in 8 pieces, halved until the curve at a quarter, half and three quarters of a piece
-/// is within dev = max(tolerance / 10, 1e-4 × the diagonal of the edge's box) of its chord.
 /// For the polyline of trimming-curve zone `ze` on `face`: the unit vectors N × T (the
 /// surface's normal by the curve's tangent) at its points, turned to point into the face as
 /// an independent classifier (BRepTopAdaptor_FClass2d) says 20 strips away on either side, by
