@@ -9,7 +9,8 @@
 #    engine block of ../shared/data/cad at 1×, 10×, 100× the elements);
 # 3. every CAD part of ../shared/data/cad, two perturbations each (bench/parts_compare.py) and
 #    the paper's Table 3 on a crank shaft and a gear-box housing (bench/paper_table3.py), and
-#    edge flips against node motion alone, Laplace2D and Netgen (bench/flips_compare.py);
+#    edge flips against node motion alone, Laplace2D and Netgen (bench/flips_compare.py), and
+#    the sweeps' escapes turned off one by one (bench/escapes_ablation.py);
 # 4. FreeCAD conversion cost vs optimization (bench/python/bench_conversion.py, freecadcmd);
 # 5. (not in quick) FreeCAD's Gmsh second-order meshes of four parts, Face nodes perturbed in
 #    (u,v), through SurfMesh.optimize (bench/python/perturbed_fem.py, freecadcmd);
@@ -64,6 +65,14 @@ else
   /usr/bin/python3 "$ROOT/bench/flips_compare.py" --bench-dir "$B" 2>&1 | grep -E '^\||rror'
   BENCH_BOUNDARY=slide /usr/bin/python3 "$ROOT/bench/flips_compare.py" --bench-dir "$B" \
     2>&1 | grep -E '^\||rror'
+fi
+echo
+echo "## The escapes one by one (ablation)"
+if [ "$1" = "quick" ]; then
+  /usr/bin/python3 "$ROOT/bench/escapes_ablation.py" --bench-dir "$B" --parts occt_crankarm.brep \
+    --seeds 1 2>&1 | grep -E '^\||rror'
+else
+  /usr/bin/python3 "$ROOT/bench/escapes_ablation.py" --bench-dir "$B" 2>&1 | grep -E '^\||rror'
 fi
 echo
 echo "## FreeCAD conversion vs optimization"

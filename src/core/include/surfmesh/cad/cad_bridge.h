@@ -126,7 +126,7 @@ struct BridgeOptions {
   bool keepNodeSearch = false;
 };
 
-struct NodeSearch;  // the per-node face search of a recovery (cad_bridge.cpp)
+struct NodeSearch;  // the per-node face search of a recovery (recovery.h, node_search.cpp)
 
 /// Where a node lies on the B-rep.
 enum class NodeClass : std::uint8_t {

@@ -168,7 +168,7 @@ class OccFaceSurface final : public Surface {
   int faceId() const { return faceId_; }
 
   /// Cells of the face's (u,v) box that no trimming loop crosses answer contains() at once
-  /// (defined in occ_surface.cpp): the pcurve index (TrimGrid, shared by the copies of a
+  /// (defined in occ_trim.h): the pcurve index (TrimGrid, shared by the copies of a
   /// face with its classifier in TrimShared) and the cell states classified so far
   /// (TrimCells, one per copy).
   struct TrimGrid;

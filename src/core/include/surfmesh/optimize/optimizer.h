@@ -62,7 +62,7 @@
 // surface nor leans more than about 84° from it at a corner at the start of the run (or is
 // tangled and wound against every corner, with a Face corner) and has no sliding node is held
 // from becoming so: its σ follows the surface's normal at its corners there and is ≤ 0 —
-// tangled for the run — when it is wound against one (see acrossArea in optimizer.cpp). The
+// tangled for the run — when it is wound against one (see acrossArea in triangle_kernel.h). The
 // quality report keeps the paper's σ. Where the held run leaves tangled elements a node may
 // move, and the hold acted (OptimizeResult::heldAcross), a second run without it follows from
 // its result: untangling comes first.
