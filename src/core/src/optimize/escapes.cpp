@@ -147,33 +147,27 @@ std::size_t NodeUpdater::escapeByPatches(int face, const Surface& surf, bool rel
       harmonicLayout(x, face, surf);
       straightSides(patch, face, surf, &x.iter);
     }
-    // Place, count, keep or put back.
-    save(patch, &x.uvSave, &x.xyzSave, &x.nSave);
-    const bool ok = layout && placeAll(patch, x.iter, face, surf);
-    const std::size_t t1 = ok ? countTangled() : t0;
-    if (ok && t1 < t0) return t0 - t1;
+    bool placed = false;
+    std::size_t g = keepIfFewer(patch, t0, [&] {
+      placed = layout && placeAll(patch, x.iter, face, surf);
+      return placed ? countTangled() : t0;
+    });
+    if (g > 0) return g;
     // The harmonic layout did not help (a non-convex outline in (u,v), or elements valid
     // in (u,v) but not on the surface): untangle the patch by local Newton steps on f̂
-    // that may pass through tangled states, from the input positions and from the
-    // harmonic layout when it was placeable.
-    std::size_t t2 = t0;
-    if (!relaxHere || patch.size() > kMaxRelaxPatchNodes || !(s_.opt.escapes & kEscapeRelaxPatch)) {
-      restore(patch, x.uvSave, x.xyzSave, x.nSave);
+    // that may pass through tangled states, from the harmonic layout when it was placeable
+    // (placed again: the same positions) and from the input positions.
+    if (!relaxHere || patch.size() > kMaxRelaxPatchNodes || !(s_.opt.escapes & kEscapeRelaxPatch))
       continue;
-    }
-    if (ok && relaxTries_ < kMaxRelaxPatches) {
+    for (const bool fromLayout : {true, false}) {
+      if ((fromLayout && !placed) || relaxTries_ >= kMaxRelaxPatches) continue;
       ++relaxTries_;
       *relaxed = true;
-      t2 = relaxPatch(patch, countTangled, t0);
-      if (t2 < t0) return t0 - t2;
-    }
-    restore(patch, x.uvSave, x.xyzSave, x.nSave);
-    if (relaxTries_ < kMaxRelaxPatches) {
-      ++relaxTries_;
-      *relaxed = true;
-      t2 = relaxPatch(patch, countTangled, t0);
-      if (t2 < t0) return t0 - t2;
-      restore(patch, x.uvSave, x.xyzSave, x.nSave);
+      g = keepIfFewer(patch, t0, [&] {
+        if (fromLayout) placeAll(patch, x.iter, face, surf);
+        return relaxPatch(patch, countTangled, t0);
+      });
+      if (g > 0) return g;
     }
   }
   return 0;
@@ -208,15 +202,13 @@ std::size_t NodeUpdater::escapeBySampling(std::size_t e, int face, const Surface
     elementsAround(patch, &x.elems);
     auto countTangled = [&]() { return tangledAmong(x.elems); };
     const std::size_t t0 = countTangled();
-    save(patch, &x.uvSave, &x.xyzSave, &x.nSave);
-    patch.pop_back();  // j stays at the target
+    const std::vector<std::size_t> around(patch.begin(), patch.end() - 1);  // j at the target
     ++relaxTries_;
     *relaxed = true;
-    const std::size_t t1 =
-        placeAll({j}, {target}, face, surf) ? relaxPatch(patch, countTangled, t0) : t0;
-    patch.push_back(j);
-    if (t1 < t0) return t0 - t1;
-    restore(patch, x.uvSave, x.xyzSave, x.nSave);
+    const std::size_t g = keepIfFewer(patch, t0, [&] {
+      return placeAll({j}, {target}, face, surf) ? relaxPatch(around, countTangled, t0) : t0;
+    });
+    if (g > 0) return g;
   }
   return 0;
 }
@@ -225,8 +217,7 @@ std::size_t NodeUpdater::straightenHighOrder(const std::vector<unsigned char>& f
                                              bool cached) {
   std::size_t gained = 0;
   std::vector<std::size_t> moved, elems;
-  std::vector<Vec2> uvSave, target;
-  std::vector<Vec3> xyzSave, nSave;
+  std::vector<Vec2> target;
   for (std::size_t e = 0; e < s_.mesh.elementCount(); ++e) {
     const ElementType type = s_.mesh.elemType[e];
     if (frozen[e] || !heldCurved(type)) continue;
@@ -265,12 +256,8 @@ std::size_t NodeUpdater::straightenHighOrder(const std::vector<unsigned char>& f
     if (!ok || moved.empty()) continue;
     elementsAround(moved, &elems);
     const std::size_t t0 = tangledAmong(elems);
-    save(moved, &uvSave, &xyzSave, &nSave);
-    const std::size_t t1 = placeAll(moved, target, face, surf) ? tangledAmong(elems) : t0;
-    if (t1 < t0)
-      gained += t0 - t1;
-    else
-      restore(moved, uvSave, xyzSave, nSave);
+    gained += keepIfFewer(
+        moved, t0, [&] { return placeAll(moved, target, face, surf) ? tangledAmong(elems) : t0; });
   }
   s_.straightened += gained;
   return gained;
@@ -377,14 +364,9 @@ std::size_t NodeUpdater::widenElement(std::size_t e, const std::vector<std::size
     }
   }
   restore(nodes, uvSave, xyzSave, nSave);
-  if (best.empty() || !placeAll(nodes, best, face, surf)) {
-    restore(nodes, uvSave, xyzSave, nSave);
-    return 0;
-  }
-  const std::size_t t1 = tangledAmong(elems);
-  if (t1 < t0) return t0 - t1;
-  restore(nodes, uvSave, xyzSave, nSave);
-  return 0;
+  if (best.empty()) return 0;
+  return keepIfFewer(nodes, t0,
+                     [&] { return placeAll(nodes, best, face, surf) ? tangledAmong(elems) : t0; });
 }
 
 void NodeUpdater::straightSides(const std::vector<std::size_t>& patch, int face,

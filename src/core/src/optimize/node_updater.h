@@ -48,8 +48,7 @@ class NodeUpdater {
   /// Work arrays of escapeTangledElements, reused across its elements.
   struct EscapeScratch {
     std::vector<std::size_t> patch, elems;
-    std::vector<Vec2> uvSave, iter;
-    std::vector<Vec3> xyzSave, nSave;
+    std::vector<Vec2> iter;
     std::vector<std::int64_t> nbrOffset;
     std::vector<std::int32_t> nbrIndex;  // index in the patch, −1 for a held node
     std::vector<Vec2> nbrUV;             // held neighbours: their (u,v) next to the node's
@@ -162,6 +161,21 @@ class NodeUpdater {
       xyz->push_back(s_.xyz[j]);
       normal->push_back(s_.nodeNormal[j]);
     }
+  }
+
+  /// The strict progress every escape keeps to, so that none can cycle: `move()` changes the
+  /// positions of `nodes` (Face nodes) and returns how many of the elements it watches are
+  /// tangled then. Its result is kept when that is fewer than `t0`; else `nodes` are put back
+  /// where they were. Returns the elements untangled.
+  template <class Move>
+  std::size_t keepIfFewer(const std::vector<std::size_t>& nodes, std::size_t t0, Move move) {
+    std::vector<Vec2> uv;
+    std::vector<Vec3> xyz, normal;
+    save(nodes, &uv, &xyz, &normal);
+    const std::size_t t1 = move();
+    if (t1 < t0) return t0 - t1;
+    restore(nodes, uv, xyz, normal);
+    return 0;
   }
 
   /// Puts Face nodes `nodes` of `face` at the (wrapped) parameters `uv`: position, parameters
