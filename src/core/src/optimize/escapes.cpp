@@ -5,6 +5,8 @@
 #include "node_updater.h"
 #include "straight_sided.h"
 
+#include <optional>
+
 namespace surfmesh {
 namespace detail {
 
@@ -415,24 +417,25 @@ bool NodeUpdater::placeAll(const std::vector<std::size_t>& nodes, const std::vec
 template <class Count>
 std::size_t NodeUpdater::relaxPatch(const std::vector<std::size_t>& patch, Count& countTangled,
                                     std::size_t t0) {
-  const double deltaHat = s_.deltaHat;
-  const bool track = s_.trackCache;
-  s_.trackCache = false;
-  s_.relaxTangled = true;
+  const double deltaHat = s_.mode.deltaHat;
+  EvalMode relax = s_.mode;
+  relax.trackCache = false;
+  relax.relaxTangled = true;
+  const ModeScope scope(s_, relax);
   std::size_t best = t0;
   std::vector<Vec2> uvBest;
   std::vector<Vec3> xyzBest, nBest;
   const double dMin = std::max(deltaHat, 1e-4);
   for (double dh = 4.0 * dMin; dh >= dMin / 20.0; dh *= 0.25) {  // 4, 1, 1/4, 1/16 × δ̂
-    s_.deltaHat = dh;
+    s_.mode.deltaHat = dh;
     for (int sweep = 0; sweep < 15; ++sweep) {
       double mv = 0.0;
       for (std::size_t j : patch) mv += update(j);
       if (mv == 0.0) break;
     }
-    s_.relaxTangled = false;  // count with the sweep's rule
+    s_.mode.relaxTangled = false;  // count with the sweep's rule
     const std::size_t t = countTangled();
-    s_.relaxTangled = true;
+    s_.mode.relaxTangled = true;
     if (t < best) {
       best = t;
       uvBest.clear();
@@ -446,9 +449,6 @@ std::size_t NodeUpdater::relaxPatch(const std::vector<std::size_t>& patch, Count
       if (t == 0) break;
     }
   }
-  s_.relaxTangled = false;
-  s_.deltaHat = deltaHat;
-  s_.trackCache = track;
   if (best < t0) restore(patch, uvBest, xyzBest, nBest);
   return best;
 }
@@ -483,8 +483,9 @@ std::size_t NodeUpdater::sampleNeighbourhood(std::size_t i, int face, const Surf
   LocalEval any;
   any.f = kInf;
   any.tangled = std::numeric_limits<int>::max();
-  const bool track = s_.trackCache;
-  s_.trackCache = true;
+  EvalMode tracking = s_.mode;
+  tracking.trackCache = true;
+  std::optional<ModeScope> scope(std::in_place, s_, tracking);
   int bestTangled = valid >= 0 ? std::numeric_limits<int>::max() : cur.tangled;
   double bestF = kInf;
   Vec2 bestUV = uv0;
@@ -513,7 +514,7 @@ std::size_t NodeUpdater::sampleNeighbourhood(std::size_t i, int face, const Surf
         bestUV = uvT;
       }
     }
-  s_.trackCache = track;
+  scope.reset();
   if (valid >= 0) {
     if (bestTangled == std::numeric_limits<int>::max()) return 0;
     *target = bestUV;

@@ -88,7 +88,7 @@ double NodeUpdater::updateFaceNode(std::size_t i) {
       dir *= L / len3;
       len3 = L;
     }
-    const bool wantQ = monotone && cur.tangled == 0 && !s_.relaxTangled;
+    const bool wantQ = monotone && cur.tangled == 0 && !s_.mode.relaxTangled;
     Vec2 uvNew;
     SurfaceD2 dn;
     Vec3 nn;
@@ -140,7 +140,8 @@ double NodeUpdater::updateFaceNode(std::size_t i) {
       accepted = tryStep(alpha * dir);
     }
     const Vec2 newtonStep = accepted ? acceptedStep : Vec2::Zero();
-    if ((!accepted || best.f > 0.5 * cur.f) && s_.deltaHat == 0.0 && cur.maxEta > kFallbackEta) {
+    if ((!accepted || best.f > 0.5 * cur.f) && s_.mode.deltaHat == 0.0 &&
+        cur.maxEta > kFallbackEta) {
       // A badly shaped submesh where the Newton direction fails or barely helps (e.g. three
       // nearly collinear nodes on a curved surface, whose element plane stands across the
       // surface: its orientation flips under any step along the gradient; or a needle left
@@ -155,7 +156,7 @@ double NodeUpdater::updateFaceNode(std::size_t i) {
     }
     const bool creeping =
         accepted && best.tangled >= cur.tangled && (dn.p - x0).norm() < s_.opt.moveTol * L;
-    if (s_.deltaHat > 0.0 && cur.tangled > 0 && (!accepted || creeping) &&
+    if (s_.mode.deltaHat > 0.0 && cur.tangled > 0 && (!accepted || creeping) &&
         (s_.opt.escapes & kEscapeFoldTarget)) {
       // A fold the local Newton step cannot open (every step that lowers f̂ tangles another
       // element of the submesh, or the steps only creep towards a local minimum of f̂ with
@@ -285,14 +286,14 @@ double NodeUpdater::updateEdgeNode(std::size_t i) {
     if (!acceptable(cur, tr)) continue;
     keepTrial();
     double tb = tn;
-    if (s_.deltaHat > 0.0 && cur.tangled > 0 && tr.tangled >= cur.tangled &&
+    if (s_.mode.deltaHat > 0.0 && cur.tangled > 0 && tr.tangled >= cur.tangled &&
         (xn - x0).norm() < s_.opt.moveTol * L && (s_.opt.escapes & kEscapeSlide))
       slideEscape(i, curve, lo + margin, hi - margin, tr.tangled, &tb);
     if (tb == tn) s_.lastStep[i].x() = static_cast<float>(tn - t0);
     return commitEdgeMove(i, curve, tb, x0);
   }
   double tb = t0;
-  if (s_.deltaHat > 0.0 && cur.tangled > 0 && (s_.opt.escapes & kEscapeSlide) &&
+  if (s_.mode.deltaHat > 0.0 && cur.tangled > 0 && (s_.opt.escapes & kEscapeSlide) &&
       slideEscape(i, curve, lo + margin, hi - margin, cur.tangled, &tb))
     return commitEdgeMove(i, curve, tb, x0);
   return 0.0;

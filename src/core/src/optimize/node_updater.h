@@ -223,7 +223,7 @@ class NodeUpdater {
     if (H) H->setZero();
     if (HUV) HUV->setZero();
     const std::int64_t b = s_.begin(i), en = s_.end(i);
-    const bool needEta0 = wantQuality || (cur && s_.trackCache);
+    const bool needEta0 = wantQuality || (cur && s_.mode.trackCache);
     Vec3* base = w_.baseNormal.data();
     for (std::int64_t p = b; p < en; ++p) {
       const std::size_t e = static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
@@ -269,7 +269,7 @@ class NodeUpdater {
         pre = &w_.highOrder[j];
         if (!cur) s_.highOrderRest(e, local, pre);
       }
-      const double delta = s_.deltaHat * s_.deltaScale[e];
+      const double delta = s_.mode.deltaHat * s_.deltaScale[e];
       Vec3 ge;
       Mat3 He;
       Vec3 heUV = Vec3::Zero();
@@ -284,7 +284,7 @@ class NodeUpdater {
       if (ev.held) w_.heldAcross = true;
       if (ev.tangled) {
         ++r.tangled;
-        if (cur && r.tangled > cur->tangled && !s_.relaxTangled) return reject();
+        if (cur && r.tangled > cur->tangled && !s_.mode.relaxTangled) return reject();
       }
       if (!std::isfinite(ev.eta)) {
         r.finite = false;
@@ -328,7 +328,7 @@ class NodeUpdater {
   /// Acceptance test of a complete trial against the current state.
   bool acceptable(const LocalEval& cur, const LocalEval& trial) const {
     if (!trial.finite) return false;
-    if (trial.tangled > cur.tangled && !s_.relaxTangled) return false;
+    if (trial.tangled > cur.tangled && !s_.mode.relaxTangled) return false;
     if (!(trial.f < cur.f)) return false;
     if (s_.opt.monotone && cur.tangled == 0 && trial.minQuality < qualityBar(cur)) return false;
     return true;
@@ -338,7 +338,7 @@ class NodeUpdater {
   /// current minimum or, when lower, the sweep's quality floor (the mesh's minimum over the
   /// elements with a movable node): no element falls below the mesh's minimum.
   double qualityBar(const LocalEval& cur) const {
-    return std::min(cur.minQuality, s_.qualityFloor);
+    return std::min(cur.minQuality, s_.mode.qualityFloor);
   }
 
   /// Keeps the element values of the trial just evaluated (and accepted) for commitElements.
@@ -349,7 +349,7 @@ class NodeUpdater {
 
   /// Records the kept trial's element values (δ = 0 sweeps keep the cache current).
   void commitElements(std::size_t i) {
-    if (!s_.trackCache) return;
+    if (!s_.mode.trackCache) return;
     const std::int64_t b = s_.begin(i), en = s_.end(i);
     for (std::int64_t p = b; p < en; ++p) {
       const std::size_t e = static_cast<std::size_t>(s_.inc.elem[static_cast<std::size_t>(p)]);
@@ -362,7 +362,7 @@ class NodeUpdater {
   /// size L (see OptimizeOptions::overRelaxation): it must stay within L.
   bool overRelaxes(double len3, double L) const {
     const double omega = s_.opt.overRelaxation;
-    return omega > 1.0 && s_.deltaHat == 0.0 && omega * len3 <= L;
+    return omega > 1.0 && s_.mode.deltaHat == 0.0 && omega * len3 <= L;
   }
 
   /// The line search's step factor at trial ls: ω at ls = −1 (an over-relaxed first trial),

@@ -334,7 +334,7 @@ std::size_t SweepRun::escape(int stuckSweeps, int sweep, int epsilonLevel) {
 bool SweepRun::report(int sweep, const GlobalEval& g, OptimizeResult* res) const {
   // The report comes after the escapes: it describes the mesh as the sweep leaves it (the
   // mesh a run stopped here returns).
-  const double fEnd = s_.deltaHat > 0.0 ? g.objective : g.objective0;
+  const double fEnd = s_.mode.deltaHat > 0.0 ? g.objective : g.objective0;
   res->finalObjective = fEnd;
   if (!progress_) return true;
   OptimizeProgress pr;
@@ -343,7 +343,7 @@ bool SweepRun::report(int sweep, const GlobalEval& g, OptimizeResult* res) const
   pr.objective = fEnd;
   pr.tangled = g.tangled + g.frozenTangled - g.leaning;
   pr.minQuality = g.minQuality;
-  pr.delta = s_.deltaHat;
+  pr.delta = s_.mode.deltaHat;
   return progress_(pr);
 }
 
@@ -369,8 +369,9 @@ OptimizeResult SweepRun::run(OptimizeResult res, MeshPositions* previous,
   GlobalEval g = fullEval(0.0);
   DeltaPolicy policy(opt_, g.tangled);
   StopRule stop(opt_, g.tangled);
-  s_.deltaHat = deltaFor(policy, g);
-  res.initialObjective = s_.deltaHat > 0.0 ? fullEval(s_.deltaHat).objective : g.objective0;
+  s_.mode.deltaHat = deltaFor(policy, g);
+  res.initialObjective =
+      s_.mode.deltaHat > 0.0 ? fullEval(s_.mode.deltaHat).objective : g.objective0;
   res.reason = StopReason::MaxSweeps;
   if (movable_ == 0 || opt_.maxSweeps == 0) res.reason = StopReason::NothingToDo;
 
@@ -378,27 +379,27 @@ OptimizeResult SweepRun::run(OptimizeResult res, MeshPositions* previous,
   int stuckSweeps = 0;
   for (int sweep = 1; movable_ > 0 && sweep <= opt_.maxSweeps; ++sweep) {
     freezeScales();
-    s_.deltaHat = deltaFor(policy, g);
-    s_.trackCache = s_.deltaHat == 0.0;
+    s_.mode.deltaHat = deltaFor(policy, g);
+    s_.mode.trackCache = s_.mode.deltaHat == 0.0;
     // Untangling sweeps keep every valid submesh's minimum (the relaxed bar would let the
     // valid elements around a fold give way to moves that only lower f̂).
-    s_.qualityFloor = s_.deltaHat > 0.0 ? kInf : g.minValidMovable;
+    s_.mode.qualityFloor = s_.mode.deltaHat > 0.0 ? kInf : g.minValidMovable;
     // While δ > 0 it (and the scaled δ of every element) changes from sweep to sweep: every
     // node is revisited. In δ = 0 sweeps a node is revisited only when it or a neighbour
     // moved by more than moveTol × its local size since its last update.
-    if (s_.deltaHat > 0.0 || s_.deltaHat != prevDelta) s_.validFrom = s_.clock + 1;
-    prevDelta = s_.deltaHat;
+    if (s_.mode.deltaHat > 0.0 || s_.mode.deltaHat != prevDelta) s_.validFrom = s_.clock + 1;
+    prevDelta = s_.mode.deltaHat;
     // The stopping rule's f leaves out the elements no move can change: a poor element between
     // fixed nodes would otherwise dwarf the decrease over the rest of the mesh.
     const double fStartMovable = g.movable0;
     const double deficitStart = g.deficit;
     sweepColors();
     res.sweeps = sweep;
-    g = s_.deltaHat > 0.0 ? fullEval(s_.deltaHat) : cachedEval();
+    g = s_.mode.deltaHat > 0.0 ? fullEval(s_.mode.deltaHat) : cachedEval();
     // Sweeps in a row that left more tangled elements than the best so far.
     stuckSweeps = (g.tangled > 0 && g.tangled >= policy.bestTangled()) ? stuckSweeps + 1 : 0;
     if (stuckSweeps > 0 && escape(stuckSweeps, sweep, policy.epsilonLevel()) > 0)
-      g = fullEval(s_.deltaHat);  // stuck elements untangled by joint moves
+      g = fullEval(s_.mode.deltaHat);  // stuck elements untangled by joint moves
     if (!report(sweep, g, &res)) {
       res.reason = StopReason::Cancelled;
       res.after = res.before;
@@ -419,12 +420,12 @@ OptimizeResult SweepRun::run(OptimizeResult res, MeshPositions* previous,
       }
       continue;
     }
-    if (moved_ == 0 && (g.tangled == 0 || deltaFor(policy, g) == s_.deltaHat)) {
+    if (moved_ == 0 && (g.tangled == 0 || deltaFor(policy, g) == s_.mode.deltaHat)) {
       // Nothing moved and the next sweep would repeat this one: a fixed point.
       res.reason = StopReason::Converged;
       break;
     }
-    if (g.tangled == 0 && s_.deltaHat == 0.0 &&
+    if (g.tangled == 0 && s_.mode.deltaHat == 0.0 &&
         stop.smoothed(fStartMovable, g.movable0, deficitStart, g.deficit, maxMove_)) {
       res.reason = StopReason::Converged;
       break;

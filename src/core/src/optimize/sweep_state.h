@@ -30,6 +30,22 @@ constexpr int kHeldSlots = kMaxElementNodes;
 /// Curved elements held from standing across by their tangent planes at the corners (State's
 /// constructor): high-order triangles and quad8.
 inline bool heldCurved(ElementType t) { return isHighOrderTriangle(t) || t == ElementType::Quad8; }
+/// What an evaluation means in the current sweep: the sweep sets it, an escape overrides it
+/// for its own evaluations (ModeScope) until the scope ends.
+struct EvalMode {
+  double deltaHat = 0.0;  // dimensionless δ of the current sweep
+  // Monotone mode, δ = 0 sweeps: the lowest quality of the valid elements with a movable node
+  // at the start of the sweep. A move may lower its submesh's minimum quality down to this
+  // floor, not below it, so that the mesh's minimum over those elements never decreases.
+  // +∞ in untangling sweeps (no valid submesh's minimum may drop).
+  double qualityFloor = kInf;
+  bool trackCache = true;  // δ = 0 sweep: keep eta0/minSigma current at every accepted move
+  // Patch untangling (escapeTangledElements → relaxPatch): a node's move may tangle more
+  // elements of its submesh than it had (only f̂ must decrease), linear triangles use their
+  // projected σ; the patch as a whole is kept only when it ends with fewer tangled elements.
+  bool relaxTangled = false;
+};
+
 /// The optimizer's working state. Node positions and parameters are copies of the mesh's
 /// (written back at the end, so that a cancelled run leaves the mesh untouched); element
 /// corner (u,v) are not copied: they are refreshed from the final node parameters.
@@ -76,17 +92,7 @@ struct State {
   std::vector<std::int64_t> edgeSlot;  // N (or empty): first index in edgeNormal, −1
   std::vector<Vec3> edgeNormal;        // corner normal of an Edge node in each incident element
   // ---- sweep -----------------------------------------------------------------------------
-  double deltaHat = 0.0;  // dimensionless δ of the current sweep
-  // Monotone mode, δ = 0 sweeps: the lowest quality of the valid elements with a movable node
-  // at the start of the sweep. A move may lower its submesh's minimum quality down to this
-  // floor, not below it, so that the mesh's minimum over those elements never decreases.
-  // +∞ in untangling sweeps (no valid submesh's minimum may drop).
-  double qualityFloor = kInf;
-  bool trackCache = true;  // δ = 0 sweep: keep eta0/minSigma current at every accepted move
-  // Patch untangling (escapeTangledElements → relaxPatch): a node's move may tangle more
-  // elements of its submesh than it had (only f̂ must decrease), linear triangles use their
-  // projected σ; the patch as a whole is kept only when it ends with fewer tangled elements.
-  bool relaxTangled = false;
+  EvalMode mode;  // what an evaluation means now (set per sweep, overridden by escapes)
   // Backoff of the patch untangling per stuck element (escapeTangledElements): after n failed
   // attempts in a row, an element's patches are relaxed again only min(2^(n−1),
   // deltaStallSweeps) sweeps later, or as soon as ε has moved to another level. Only elements
@@ -241,7 +247,7 @@ struct State {
       const int k1 = local == 2 ? 0 : local + 1, k2 = local == 0 ? 2 : local - 1;
       return triangleKernel(measure, x, xyz[static_cast<std::size_t>(nd[k1])],
                             xyz[static_cast<std::size_t>(nd[k2])], n, delta, wantEta0, grad, hess,
-                            relaxTangled, corners);
+                            mode.relaxTangled, corners);
     }
     const Vec3 nu = n.normalized();
     double eta0 = kInf;  // η with δ = 0, from the same pass over the element
@@ -291,7 +297,7 @@ struct State {
       const int k1 = local == 2 ? 0 : local + 1, k2 = local == 0 ? 2 : local - 1;
       return triangleKernelUV(measure, x, xyz[static_cast<std::size_t>(nd[k1])],
                               xyz[static_cast<std::size_t>(nd[k2])], n, delta, wantEta0, T, grad,
-                              hessUV, relaxTangled, corners);
+                              hessUV, mode.relaxTangled, corners);
     }
     Mat3 H;
     const ElemOut r = evalElement(e, local, x, n, delta, wantEta0, grad, &H, pre, corners);
@@ -334,6 +340,20 @@ struct State {
     if (it == cornerElems.end() || *it != static_cast<std::int32_t>(e)) return -1;
     return kCornerSlots * static_cast<std::int64_t>(it - cornerElems.begin());
   }
+};
+
+/// Sets a State's evaluation mode for the life of the scope; the mode before comes back at its
+/// end, also on an exception.
+class ModeScope {
+ public:
+  ModeScope(State& s, const EvalMode& m) : s_(s), saved_(s.mode) { s.mode = m; }
+  ~ModeScope() { s_.mode = saved_; }
+  ModeScope(const ModeScope&) = delete;
+  ModeScope& operator=(const ModeScope&) = delete;
+
+ private:
+  State& s_;
+  EvalMode saved_;
 };
 
 /// Evaluation of a node's submesh at a candidate position.
