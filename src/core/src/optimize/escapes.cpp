@@ -35,28 +35,11 @@ std::size_t NodeUpdater::escapeTangledElements(const std::vector<unsigned char>&
     auto hBackoff = s_.harmonicBackoff.find(e);
     if (!relaxHere && hBackoff != s_.harmonicBackoff.end() && sweep < hBackoff->second.nextSweep)
       continue;
+    StuckElement stuck{e, face, &surf, relaxHere, held[e] != 0, sweep};
     std::size_t g = 0;
-    bool relaxed = false;
-    auto wBackoff = s_.widenBackoff.find(e);
-    if ((s_.opt.escapes & kEscapeWiden) && relaxHere &&
-        !held[e] &&  // (a held element cannot become valid)
-        (wBackoff == s_.widenBackoff.end() || sweep >= wBackoff->second.nextSweep)) {
-      // e's own nodes, then with the Face nodes of the elements around them
-      g = widenElement(e, patch, face, surf);
-      if (g == 0) {
-        std::vector<std::size_t> wider = patch;
-        growRing(wider, face);
-        if (wider.size() > patch.size() && wider.size() <= kMaxWidenNodes)
-          g = widenElement(e, wider, face, surf);
-      }
-      if (g > 0) {
-        if (wBackoff != s_.widenBackoff.end()) s_.widenBackoff.erase(wBackoff);
-      } else {
-        s_.widenBackoff[e].failed(sweep, 1 << 20);  // retried after 1, 2, 4, 8… sweeps
-      }
-    }
-    if (g == 0) g = escapeByPatches(face, surf, relaxHere, x, &relaxed);
-    if (g == 0) g = escapeBySampling(e, face, surf, relaxHere, x, &relaxed);
+    for (ElementEscape escape : kElementEscapes)
+      if ((g = (this->*escape)(stuck, x)) > 0) break;
+    const bool relaxed = stuck.relaxed;
     gained += g;
     const bool kept = g > 0;
     if (kept && backoff != s_.relaxBackoff.end()) s_.relaxBackoff.erase(backoff);
@@ -131,8 +114,34 @@ void NodeUpdater::harmonicLayout(EscapeScratch& x, int face, const Surface& surf
   }
 }
 
-std::size_t NodeUpdater::escapeByPatches(int face, const Surface& surf, bool relaxHere,
-                                         EscapeScratch& x, bool* relaxed) {
+std::size_t NodeUpdater::escapeByWidening(StuckElement& st, EscapeScratch& x) {
+  const std::size_t e = st.e;
+  auto wBackoff = s_.widenBackoff.find(e);
+  if (!(s_.opt.escapes & kEscapeWiden) || !st.relaxHere ||
+      st.held ||  // (a held element cannot become valid)
+      (wBackoff != s_.widenBackoff.end() && st.sweep < wBackoff->second.nextSweep))
+    return 0;
+  // e's own nodes, then with the Face nodes of the elements around them
+  std::size_t g = widenElement(e, x.patch, st.face, *st.surf);
+  if (g == 0) {
+    std::vector<std::size_t> wider = x.patch;
+    growRing(wider, st.face);
+    if (wider.size() > x.patch.size() && wider.size() <= kMaxWidenNodes)
+      g = widenElement(e, wider, st.face, *st.surf);
+  }
+  if (g > 0) {
+    if (wBackoff != s_.widenBackoff.end()) s_.widenBackoff.erase(wBackoff);
+  } else {
+    s_.widenBackoff[e].failed(st.sweep, 1 << 20);  // retried after 1, 2, 4, 8… sweeps
+  }
+  return g;
+}
+
+std::size_t NodeUpdater::escapeByPatches(StuckElement& st, EscapeScratch& x) {
+  const int face = st.face;
+  const Surface& surf = *st.surf;
+  const bool relaxHere = st.relaxHere;
+  bool* relaxed = &st.relaxed;
   std::vector<std::size_t>& patch = x.patch;
   for (int ring = 0; ring <= 3; ++ring) {
     if (ring > 0) {  // grow by one ring of Face nodes of this face
@@ -175,8 +184,12 @@ std::size_t NodeUpdater::escapeByPatches(int face, const Surface& surf, bool rel
   return 0;
 }
 
-std::size_t NodeUpdater::escapeBySampling(std::size_t e, int face, const Surface& surf,
-                                          bool relaxHere, EscapeScratch& x, bool* relaxed) {
+std::size_t NodeUpdater::escapeBySampling(StuckElement& st, EscapeScratch& x) {
+  const std::size_t e = st.e;
+  const int face = st.face;
+  const Surface& surf = *st.surf;
+  const bool relaxHere = st.relaxHere;
+  bool* relaxed = &st.relaxed;
   if (!(s_.opt.escapes & kEscapeSample)) return 0;
   const std::int32_t* nd = s_.mesh.elementNodes(e);
   // Each Face node of the element alone, at the best point of a grid over its neighbours.

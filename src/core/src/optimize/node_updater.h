@@ -66,19 +66,42 @@ class NodeUpdater {
   /// of `face`, the nodes around it held (Gauss–Seidel on the uniform Laplacian).
   void harmonicLayout(EscapeScratch& x, int face, const Surface& surf);
 
-  /// escapeTangledElements' patches around a tangled element (its Face nodes x.patch, then
-  /// with 1, 2, 3 rings): the harmonic layout, then (`relaxHere`) the joint untangling by
-  /// relaxPatch from it and from the current positions. Returns the elements untangled by the
-  /// first patch kept (0: none; the positions as they were); *relaxed when relaxPatch ran.
-  std::size_t escapeByPatches(int face, const Surface& surf, bool relaxHere, EscapeScratch& x,
-                              bool* relaxed);
+  /// A stuck tangled element as the element escapes see it (escapeTangledElements).
+  struct StuckElement {
+    std::size_t e;
+    int face;
+    const Surface* surf;  // the face's surface (this worker's copy)
+    bool relaxHere;       // the joint untangling (relaxPatch) may run for it this time
+    bool held;            // it folds where no node may move (widening cannot repair it)
+    int sweep;
+    bool relaxed = false;  // set when relaxPatch ran for it
+  };
 
-  /// escapeTangledElements' last resort for tangled element e: each of its Face nodes alone at
-  /// the best point of a grid over its neighbours (sampleNeighbourhood); then, with
-  /// `relaxHere`, a Face node where e is valid and the Face nodes around it untangled
-  /// (relaxPatch). Returns the elements untangled (0: none; the positions as they were).
-  std::size_t escapeBySampling(std::size_t e, int face, const Surface& surf, bool relaxHere,
-                               EscapeScratch& x, bool* relaxed);
+  /// An element escape: tries to untangle the elements around stuck element st (its Face
+  /// nodes in x.patch), each behind its bit of OptimizeOptions::escapes, keeping a move only
+  /// when fewer elements are tangled (keepIfFewer). Returns the elements untangled (0: the
+  /// positions are as they were).
+  using ElementEscape = std::size_t (NodeUpdater::*)(StuckElement& st, EscapeScratch& x);
+
+  /// The joint compass search over st's nodes, then with one ring around them (widenElement),
+  /// with its own backoff; not for held elements.
+  std::size_t escapeByWidening(StuckElement& st, EscapeScratch& x);
+
+  /// The patches around st (its Face nodes, then with 1, 2, 3 rings): the harmonic layout,
+  /// then (st.relaxHere) the joint untangling by relaxPatch from it and from the current
+  /// positions. The first patch that leaves fewer elements tangled is kept.
+  std::size_t escapeByPatches(StuckElement& st, EscapeScratch& x);
+
+  /// The last resort: each of st's Face nodes alone at the best point of a grid over its
+  /// neighbours (sampleNeighbourhood); then, with st.relaxHere, a Face node where st is valid
+  /// and the Face nodes around it untangled (relaxPatch).
+  std::size_t escapeBySampling(StuckElement& st, EscapeScratch& x);
+
+  /// The element escapes in the order escapeTangledElements tries them on a stuck element;
+  /// the first that untangles something ends that element's turn.
+  static constexpr ElementEscape kElementEscapes[] = {&NodeUpdater::escapeByWidening,
+                                                      &NodeUpdater::escapeByPatches,
+                                                      &NodeUpdater::escapeBySampling};
 
   /// Straightens tangled high-order triangles and quad8 in (u,v): a curved element whose
   /// corner triangle (quad8: each corner's triangle of its corner quadrilateral) is valid but
