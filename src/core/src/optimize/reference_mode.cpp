@@ -31,6 +31,7 @@
 #include "surfmesh/measures/measure.h"
 #include "surfmesh/mesh/distance_to_face.h"
 #include "surfmesh/mesh/jacobian_ratio.h"
+#include "sweep_support.h"
 
 #include <algorithm>
 #include <chrono>
@@ -159,35 +160,15 @@ void placeStraightSided(SurfaceMesh& mesh, const SurfaceMesh& L) {
   }
 }
 
-/// The elements around each node.
-std::vector<std::vector<std::int32_t>> nodeElements(const SurfaceMesh& mesh) {
-  std::vector<std::vector<std::int32_t>> nodeElems(mesh.nodeCount());
-  for (std::size_t e = 0; e < mesh.elementCount(); ++e)
-    for (int k = 0; k < mesh.elementSize(e); ++k)
-      nodeElems[static_cast<std::size_t>(mesh.elementNodes(e)[k])].push_back(
-          static_cast<std::int32_t>(e));
-  return nodeElems;
-}
-
 /// Stage 3's fixedNodes: every node held (1) but those of the elements invalid in q1 (tangled
 /// or standing across) and of the elements within `rings` rings around them, and the
 /// high-order nodes on CAD edges. *any: whether a freed node may move.
-std::vector<unsigned char> heldOutside(const SurfaceMesh& mesh, const MeshQuality& q1,
-                                       const std::vector<std::vector<std::int32_t>>& nodeElems,
-                                       int rings, bool* any) {
-  std::vector<unsigned char> region(mesh.elementCount(), 0);
+std::vector<unsigned char> heldOutside(const SurfaceMesh& mesh, const MeshQuality& q1, int rings,
+                                       bool* any) {
+  std::vector<unsigned char> invalid(mesh.elementCount(), 0);
   for (std::size_t e = 0; e < mesh.elementCount(); ++e)
-    region[e] = (q1.tangled[e] || q1.across[e]) ? 1 : 0;
-  for (int r = 0; r < rings; ++r) {
-    std::vector<unsigned char> next = region;
-    for (std::size_t e = 0; e < mesh.elementCount(); ++e) {
-      if (!region[e]) continue;
-      for (int k = 0; k < mesh.elementSize(e); ++k)
-        for (std::int32_t f : nodeElems[static_cast<std::size_t>(mesh.elementNodes(e)[k])])
-          next[static_cast<std::size_t>(f)] = 1;
-    }
-    region.swap(next);
-  }
+    invalid[e] = (q1.tangled[e] || q1.across[e]) ? 1 : 0;
+  const std::vector<unsigned char> region = detail::widenByRings(mesh, std::move(invalid), rings);
   std::vector<unsigned char> held(mesh.nodeCount(), 1);
   *any = false;
   for (std::size_t e = 0; e < mesh.elementCount(); ++e) {
@@ -278,7 +259,6 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
   // makes an element of the input invalid.
   const MeshQuality q1 = measureQuality(mesh, measure);
   const Positions placed = Positions::of(mesh);
-  const std::vector<std::vector<std::int32_t>> nodeElems = nodeElements(mesh);
   OptimizeResult r2;
   bool ran2 = false;
   MeshQuality q2 = q1;
@@ -288,7 +268,7 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
     if (ran2 && !madeInvalid) break;
     bool any = false;
     OptimizeOptions rest = inner;
-    rest.fixedNodes = heldOutside(mesh, q1, nodeElems, rings, &any);
+    rest.fixedNodes = heldOutside(mesh, q1, rings, &any);
     if (!any) break;
     placed.restore(mesh);
     try {

@@ -50,5 +50,26 @@ std::vector<std::vector<std::int32_t>> colorNodes(const SurfaceMesh& mesh, const
   }
   return colors;
 }
+std::vector<unsigned char> widenByRings(const SurfaceMesh& mesh, std::vector<unsigned char> region,
+                                        int rings) {
+  if (rings <= 0) return region;
+  std::vector<std::vector<std::int32_t>> nodeElems(mesh.nodeCount());
+  for (std::size_t e = 0; e < mesh.elementCount(); ++e)
+    for (int k = 0; k < mesh.elementSize(e); ++k)
+      nodeElems[static_cast<std::size_t>(mesh.elementNodes(e)[k])].push_back(
+          static_cast<std::int32_t>(e));
+  for (int r = 0; r < rings; ++r) {
+    std::vector<unsigned char> next = region;
+    for (std::size_t e = 0; e < mesh.elementCount(); ++e) {
+      if (!region[e]) continue;
+      for (int k = 0; k < mesh.elementSize(e); ++k)
+        for (std::int32_t g : nodeElems[static_cast<std::size_t>(mesh.elementNodes(e)[k])])
+          next[static_cast<std::size_t>(g)] = 1;
+    }
+    region.swap(next);
+  }
+  return region;
+}
+
 }  // namespace detail
 }  // namespace surfmesh

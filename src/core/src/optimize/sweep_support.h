@@ -28,6 +28,11 @@ struct Incidence {
 };
 Incidence buildIncidence(const SurfaceMesh& m);
 
+/// `region` (one flag per element) grown by `rings` rings: the elements sharing a node with a
+/// flagged element are flagged, `rings` times over.
+std::vector<unsigned char> widenByRings(const SurfaceMesh& mesh, std::vector<unsigned char> region,
+                                        int rings);
+
 /// Greedy coloring on a given incidence (see colorMovableNodes).
 std::vector<std::vector<std::int32_t>> colorNodes(const SurfaceMesh& mesh, const Incidence& inc);
 

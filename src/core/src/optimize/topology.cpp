@@ -4,6 +4,7 @@
 #include "topology.h"
 
 #include "surfmesh/optimize/edge_flips.h"
+#include "sweep_support.h"
 #include "tangled_report.h"
 
 #include <algorithm>
@@ -42,23 +43,9 @@ SurfaceMesh aroundRewired(const SurfaceMesh& mesh, const std::vector<std::int32_
                           std::vector<unsigned char>* held, std::vector<std::int32_t>* nodes,
                           std::vector<std::int32_t>* elements) {
   const std::size_t N = mesh.nodeCount(), E = mesh.elementCount();
-  std::vector<std::vector<std::int32_t>> nodeElems(N);
-  for (std::size_t e = 0; e < E; ++e)
-    for (int k = 0; k < mesh.elementSize(e); ++k)
-      nodeElems[static_cast<std::size_t>(mesh.elementNodes(e)[k])].push_back(
-          static_cast<std::int32_t>(e));
-  std::vector<unsigned char> region(E, 0);
-  for (std::int32_t e : rewired) region[static_cast<std::size_t>(e)] = 1;
-  for (int r = 0; r < rings; ++r) {
-    std::vector<unsigned char> next = region;
-    for (std::size_t e = 0; e < E; ++e) {
-      if (!region[e]) continue;
-      for (int k = 0; k < mesh.elementSize(e); ++k)
-        for (std::int32_t g : nodeElems[static_cast<std::size_t>(mesh.elementNodes(e)[k])])
-          next[static_cast<std::size_t>(g)] = 1;
-    }
-    region.swap(next);
-  }
+  std::vector<unsigned char> seed(E, 0);
+  for (std::int32_t e : rewired) seed[static_cast<std::size_t>(e)] = 1;
+  const std::vector<unsigned char> region = detail::widenByRings(mesh, std::move(seed), rings);
   std::vector<unsigned char> free(N, 0);
   for (std::size_t e = 0; e < E; ++e)
     if (region[e])
@@ -68,9 +55,9 @@ SurfaceMesh aroundRewired(const SurfaceMesh& mesh, const std::vector<std::int32_
       }
   // Every element with a free node.
   std::vector<unsigned char> take(E, 0);
-  for (std::size_t n = 0; n < N; ++n)
-    if (free[n])
-      for (std::int32_t g : nodeElems[n]) take[static_cast<std::size_t>(g)] = 1;
+  for (std::size_t e = 0; e < E; ++e)
+    for (int k = 0; k < mesh.elementSize(e) && !take[e]; ++k)
+      take[e] = free[static_cast<std::size_t>(mesh.elementNodes(e)[k])];
   SurfaceMesh sub;
   sub.surfaces = mesh.surfaces;
   sub.faceOrientation = mesh.faceOrientation;
