@@ -158,7 +158,7 @@ OptimizeResult optimizeUntanglingFirst(SurfaceMesh& mesh, const OptimizeOptions&
   OptimizeResult first = optimizeBoundary(mesh, opt, shifted, before);
   if (first.reason == StopReason::Cancelled || first.tangledMovable.empty()) return first;
   MeshPositions reached = MeshPositions::of(mesh);
-  MeshPositions(input).restore(mesh);  // the shape measure starts from the input
+  input.copyTo(mesh);  // the shape measure starts from the input
   OptimizeOptions byShape = opt;
   byShape.measure = "shape";
   offset = first.sweeps;

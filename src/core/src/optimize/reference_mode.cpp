@@ -31,6 +31,7 @@
 #include "surfmesh/measures/measure.h"
 #include "surfmesh/mesh/distance_to_face.h"
 #include "surfmesh/mesh/jacobian_ratio.h"
+#include "sweep.h"
 #include "sweep_support.h"
 
 #include <algorithm>
@@ -88,20 +89,6 @@ SurfaceMesh cornerMesh(const SurfaceMesh& mesh) {
     if (!corner[i]) L.nodeKind[i] = NodeKind::Fixed;
   return L;
 }
-
-struct Positions {
-  std::vector<Vec3> xyz;
-  std::vector<Vec2> uv;
-  std::vector<double> nodeT;
-  std::vector<Vec2> cornerUV;
-  static Positions of(const SurfaceMesh& m) { return {m.xyz, m.uv, m.nodeT, m.cornerUV}; }
-  void restore(SurfaceMesh& m) const {
-    m.xyz = xyz;
-    m.uv = uv;
-    m.nodeT = nodeT;
-    m.cornerUV = cornerUV;
-  }
-};
 
 /// Steps 1's result copied back and step 2 (see the file comment).
 void placeStraightSided(SurfaceMesh& mesh, const SurfaceMesh& L) {
@@ -210,7 +197,7 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
   const MeshQuality q0 = measureQuality(mesh, measure);
   const double ratio0 = smallest(elementJacobianRatio(mesh));
   const std::size_t invalid0 = invalidCount(q0);
-  const Positions original = Positions::of(mesh);
+  const detail::MeshPositions original = detail::MeshPositions::of(mesh);
   OptimizeOptions inner = opt;
   inner.highOrder = "integral";
   auto seconds = [&] {
@@ -230,7 +217,7 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
     };
   auto integral = [&] {
     ++stage;
-    original.restore(mesh);
+    original.copyTo(mesh);
     OptimizeResult r = optimizeMesh(mesh, inner, staged, &q0.stats);
     if (before) r.before = *before;
     r.sweeps += done;
@@ -258,7 +245,7 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
   // the elements within `rings` rings around them; a second try with 3 rings when the first
   // makes an element of the input invalid.
   const MeshQuality q1 = measureQuality(mesh, measure);
-  const Positions placed = Positions::of(mesh);
+  const detail::MeshPositions placed = detail::MeshPositions::of(mesh);
   OptimizeResult r2;
   bool ran2 = false;
   MeshQuality q2 = q1;
@@ -270,18 +257,18 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
     OptimizeOptions rest = inner;
     rest.fixedNodes = heldOutside(mesh, q1, rings, &any);
     if (!any) break;
-    placed.restore(mesh);
+    placed.copyTo(mesh);
     try {
       ++stage;
       r2 = optimizeMesh(mesh, rest, staged, &q1.stats);
     } catch (...) {
-      original.restore(mesh);
+      original.copyTo(mesh);
       throw;
     }
     ran2 = true;
     done += r2.sweeps;
     if (r2.reason == StopReason::Cancelled) {
-      original.restore(mesh);
+      original.copyTo(mesh);
       res.after = q0.stats;
       res.sweeps = done;
       res.reason = StopReason::Cancelled;
@@ -303,11 +290,11 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
                      (invalid0 == 0 && ratio2 < ratio0 - kRounding);
   if (worse) return integral();
   if (invalid2 > 0) {
-    const Positions mine = Positions::of(mesh);
+    const detail::MeshPositions mine = detail::MeshPositions::of(mesh);
     OptimizeResult alt = integral();
     if (alt.reason == StopReason::Cancelled) return alt;  // the input, unchanged
     if (invalidCount(measureQuality(mesh, measure)) < invalid2) return alt;
-    mine.restore(mesh);
+    mine.copyTo(mesh);
   }
 
   res.after = q2.stats;

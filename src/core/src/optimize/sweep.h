@@ -21,6 +21,14 @@ struct MeshPositions {
     return {mesh.xyz, mesh.uv, mesh.nodeT, mesh.cornerUV};
   }
   bool empty() const { return xyz.empty(); }
+  /// Puts the positions back into `mesh` (a copy: they can be put back again).
+  void copyTo(SurfaceMesh& mesh) const {
+    mesh.xyz = xyz;
+    mesh.uv = uv;
+    if (!mesh.nodeT.empty()) mesh.nodeT = nodeT;
+    mesh.cornerUV = cornerUV;
+  }
+  /// Puts the positions back into `mesh`, moved there (this copy is empty afterwards).
   void restore(SurfaceMesh& mesh) {
     mesh.xyz = std::move(xyz);
     mesh.uv = std::move(uv);

@@ -4,6 +4,7 @@
 #include "topology.h"
 
 #include "surfmesh/optimize/edge_flips.h"
+#include "sweep.h"
 #include "sweep_support.h"
 #include "tangled_report.h"
 
@@ -18,19 +19,11 @@ namespace {
 
 /// Everything a run with flips may change, to restore on cancellation or an exception.
 struct Snapshot {
-  std::vector<Vec3> xyz;
-  std::vector<Vec2> uv;
-  std::vector<double> nodeT;
-  std::vector<Vec2> cornerUV;
+  detail::MeshPositions positions;
   std::vector<std::int32_t> elemNodes;
-  static Snapshot of(const SurfaceMesh& m) {
-    return {m.xyz, m.uv, m.nodeT, m.cornerUV, m.elemNodes};
-  }
+  static Snapshot of(const SurfaceMesh& m) { return {detail::MeshPositions::of(m), m.elemNodes}; }
   void restore(SurfaceMesh& m) const {
-    m.xyz = xyz;
-    m.uv = uv;
-    m.nodeT = nodeT;
-    m.cornerUV = cornerUV;
+    positions.copyTo(m);
     m.elemNodes = elemNodes;
   }
 };
@@ -203,7 +196,7 @@ OptimizeResult optimizeWithFlips(SurfaceMesh& mesh, const OptimizeOptions& opt,
   }
   res.movedNodes = 0;
   for (std::size_t i = 0; i < mesh.nodeCount(); ++i)
-    res.movedNodes += mesh.xyz[i] != original.xyz[i] ? 1 : 0;
+    res.movedNodes += mesh.xyz[i] != original.positions.xyz[i] ? 1 : 0;
   res.needles = needleElements(mesh, measure);
   if (!res.needles.empty()) {
     std::string t;
