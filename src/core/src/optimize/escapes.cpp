@@ -5,8 +5,6 @@
 #include "node_updater.h"
 #include "straight_sided.h"
 
-#include <optional>
-
 namespace surfmesh {
 namespace detail {
 
@@ -498,7 +496,7 @@ std::size_t NodeUpdater::sampleNeighbourhood(std::size_t i, int face, const Surf
   any.tangled = std::numeric_limits<int>::max();
   EvalMode tracking = s_.mode;
   tracking.trackCache = true;
-  std::optional<ModeScope> scope(std::in_place, s_, tracking);
+  const ModeScope scope(s_, tracking);  // to the end: what follows the grid evaluates nothing
   int bestTangled = valid >= 0 ? std::numeric_limits<int>::max() : cur.tangled;
   double bestF = kInf;
   Vec2 bestUV = uv0;
@@ -527,7 +525,6 @@ std::size_t NodeUpdater::sampleNeighbourhood(std::size_t i, int face, const Surf
         bestUV = uvT;
       }
     }
-  scope.reset();
   if (valid >= 0) {
     if (bestTangled == std::numeric_limits<int>::max()) return 0;
     *target = bestUV;
