@@ -5,6 +5,7 @@
 //
 //   bench_cad measure  SHAPE MESH.bin
 //   bench_cad optimize SHAPE MESH.bin OUT.bin THREADS
+//   bench_cad escapes          (the escapes' names, kEscapeNames, as a JSON list)
 //
 // MESH.bin: int64 N, int64 E, N×3 float64 node positions, E×3 int32 0-based triangles; or,
 // when E is written negative, |E|×4 int32 0-based elements: quadrilaterals, and triangles with
@@ -155,8 +156,16 @@ unsigned escapeBits(const std::string& list) {
 }
 
 int main(int argc, char** argv) {
+  if (argc == 2 && std::string(argv[1]) == "escapes") {  // the names BENCH_WITHOUT takes
+    std::printf("[");
+    for (std::size_t k = 0; k < std::size(kEscapeNames); ++k)
+      std::printf("%s\"%s\"", k ? ", " : "", kEscapeNames[k]);
+    std::printf("]\n");
+    return 0;
+  }
   if (argc < 4) {
-    std::fprintf(stderr, "usage: bench_cad measure|optimize SHAPE MESH.bin [OUT.bin THREADS]\n");
+    std::fprintf(stderr,
+                 "usage: bench_cad measure|optimize SHAPE MESH.bin [OUT.bin THREADS] | escapes\n");
     return 2;
   }
   const std::string mode = argv[1];

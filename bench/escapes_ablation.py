@@ -12,6 +12,7 @@ and the total time and its ratio to the run with every escape. The same code (be
 measure) measures every result. Parts are read from ../shared/data/cad, never copied.
 """
 import argparse
+import json
 import os
 import subprocess
 import sys
@@ -22,23 +23,25 @@ import gmsh
 import gmsh_compare as gc
 
 DEFAULT_PARTS = "occt_crankarm.brep,occt_housing_bottom.brep,occt_bottle.brep,occt_screw.step"
-# The names of the core's kEscapeNames (bench_cad refuses an unknown one).
-ESCAPES = ("straighten", "widen", "harmonic", "relax", "sample", "fold-target", "compass",
-           "slide")
+def escape_names(bench_dir):
+    """The escapes' names as the core lists them (kEscapeNames, through bench_cad)."""
+    out = subprocess.run([os.path.join(bench_dir, "bench_cad"), "escapes"], capture_output=True,
+                         text=True, check=True)
+    return json.loads(out.stdout)
 
 
 def run(bench_dir, brep, inp, out, threads, without):
-    env = dict(os.environ)
-    env.pop("BENCH_WITHOUT", None)
+    """bench_cad optimize with the escapes `without` (comma-separated names) off, then the
+    measure of its result."""
     if without:
-        env["BENCH_WITHOUT"] = without
-    r = subprocess.run([os.path.join(bench_dir, "bench_cad"), "optimize", brep, inp, out,
-                        str(threads)], capture_output=True, text=True, env=env)
-    if r.returncode != 0:
-        sys.exit(f"bench_cad optimize failed (BENCH_WITHOUT={without}): {r.stderr[-400:]}")
-    opt = gc.json.loads(r.stdout.strip().splitlines()[-1])
-    m = gc.run_bench_cad(bench_dir, "measure", brep, out)
-    return opt, m
+        os.environ["BENCH_WITHOUT"] = without
+    try:
+        opt = gc.run_bench_cad(bench_dir, "optimize", brep, inp, out, threads)
+    finally:
+        os.environ.pop("BENCH_WITHOUT", None)
+    if "error" in opt:
+        sys.exit(f"bench_cad optimize failed (BENCH_WITHOUT={without}): {opt['error']}")
+    return opt, gc.run_bench_cad(bench_dir, "measure", brep, out)
 
 
 def main():
@@ -51,7 +54,8 @@ def main():
     args = ap.parse_args()
     cad = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "shared", "data",
                        "cad")
-    variants = [("", "every escape")] + [(e, f"without {e}") for e in ESCAPES] + [("all", "none")]
+    variants = ([("", "every escape")] +
+                [(e, f"without {e}") for e in escape_names(args.bench_dir)] + [("all", "none")])
     gmsh.initialize()
     print("| part | escapes | tangled left (movable) | min q | mean q | s | time ratio |")
     print("|---|---|---:|---:|---:|---:|---:|")
