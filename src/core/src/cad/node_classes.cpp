@@ -152,6 +152,28 @@ struct NodeClassifier {
     }
   }
 
+  /// The CAD edge of face f nearest to p among those `accept` takes: its id (−1: none), the
+  /// distance and the curve parameter. With a finite `cap`, an edge whose box is farther than
+  /// the best so far or than cap is not measured.
+  struct NearEdge {
+    int edge = -1;
+    double distance = kInf, t = 0.0;
+  };
+  template <class Accept>
+  NearEdge nearestEdge(int f, const Vec3& p, Accept accept, double cap = kInf) {
+    NearEdge best;
+    for (int e : S.faceEdges(f)) {
+      if (!accept(e)) continue;
+      if (cap < kInf &&
+          boxDistance(edgeBoxes[static_cast<std::size_t>(e)], p) > std::min(best.distance, cap))
+        continue;
+      double t = 0.0;
+      const double d = proj.edgeDistance(e, p, &t);
+      if (d < best.distance) best = {e, d, t};
+    }
+    return best;
+  }
+
   // Edge node (or vertex node when at an end of the edge / on a degenerated edge).
   void setEdge(std::size_t n, int e, double t) {
     const double vs = std::min(tol, std::max(0.1 * hmin[n], 1e-9 * diag));
@@ -264,19 +286,10 @@ void NodeClassifier::onOneFace(std::size_t n, int f, const Vec3& p, double vs) {
     return;
   }
   // On the mesh's boundary: the nearest CAD edge of f (not a seam of f).
-  int be = -1;
-  double bd = kInf, bt = 0.0;
-  for (int e : S.faceEdges(f)) {
-    if (S.isDegeneratedEdge(e) || S.isSeam(e, f)) continue;
-    if (boxDistance(edgeBoxes[static_cast<std::size_t>(e)], p) > std::min(bd, tol)) continue;
-    double t = 0.0;
-    const double d = proj.edgeDistance(e, p, &t);
-    if (d < bd) {
-      bd = d;
-      be = e;
-      bt = t;
-    }
-  }
+  const NearEdge near = nearestEdge(
+      f, p, [&](int e) { return !S.isDegeneratedEdge(e) && !S.isSeam(e, f); }, tol);
+  const int be = near.edge;
+  const double bd = near.distance, bt = near.t;
   const bool hole = !input.leftOutNeighbour.empty() && input.leftOutNeighbour[n];
   const double reach =
       hole && be >= 0 ? std::max(2.0 * BRep_Tool::Tolerance(S.edge(be)), 1e-6 * diag) : tol;
@@ -309,18 +322,9 @@ void NodeClassifier::onSeveralFaces(std::size_t n, const std::vector<int>& F, co
     setVertex(n, bv);
     return;
   }
-  int be = -1;
-  double bed = kInf, bt = 0.0;
-  for (int e : S.faceEdges(F[0])) {
-    if (!includesAll(S.edgeFaces(e), F)) continue;
-    double t = 0.0;
-    const double d = proj.edgeDistance(e, p, &t);
-    if (d < bed) {
-      bed = d;
-      be = e;
-      bt = t;
-    }
-  }
+  const NearEdge near = nearestEdge(F[0], p, [&](int e) { return includesAll(S.edgeFaces(e), F); });
+  const int be = near.edge;
+  const double bed = near.distance, bt = near.t;
   if (be >= 0 && bed <= tol) {
     setEdge(n, be, bt);
   } else if (bv >= 0 && bvd <= tol) {
