@@ -1,8 +1,11 @@
 #include "arrays.h"
 
+#include <pybind11/stl.h>
+
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
+#include <utility>
 
 namespace surfmesh::bindings {
 
@@ -50,9 +53,16 @@ void checkFinite(const ArrayD& a, const char* what) {
   const py::ssize_t cols = a.ndim() == 2 ? a.shape(1) : 1;
   for (py::ssize_t i = 0; i < n; ++i) {
     if (!std::isfinite(p[i])) {
+      // (the rows of the arrays checked here are nodes: positions, (u,v))
       std::ostringstream s;
-      s << what << " contains a non-finite value (" << p[i] << ") in row " << i / cols;
-      throw std::invalid_argument(s.str());
+      s << p[i];
+      Diagnostic d;
+      d.code = code::kNonFiniteNode;
+      d.count = 1;
+      d.nodes = {static_cast<std::int64_t>(i / cols)};
+      d.format =
+          std::string(what) + " contains a non-finite value (" + s.str() + ") in node {node}";
+      throw InputError(std::move(d));
     }
   }
 }
@@ -104,6 +114,23 @@ py::array_t<double> fromVec3(const std::vector<Vec3>& v) {
 py::array_t<double> fromDoubles(const std::vector<double>& v) {
   py::array_t<double> out(static_cast<py::ssize_t>(v.size()));
   std::copy(v.begin(), v.end(), out.mutable_data());
+  return out;
+}
+
+py::dict diagnosticDict(const Diagnostic& d) {
+  py::dict values;
+  for (const auto& [name, v] : d.values) values[py::str(name)] = v;
+  py::dict out;
+  out["code"] = d.code;
+  out["text"] = d.render();
+  out["format"] = d.format;
+  out["count"] = d.count;
+  out["nodes"] = py::cast(d.nodes);
+  out["elements"] = py::cast(d.elements);
+  out["faces"] = py::cast(d.faces);
+  out["edges"] = py::cast(d.edges);
+  out["vertices"] = py::cast(d.vertices);
+  out["values"] = values;
   return out;
 }
 

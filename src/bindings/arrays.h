@@ -10,6 +10,7 @@
 // std::invalid_argument (→ ValueError) naming the offending index.
 #pragma once
 
+#include "surfmesh/diagnostic.h"
 #include "surfmesh/geometry/surface.h"
 
 #include <pybind11/numpy.h>
@@ -49,5 +50,10 @@ std::vector<std::int32_t> toInt32(const ArrayI& a);
 py::array_t<double> fromVec3(const std::vector<Vec3>& v);
 /// New 1-D arrays from vectors.
 py::array_t<double> fromDoubles(const std::vector<double>& v);
+
+/// A diagnostic as Python sees it: {"code", "text" (rendered with the core's indices),
+/// "format", "count", "nodes", "elements", "faces", "edges", "vertices" (lists of int),
+/// "values" (dict of name: float)}.
+py::dict diagnosticDict(const Diagnostic& d);
 
 }  // namespace surfmesh::bindings

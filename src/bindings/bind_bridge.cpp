@@ -77,6 +77,9 @@ py::dict reportDict(const BridgeReport& r) {
   d["hints_rejected"] = r.hintsRejected;
   d["hints_taken"] = r.hintsTaken;
   d["warnings"] = r.warnings;
+  py::list diagnostics;
+  for (const Diagnostic& x : r.diagnostics) diagnostics.append(diagnosticDict(x));
+  d["diagnostics"] = diagnostics;
   d["seconds"] = r.seconds;
   d["summary"] = r.summary();
   return d;
@@ -85,6 +88,17 @@ py::dict reportDict(const BridgeReport& r) {
 }  // namespace
 
 void bind_bridge(py::module_& m) {
+  m.def(
+      "diagnostic_codes",
+      [] {
+        py::list out;
+        for (const DiagnosticCode& c : kDiagnosticCodes)
+          out.append(py::dict(py::arg("code") = c.code, py::arg("refusal") = c.refusal,
+                              py::arg("meaning") = c.meaning));
+        return out;
+      },
+      "Every code of the core's diagnostics: [{code, refusal (an InputError, else a warning of "
+      "the bridge report's 'diagnostics'), meaning}].");
   m.def(
       "cad_mesh",
       [](std::shared_ptr<CadShape> shape, const ArrayD& nodes, const ArrayI& types,

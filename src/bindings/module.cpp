@@ -1,4 +1,5 @@
 // SurfMesh bindings — the `SurfMesh._surfmesh` module: registers one binding file per topic.
+#include "arrays.h"
 #include "handle.h"
 
 #include <Standard_Failure.hxx>
@@ -17,9 +18,18 @@ PYBIND11_MODULE(_surfmesh, m) {
   // std::invalid_argument is translated to ValueError by pybind11 itself; keep that explicit.
   // An OpenCASCADE exception that escapes the core (it is not a std::exception, so pybind11
   // would say only "Caught an unknown exception!") names its type and message.
+  // The core's refusal of its input (surfmesh::InputError) is an InputError, a ValueError
+  // whose `diagnostic` attribute holds the structured diagnostic (code, ids: diagnosticDict).
+  // (Kept for the module's life: never destroyed, as the exception type outlives the module.)
+  static PyObject* inputError =
+      (new py::exception<surfmesh::InputError>(m, "InputError", PyExc_ValueError))->ptr();
   py::register_exception_translator([](std::exception_ptr p) {
     try {
       if (p) std::rethrow_exception(p);
+    } catch (const surfmesh::InputError& e) {
+      py::object exc = py::handle(inputError)(e.what());
+      exc.attr("diagnostic") = surfmesh::bindings::diagnosticDict(e.diagnostic());
+      PyErr_SetObject(inputError, exc.ptr());
     } catch (const std::invalid_argument& e) {
       PyErr_SetString(PyExc_ValueError, e.what());
     } catch (const Standard_Failure& e) {

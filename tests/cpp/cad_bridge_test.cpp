@@ -995,14 +995,29 @@ TEST(CadBridge, NodesOfNoElementAreLocatedOnTheWholeShapeAndKeptFixed) {
   EXPECT_NE(msg.find("node " + std::to_string(off.nodes.size() - 1) + " at distance 2 "),
             std::string::npos)
       << msg;
-  EXPECT_NE(msg.find("from edge " + std::to_string(freeEdge) + ", the nearest"), std::string::npos)
+  // (the shape's entities as FreeCAD names them: Edge<index + 1>)
+  EXPECT_NE(msg.find("from Edge" + std::to_string(freeEdge + 1) + ", the nearest"),
+            std::string::npos)
       << msg;
+  // The same as a diagnostic: its code, the node and the edge by index.
+  try {
+    CadMesh cm(shape, off);
+    ADD_FAILURE() << "the node off the shape was accepted";
+  } catch (const InputError& e) {
+    const Diagnostic& dg = e.diagnostic();
+    EXPECT_EQ(dg.code, "nodes_off_shape");
+    EXPECT_EQ(dg.count, 1);
+    ASSERT_FALSE(dg.nodes.empty());
+    EXPECT_EQ(dg.nodes[0], static_cast<std::int64_t>(off.nodes.size() - 1));
+    EXPECT_EQ(dg.edges, std::vector<int>{freeEdge});
+    EXPECT_EQ(dg.render(), std::string(e.what()));
+  }
   // A face element's node on the free edge: the element lies on no face.
   MeshInput onFree = om.input;
   onFree.conn[0] = first;  // the free edge's node as a corner of element 0
   const std::string m2 = errorOf([&] { CadMesh cm(shape, onFree); });
   EXPECT_NE(m2.find("nodes of face elements but lie on no face"), std::string::npos) << m2;
-  EXPECT_NE(m2.find("edge " + std::to_string(freeEdge) + ", which bounds no face"),
+  EXPECT_NE(m2.find("Edge" + std::to_string(freeEdge + 1) + ", which bounds no face"),
             std::string::npos)
       << m2;
 }

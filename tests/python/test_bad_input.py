@@ -489,6 +489,54 @@ class BadInputApi(unittest.TestCase):
         for m in msgs:
             self.assertIn(f"e.g. nodes {listed}", m)
 
+    def test_refusals_carry_their_diagnostic_in_the_users_ids(self):
+        # The core's refusal as a structured diagnostic: its code, the node by its FEM id, the
+        # text the exception says; the core's own text (0-based rows) is the same diagnostic
+        # rendered with its indices.
+        from SurfMesh.app.native import core
+
+        i = interior_node(self.nodes)
+        nodes = self.nodes.copy()
+        d = next(d for d in range(3) if nodes[i][d] in (0.0, 10.0))
+        nodes[i][d] += 1.0 if nodes[i][d] == 10.0 else -1.0
+        with self.assertRaises(ValueError) as cm:
+            SurfMesh.measure(make_fem(nodes, self.tris), self.shape)
+        diag = cm.exception.diagnostic
+        self.assertEqual(diag["code"], "nodes_off_shape")
+        self.assertEqual(diag["count"], 1)
+        self.assertEqual(diag["nodes"][0], FEM_NODE_ID0 + i)
+        self.assertEqual(diag["text"], str(cm.exception))
+        m = core()
+        cshape = m.CadShape.from_brep_string(self.shape.exportBrepToString())
+        tris = np.asarray(self.tris, dtype=np.int64)
+        with self.assertRaises(m.InputError) as raw:
+            m.cad_mesh(cshape, nodes, np.zeros(len(tris), dtype=np.int64),
+                       np.arange(0, 3 * len(tris) + 1, 3, dtype=np.int64), tris.reshape(-1))
+        core_diag = raw.exception.diagnostic
+        self.assertEqual(core_diag["nodes"][0], i)
+        self.assertEqual(core_diag["text"], str(raw.exception))
+        self.assertIn(f"worst: node {i} at distance", str(raw.exception))
+        # the same placeholders, filled with the user's ids, give the user's text
+        self.assertEqual(str(raw.exception).replace(f"node {i} ", f"node {FEM_NODE_ID0 + i} ")
+                         .replace(f"e.g. nodes {i}", f"e.g. nodes {FEM_NODE_ID0 + i}"),
+                         diag["text"])
+
+    def test_every_diagnostic_code_is_documented(self):
+        # docs/python-api.md's table of codes is the list the core and messages give, each
+        # as a refusal or a warning as they say.
+        import re
+
+        import surfmesh_testing as T
+        from SurfMesh.app import messages
+
+        with open(os.path.join(T.REPO, "docs", "python-api.md"), encoding="utf-8") as f:
+            documented = dict(re.findall(r"^\| `([a-z_]+)` \| (refusal|warning) \|", f.read(),
+                                         re.M))
+        codes = {c["code"]: "refusal" if c["refusal"] else "warning"
+                 for c in messages.diagnostic_codes()}
+        self.assertGreater(len(codes), 20)
+        self.assertEqual(documented, codes)
+
     def test_mesh_of_another_shape(self):
         far = Part.makeCylinder(3, 8, App.Vector(100, 0, 0))
         self.expect_error(make_mesh(self.nodes, self.tris), "does not lie on this shape", shape=far)

@@ -1,6 +1,6 @@
-"""SurfMesh.app.messages: each rewriting of the core's messages (input string -> output string),
-the notes' patterns against the texts they read, and the command line's defaults
-(run: freecadcmd -t test_messages). No FreeCAD document, no core run: plain strings."""
+"""SurfMesh.app.messages: the core's diagnostics in the user's ids (each placeholder), the notes
+by diagnostic code, the run's warnings and the command line's defaults
+(run: freecadcmd -t test_messages). No FreeCAD document, no core run: plain values."""
 
 import types
 import unittest
@@ -13,130 +13,143 @@ from SurfMesh.app import messages
 DATA = types.SimpleNamespace(node_ids=np.arange(10, 18), element_ids=np.arange(101, 105))
 
 
-class TestNameByIds(unittest.TestCase):
-    """One test per rule of messages.name_by_ids."""
+def core_diag(fmt, **kw):
+    """A diagnostic as the core gives it (its 0-based indices)."""
+    d = {"code": kw.pop("code", "example"), "format": fmt, "count": kw.pop("count", 0),
+         "nodes": [], "elements": [], "faces": [], "edges": [], "vertices": [], "values": {}}
+    d.update(kw)
+    return d
 
-    def rewrite(self, text, data=DATA):
-        return messages.name_by_ids(text, data)
 
-    def test_one_node(self):
-        self.assertEqual(self.rewrite("node 5 lies off the shape"), "node 15 lies off the shape")
+class TestDiagnostics(unittest.TestCase):
+    """The core's diagnostics in the user's ids: each placeholder, by hand-written texts."""
 
-    def test_nodes_listed_with_and(self):
-        self.assertEqual(self.rewrite("nodes 2 and 7 coincide"), "nodes 12 and 17 coincide")
+    def user(self, fmt, data=DATA, **kw):
+        return messages.for_user(core_diag(fmt, **kw), data)["text"]
 
-    def test_nodes_listed_with_commas(self):
-        self.assertEqual(self.rewrite("nodes 2, 7 and 3 are far"), "nodes 12, 17 and 13 are far")
-        self.assertEqual(self.rewrite("nodes 1, 2, 3, …"), "nodes 11, 12, 13, …")
+    def test_one_node_and_one_element(self):
+        self.assertEqual(self.user("element {element} repeats node {node}", nodes=[5],
+                                   elements=[3]), "element 104 repeats node 15")
 
-    def test_nodes_listed_with_spaces(self):
-        self.assertEqual(self.rewrite("e.g. nodes 7 1 3"), "e.g. nodes 17 11 13")
+    def test_indexed_and_listed_ids(self):
+        self.assertEqual(self.user("nodes {node} and {node1}; e.g. nodes {nodes1}; all {nodes}",
+                                   nodes=[2, 7, 1, 3]),
+                         "nodes 12 and 17; e.g. nodes 17 11 13; all 12 17 11 13")
+        self.assertEqual(self.user("elements {element0}, {element1} and {element2} fold",
+                                   elements=[0, 1, 2]), "elements 101, 102 and 103 fold")
 
-    def test_a_list_stops_before_a_decimal_number(self):
-        self.assertEqual(self.rewrite("nodes 1 2.5 from it"), "nodes 11 2.5 from it")
-
-    def test_row_of_the_node_array_is_a_node(self):
-        self.assertEqual(self.rewrite("row 5 is not finite"), "node 15 is not finite")
-
-    def test_elements(self):
-        self.assertEqual(self.rewrite("element 3 is tangled"), "element 104 is tangled")
-        self.assertEqual(self.rewrite("elements 0, 1 and 2 fold"), "elements 101, 102 and 103 fold")
-
-    def test_an_index_out_of_the_table_stays(self):
-        self.assertEqual(self.rewrite("node 9 is out of range"), "node 9 is out of range")
+    def test_counts_and_numbers(self):
+        self.assertEqual(self.user("{count} of {total} nodes at {distance} ({relative} x)",
+                                   count=5, values={"total": 1234567.0, "distance": 2.5e-7,
+                                                    "relative": 1.0 / 3.0}),
+                         "5 of 1234567 nodes at 2.5e-07 (0.333333 x)")
 
     def test_cad_entities_get_freecad_names(self):
-        self.assertEqual(self.rewrite("lies 0.3 from face 2"), "lies 0.3 from Face3")
-        self.assertEqual(self.rewrite("nodes on edge 0"), "nodes on Edge1")
-        self.assertEqual(self.rewrite("the mesh of vertex 3"), "the mesh of Vertex4")
-        self.assertEqual(self.rewrite("node 1 of vertex 0 and element 2 on face 1"),
-                         "node 11 of Vertex1 and element 103 on Face2")
+        d = messages.for_user(core_diag("node {node} of {vertex}, element {element} on {face}, "
+                                        "{edge}", nodes=[1], vertices=[0], elements=[2],
+                                        faces=[1], edges=[0]), DATA)
+        self.assertEqual(d["text"], "node 11 of Vertex1, element 103 on Face2, Edge1")
+        # the dict in the user's ids: FEM ids, FreeCAD's numbers of the shape's entities
+        self.assertEqual((d["nodes"], d["elements"], d["faces"], d["edges"], d["vertices"]),
+                         ([11], [103], [2], [1], [1]))
 
-    def test_counts_stay(self):
-        self.assertEqual(self.rewrite("5 nodes belong to no element"),
-                         "5 nodes belong to no element")
+    def test_an_index_out_of_the_table_stays(self):
+        self.assertEqual(self.user("node {node} is out of range", nodes=[9]),
+                         "node 9 is out of range")
 
     def test_without_ids_only_the_entities_change(self):
         bare = types.SimpleNamespace()
-        self.assertEqual(self.rewrite("node 5 on face 0", bare), "node 5 on Face1")
+        self.assertEqual(self.user("node {node} on {face}", bare, nodes=[5], faces=[0]),
+                         "node 5 on Face1")
+
+    def test_what_cannot_be_filled_stays(self):
+        self.assertEqual(self.user("{node3} {unknown} {nodes}", nodes=[1]), "{node3} {unknown} 11")
+
+    def test_refusal_in_the_users_ids(self):
+        err = ValueError("element 3 repeats node 5")
+        err.diagnostic = core_diag("element {element} repeats node {node}", code="repeated_node",
+                                   nodes=[5], elements=[3])
+        out = messages.refusal(err, DATA)
+        self.assertIsInstance(out, ValueError)
+        self.assertEqual(str(out), "element 104 repeats node 15")
+        self.assertEqual(out.diagnostic["code"], "repeated_node")
+        # a ValueError without a diagnostic (not the core's refusal) keeps its text
+        self.assertEqual(str(messages.refusal(ValueError("node 5 is odd"), DATA)), "node 5 is odd")
 
 
 class TestUnusedNodes(unittest.TestCase):
-    WARNING = "12 nodes belong to no element (e.g. nodes of edge elements); they are kept fixed"
+    FORMAT = ("{count} nodes belong to no element (e.g. nodes of edge or vertex elements); they "
+              "are kept fixed and lie on the shape: {on_vertices} on CAD vertices, {on_edges} on "
+              "CAD edges, {on_faces} on faces; farthest: node {node} ({distance} from {vertex}); "
+              "e.g. nodes {nodes1}")
 
-    def test_recognised(self):
-        self.assertTrue(messages.is_unused_nodes_warning(self.WARNING))
-        self.assertFalse(messages.is_unused_nodes_warning("12 nodes belong to face 3"))
-        self.assertFalse(messages.is_unused_nodes_warning("glued 12 nodes belong to no element"))
-
-    def test_recounted(self):
-        self.assertEqual(messages.recount_unused_nodes(self.WARNING, 7),
-                         "7 nodes belong to no element (e.g. nodes of edge elements); they are "
-                         "kept fixed")
-
-    def test_loose_note_from_the_report_arrays(self):
+    def test_loose_nodes_from_the_report_arrays(self):
+        # the farthest lies on an edge now: the core's format names the edge instead
         report = {"loose_nodes": np.array([3, 4, 5]), "loose_class": np.array([0, 1, 2]),
                   "loose_entity": np.array([2, 0, 5]),
                   "loose_distance": np.array([1e-9, 2.5e-7, 1e-8])}
+        d = messages.loose_nodes(report, self.FORMAT)
+        self.assertEqual(d["code"], "unused_nodes")
         self.assertEqual(
-            messages.loose_note(report),
+            messages.for_user(d, DATA)["text"],
             "3 nodes belong to no element (e.g. nodes of edge or vertex elements); they are "
             "kept fixed and lie on the shape: 1 on CAD vertices, 1 on CAD edges, 1 on faces; "
-            "farthest: node 4 (2.5e-07 from edge 0); e.g. nodes 3 4 5")
-        # …which name_by_ids then puts in the user's ids and names
-        self.assertTrue(messages.name_by_ids(messages.loose_note(report), DATA).endswith(
-            "; farthest: node 14 (2.5e-07 from Edge1); e.g. nodes 13 14 15"))
+            "farthest: node 14 (2.5e-07 from Edge1); e.g. nodes 13 14 15")
 
 
 class TestNotes(unittest.TestCase):
-    """Each rule of messages.NOTE_RULES reads the text of the warning it is for."""
+    """Each note of messages.NOTE_WORDS, by its diagnostic's code and count."""
 
     def test_unused(self):
-        self.assertEqual(
-            messages.user_words("12 nodes belong to no element (e.g. nodes of edge elements)"),
-            ("unused", "12 nodes are used by no face element (e.g. nodes of edge elements): "
-                       "they stay where they are"))
+        d = messages.for_user(core_diag("{count} nodes belong to no element", code="unused_nodes",
+                                        count=12), DATA)
+        self.assertEqual(messages.user_words(d),
+                         ("unused_nodes", "12 nodes are used by no face element (e.g. nodes of "
+                                          "edge elements): they stay where they are"))
 
     def test_left_out(self):
-        w = messages.left_out(
+        d = messages.left_out(
             messages.left_out_reasons(collapsed=3, folded=2, crowded=4, misjoined=5, flat=1,
-                                      miswound=6), np.arange(12))
+                                      miswound=6), np.arange(21))
         self.assertEqual(
-            w, "left out 3 collapsed element(s) (a repeated node) and 2 element(s) with the "
-               "same nodes as another one (folded pairs) and 4 element(s) overlapping around "
-               "those (more than two on one edge) and 5 high-order element(s) joined to those "
-               "through side nodes no conforming mesh shares (a side node that is also a "
-               "corner, or on two edges) and 1 flat element(s) on one CAD edge or with two "
-               "nodes on one CAD vertex and 6 element(s) wound against their face's mesh next "
-               "to those: ids 0, 1, 2, 3, 4, 5, 6, 7, 8, 9 …")
-        self.assertEqual(messages.user_words(w),
+            d["text"], "left out 3 collapsed element(s) (a repeated node) and 2 element(s) with "
+                       "the same nodes as another one (folded pairs) and 4 element(s) overlapping "
+                       "around those (more than two on one edge) and 5 high-order element(s) "
+                       "joined to those through side nodes no conforming mesh shares (a side "
+                       "node that is also a corner, or on two edges) and 1 flat element(s) on one "
+                       "CAD edge or with two nodes on one CAD vertex and 6 element(s) wound "
+                       "against their face's mesh next to those: ids 0, 1, 2, 3, 4, 5, 6, 7, 8, "
+                       "9 …")
+        self.assertEqual(d["elements"], list(range(21)))
+        self.assertEqual(messages.user_words(d),
                          ("left_out", "21 elements are left out (collapsed or degenerate, e.g. "
                                       "where the mesher merged nodes): they keep their place "
                                       "and are drawn grey"))
 
     def test_node_order(self):
-        w = messages.side_nodes_astray(np.array([4, 5]))
+        d = messages.side_nodes_astray(np.array([4, 5]))
         self.assertEqual(
-            w, "2 high-order element(s) have a side node farther from its side than the side is "
-               "long (ids 4, 5): is the node order corners first, then the side nodes of sides "
-               "1-2, 2-3, 3-1?")
-        self.assertEqual(messages.user_words(w)[0], "node_order")
-        self.assertTrue(messages.user_words(w)[1].startswith("2 curved elements"))
+            d["text"], "2 high-order element(s) have a side node farther from its side than the "
+                       "side is long (ids 4, 5): is the node order corners first, then the side "
+                       "nodes of sides 1-2, 2-3, 3-1?")
+        self.assertEqual(messages.user_words(d)[0], "node_order")
+        self.assertTrue(messages.user_words(d)[1].startswith("2 curved elements"))
 
     def test_glued(self):
-        w = messages.glued_nodes(3, 7, 9, (1.0, 2.0, 3.5))
+        d = messages.glued_nodes(3, 7, 9, (1.0, 2.0, 3.5))
         self.assertEqual(
-            w, "glued 3 node(s) to another node at the same position (the mesh has a crack "
-               "there, e.g. nodes 7 and 9 at (1, 2, 3.5)): they are measured as one node and "
-               "move together")
-        self.assertEqual(messages.user_words(w),
+            d["text"], "glued 3 node(s) to another node at the same position (the mesh has a "
+                       "crack there, e.g. nodes 7 and 9 at (1, 2, 3.5)): they are measured as one "
+                       "node and move together")
+        self.assertEqual(d["nodes"], [7, 9])
+        self.assertEqual(messages.user_words(d),
                          ("glued", "3 nodes sit on another node (a crack along a CAD edge): "
                                    "they are measured as one and move together"))
 
-    def test_unknown_warning_is_its_own_kind(self):
-        w = "the shape's tolerance 1e-07 is larger than 0.5 of its size"
-        self.assertEqual(messages.user_words(w),
-                         ("the shape's tolerance # is larger than # of its size", w))
+    def test_another_code_is_its_own_kind(self):
+        d = messages.for_user(core_diag("{count} trimming curve(s) of {face}", code="trim_gaps",
+                                        count=2, faces=[3]), DATA)
+        self.assertEqual(messages.user_words(d), ("trim_gaps", "2 trimming curve(s) of Face4"))
 
 
 class TestRunWarnings(unittest.TestCase):

@@ -44,34 +44,44 @@ class Notes(unittest.TestCase):
 
     def test_user_words_with_the_warnings_counts(self):
         rep = SurfMesh.measure(self.mesh, self.part)
-        warnings = rep.bridge["warnings"]
-        words = dict(notes.user_words(w) for w in warnings)
-        counts = {}
-        for w in warnings:  # the counts as the warnings give them
-            if w.startswith("left out"):
-                counts["left_out"] = sum(int(n) for n in re.findall(r"(\d+) [a-z-]*\s*element",
-                                                                    w.split(": ids")[0]))
+        diagnostics = rep.bridge["diagnostics"]
+        # the warnings are the diagnostics' texts
+        self.assertEqual(rep.bridge["warnings"], [d["text"] for d in diagnostics])
+        words = dict(notes.user_words(d) for d in diagnostics)
+        self.assertEqual(set(words), {"unused_nodes", "left_out", "node_order"},
+                         rep.bridge["warnings"])
+        for d in diagnostics:  # the counts as the warnings' texts give them
+            w = d["text"]
+            if d["code"] == "left_out":
+                n = sum(int(k) for k in re.findall(r"(\d+) [a-z-]*\s*element",
+                                                   w.split(": ids")[0]))
+                self.assertEqual(n, len(rep.bridge["skipped_elements"]))
             else:
-                counts[notes.user_words(w)[0]] = int(re.match(r"\D*(\d+)", w).group(1))
-        self.assertEqual(set(words), {"unused", "left_out", "node_order"}, warnings)
-        for kind, n in counts.items():
-            self.assertTrue(words[kind].startswith(f"{n} "), (kind, words[kind]))
+                n = int(re.match(r"\D*(\d+)", w).group(1))
+            self.assertEqual(d["count"], n, w)
+            self.assertTrue(words[d["code"]].startswith(f"{n} "), (d["code"], words[d["code"]]))
         for text in words.values():
             self.assertNotRegex(text, r"node order corners first, then|\?")
+        # every id a diagnostic names is one of the mesh's (FEM ids)
+        fem = self.mesh.FemMesh
+        for d in diagnostics:
+            self.assertTrue(set(d["nodes"]) <= set(fem.Nodes), d)
+            self.assertTrue(set(d["elements"]) <= set(fem.Faces) | set(fem.Edges), d)
 
     def test_once_per_mesh_and_its_optimized_meshes(self):
         SurfMesh.measure_object(self.mesh, self.part)
         told = notes.details(self.mesh)
         self.assertEqual(len(told), 3)
         rep = SurfMesh.measure(self.mesh, self.part)
-        self.assertEqual(notes.new_notes(self.mesh, rep.bridge["warnings"]), [])
+        self.assertEqual(notes.new_notes(self.mesh, rep.bridge["diagnostics"]), [])
         # a mesh optimized from it (its SurfMeshOriginal) is the same mesh for the notes
         child = self.doc.addObject("Fem::FemMeshObjectPython", "Mesh2nd_optimized")
         child.addProperty("App::PropertyLink", "SurfMeshOriginal", "SurfMesh")
         child.SurfMeshOriginal = self.mesh
-        changed = [re.sub(r"\d+", "7", w) for w in rep.bridge["warnings"]]  # other counts
+        changed = [dict(d, count=7, text=re.sub(r"\d+", "7", d["text"]))  # other counts
+                   for d in rep.bridge["diagnostics"]]
         self.assertEqual(notes.new_notes(child, changed), [])
-        self.assertEqual(notes.details(child), changed)  # the latest texts
+        self.assertEqual(notes.details(child), [d["text"] for d in changed])  # the latest texts
         other = self.doc.addObject("Fem::FemMeshObjectPython", "Other")
         self.assertEqual(len(notes.new_notes(other, changed)), 3)
 

@@ -152,7 +152,11 @@ class TestBindings(unittest.TestCase):
         err(["conn[4] = -1"], conn=bad)  # a negative index too (not only the maximum)
         nan = nodes.copy()
         nan[3, 1] = np.nan
-        err(["non-finite", "row 3"], nodes=nan)
+        err(["non-finite", "in node 3"], nodes=nan)
+        with self.assertRaises(sm.InputError) as cm:  # the same as a structured diagnostic
+            sm.cad_mesh(shape, nan, types, offsets, conn)
+        self.assertEqual((cm.exception.diagnostic["code"], cm.exception.diagnostic["nodes"]),
+                         ("non_finite_node", [3]))
         err(["shape (N, 3)"], nodes=nodes[:, :2])
         err(["types[0]"], types=np.full(len(tris), 9, dtype=np.int64))
         err(["offsets"], offsets=offsets[:-1])

@@ -399,13 +399,13 @@ def _print_warnings(warnings):
             FreeCAD.Console.PrintWarning(f"SurfMesh: {w}\n")
 
 
-def _print_notes(obj, warnings):
+def _print_notes(obj, diagnostics):
     """How the mesh was read on the CAD (elements left out, nodes glued…): each kind once per
     mesh and the meshes optimized from it, in a user's words (SurfMesh.app.notes; the full
     texts are its details, in the Quality report)."""
     from SurfMesh.app import notes
 
-    fresh = notes.new_notes(obj, warnings)
+    fresh = notes.new_notes(obj, diagnostics)
     if fresh:
         import FreeCAD
 
@@ -429,7 +429,7 @@ def measure_object(obj, shape=None, measure=DEFAULT_MEASURE, color=True, **kwarg
         doc.abortTransaction()
         raise
     doc.commitTransaction()
-    _print_notes(obj, rep.bridge.get("warnings", []))
+    _print_notes(obj, rep.bridge.get("diagnostics", []))
     return rep
 
 
@@ -502,7 +502,7 @@ def tangled_elements(obj, shape=None, measure=DEFAULT_MEASURE, worst=WORST_ELEME
         raise ValueError(f"worst must be a positive integer, got {worst!r}")
     shp = resolve_shape(obj, shape)
     rep = api.measure(obj, shp, measure=measure, **kwargs)
-    _print_notes(obj, rep.bridge.get("warnings", []))
+    _print_notes(obj, rep.bridge.get("diagnostics", []))
     if rep.tangled.any():
         picked, what = np.nonzero(rep.tangled)[0], "tangled"
     else:
@@ -609,7 +609,7 @@ def optimize_object(obj, shape=None, measure=DEFAULT_MEASURE, boundary=DEFAULT_B
                if options else {}),
             **({"warnings": " | ".join(res.warnings)} if res.warnings else {}),
         }
-        _print_notes(obj, res.bridge.get("warnings", []))
+        _print_notes(obj, res.bridge.get("diagnostics", []))
         _print_warnings(res.warnings)
         store_report(new, res.before, before=True)
         store_report(new, res.after)

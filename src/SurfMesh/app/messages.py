@@ -1,11 +1,11 @@
 """SurfMesh's words to its users: the warnings and refusals of reading a mesh on its shape and
-of a run, and the rewriting of the core's messages.
+of a run, and the core's diagnostics in the user's ids.
 
 The core names nodes, elements and CAD entities by their 0-based indices in the arrays it was
-given; :func:`name_by_ids` rewrites its messages into the user's ids and FreeCAD's names, and
-:func:`user_words` turns a bridge warning into the short note the document functions print
-once per mesh (SurfMesh.app.notes). Every pattern that reads a message (the core's, or one of
-this module's) is here, next to the text it reads.
+given, in structured diagnostics (a code, a text template, the ids); :func:`for_user` and
+:func:`render` give them in the user's ids and FreeCAD's names, and :func:`user_words` turns a
+bridge diagnostic into the short note the document functions print once per mesh
+(SurfMesh.app.notes), by its code. No message is read back from its text.
 
 The functions take plain values (counts, ids, positions) and return text: what to measure is
 the callers' (SurfMesh.app.preparing, SurfMesh.app.running).
@@ -49,72 +49,142 @@ def number_text(value):
     return f"{value:g}" if isinstance(value, float) else str(value)
 
 
-# ---- the core's messages in the user's ids ---------------------------------------------------
+# ---- diagnostics: the core's messages, and this module's on reading a mesh ------------------
+#
+# The core tells what it noticed (and why it refuses an input) as diagnostics: a code, a text
+# with placeholders (``format``) and the ids and numbers the text names (the core's
+# surfmesh/diagnostic.h says the placeholders). Its ids are the 0-based indices of the arrays it
+# was given, and of the shape's faces, edges and vertices; :func:`for_user` gives the
+# diagnostic in the user's ids (FEM node and element ids, FreeCAD's Face5) with its text. The
+# warnings of this module on reading a mesh are diagnostics in the user's ids from the start
+# (:func:`diagnostic`). A report keeps them under "diagnostics", their texts under "warnings".
 
-# "node 5", "nodes 2 and 7", "nodes 2, 7 and 9", "nodes 7 19 32" (lists as the core writes
-# them), "row 5" (a row of the node array); the same for elements.
-_ID_LIST = r"(\d+(?:(?:, | and | )\d+(?!\d|\.\d))*)"
-_NODE_REF = re.compile(r"\b(nodes?|row) " + _ID_LIST)
-_ELEMENT_REF = re.compile(r"\b(elements?) " + _ID_LIST)
-_FACE_INDEX = re.compile(r"\b(on|from|of) (face|edge|vertex) (\d+)\b")
-
-
-def name_by_ids(message, data):
-    """The core names nodes and elements by their 0-based position in the arrays it was given;
-    users know them by their ids (FEM node and element ids, which need not start at 0 or 1).
-    Rewrites "node 5", "nodes 2 and 7", "nodes 2, 7 and 9", "nodes 7 19 32", "row 5" (a row
-    of the node array) and "element 3" (every id of a list) by ``data.node_ids`` and
-    ``data.element_ids``; "on face 4" and "from edge 2" (the core's indices of the shape's
-    faces, edges and vertices) become FreeCAD's names, "on Face5", "from Edge3"."""
-    def ids_of(table, label_row=False):
-        def one(m):
-            k = int(m.group(0))
-            return str(int(table[k])) if 0 <= k < len(table) else m.group(0)
-
-        def sub(m):
-            word = "node" if (label_row and m.group(1) == "row") else m.group(1)
-            return f"{word} " + re.sub(r"\d+", one, m.group(2))
-        return sub
-
-    if getattr(data, "node_ids", None) is not None:
-        message = _NODE_REF.sub(ids_of(data.node_ids, label_row=True), message)
-    if getattr(data, "element_ids", None) is not None:
-        message = _ELEMENT_REF.sub(ids_of(data.element_ids), message)
-    # The core's face index (the shape's faces counted from 0) as FreeCAD names the face.
-    return _FACE_INDEX.sub(
-        lambda m: f"{m.group(1)} {m.group(2).capitalize()}{int(m.group(3)) + 1}", message)
+_LISTS = {"node": "nodes", "element": "elements", "face": "faces", "edge": "edges",
+          "vertex": "vertices"}
+_SHAPE_NAMES = {"face": "Face", "edge": "Edge", "vertex": "Vertex"}
+_PLACEHOLDER = re.compile(r"\{([a-z_]+?)(\d*)\}")
 
 
-# The core's warning on the nodes of no element: "<n> nodes belong to no element …".
-_UNUSED_NODES = re.compile(r"^\d+ nodes belong(?= to no element)")
+def _number(v):
+    """A number as the core writes it: an integer without decimals, others to 6 digits."""
+    v = float(v)
+    if v == int(v) and abs(v) < 1e15:
+        return str(int(v))
+    return f"{v:.6g}"
 
 
-def is_unused_nodes_warning(warning):
-    """Whether ``warning`` is the core's warning on the nodes of no element."""
-    return _UNUSED_NODES.match(warning) is not None
+def render(diag):
+    """The text of a diagnostic in the user's ids (:func:`for_user`, :func:`diagnostic`):
+    its ``format`` with the placeholders filled, as the core fills them (surfmesh/diagnostic.h),
+    the shape's faces, edges and vertices by FreeCAD's numbers ("Face5")."""
+    values = diag.get("values", {})
+
+    def fill(m):
+        key, index = m.group(1), m.group(2)
+        if key == "count" and not index:
+            return str(int(diag.get("count", 0)))
+        if key in values and not index:
+            return _number(values[key])
+        kind, plural = key, False
+        if key == "vertices" or (key.endswith("s") and key[:-1] in _LISTS):
+            kind, plural = ("vertex" if key == "vertices" else key[:-1]), True
+        if kind not in _LISTS:
+            return m.group(0)
+        ids = [_SHAPE_NAMES.get(kind, "") + str(int(i)) for i in diag.get(_LISTS[kind], [])]
+        k = int(index or 0)
+        if k >= len(ids):
+            return m.group(0)
+        return " ".join(ids[k:]) if plural else ids[k]
+    return _PLACEHOLDER.sub(fill, diag["format"])
 
 
-def recount_unused_nodes(warning, count):
-    """The core's warning on the nodes of no element with another count (glued nodes taken
-    out of it)."""
-    return _UNUSED_NODES.sub(f"{count} nodes belong", warning, count=1)
+#: The codes of this module's diagnostics on reading a mesh (warnings), with what each says;
+#: the core's are its ``diagnostic_codes()``.
+CODES = {
+    "left_out": "elements left out of the run (collapsed, folded pairs, flat on a CAD edge, …)",
+    "node_order": "high-order elements with a side node farther from its side than the side is "
+                  "long (another node order?)",
+    "glued": "nodes at the position of another node (a crack) measured and moved as one",
+}
 
 
-def loose_note(report):
-    """The core's warning on the nodes of no element (its indices), from the report's arrays
-    (after glued nodes were taken out of them)."""
+def diagnostic_codes():
+    """Every diagnostic code a report or a refusal can give: [{code, refusal, meaning}], the
+    core's then this module's."""
+    from SurfMesh.app.native import core
+    return list(core().diagnostic_codes()) + [
+        {"code": c, "refusal": False, "meaning": m} for c, m in CODES.items()]
+
+
+def diagnostic(code, format, count=0, nodes=(), elements=(), values=None):
+    """A diagnostic of this module (``code``: one of :data:`CODES`; ids: the user's), with its
+    ``text``."""
+    if code not in CODES:
+        raise KeyError(f"unknown diagnostic code {code!r}")
+    d = {"code": code, "format": format, "count": int(count),
+         "nodes": [int(i) for i in nodes], "elements": [int(i) for i in elements],
+         "faces": [], "edges": [], "vertices": [], "values": dict(values or {})}
+    d["text"] = render(d)
+    return d
+
+
+def for_user(diag, data):
+    """A core diagnostic (a dict, as the core's report or its InputError gives it) in the user's
+    ids: its nodes and elements by ``data.node_ids`` and ``data.element_ids`` (when ``data`` has
+    them; an index out of their range stays as it is), its faces, edges and vertices by
+    FreeCAD's numbers (the core's index + 1), and its ``text`` in those."""
+    def ids(key, table):
+        out = [int(i) for i in diag.get(key, [])]
+        if table is None:
+            return out
+        return [int(table[i]) if 0 <= i < len(table) else i for i in out]
+    d = dict(diag)
+    d["nodes"] = ids("nodes", getattr(data, "node_ids", None))
+    d["elements"] = ids("elements", getattr(data, "element_ids", None))
+    for key in ("faces", "edges", "vertices"):
+        d[key] = [int(i) + 1 for i in diag.get(key, [])]
+    d["values"] = dict(diag.get("values", {}))
+    d["text"] = render(d)
+    return d
+
+
+def refusal(err, data):
+    """The core's refusal of an input (a ValueError; the core's InputError carries its
+    diagnostic) as a ValueError in the user's ids, with the diagnostic in them under
+    ``diagnostic``."""
+    diag = getattr(err, "diagnostic", None)
+    if diag is None:
+        return ValueError(str(err))
+    d = for_user(diag, data)
+    out = ValueError(d["text"])
+    out.diagnostic = d
+    return out
+
+
+def add_warning(report, diag):
+    """Adds a diagnostic (in the user's ids) to a bridge report: its text to "warnings"."""
+    report["diagnostics"] = list(report.get("diagnostics", [])) + [diag]
+    report["warnings"] = list(report.get("warnings", [])) + [diag["text"]]
+
+
+def loose_nodes(report, fmt):
+    """The core's diagnostic on the nodes of no element (in its indices), from the report's
+    arrays (after glued nodes were taken out of them); ``fmt``: the core's format of it, whose
+    entity placeholder is set to the entity the farthest node now lies on."""
     loose = np.asarray(report["loose_nodes"], dtype=np.int64)
     cls = np.asarray(report["loose_class"], dtype=np.int64)
     dist = np.asarray(report["loose_distance"], dtype=np.float64)
     ent = np.asarray(report["loose_entity"], dtype=np.int64)
     k = int(np.argmax(dist))
-    kind = ("vertex", "edge", "face", "none")[int(cls[k])]
-    return (f"{loose.size} nodes belong to no element (e.g. nodes of edge or vertex elements); "
-            "they are kept fixed and lie on the shape: "
-            f"{int(np.sum(cls == 0))} on CAD vertices, {int(np.sum(cls == 1))} on CAD edges, "
-            f"{int(np.sum(cls == 2))} on faces; farthest: node {int(loose[k])} "
-            f"({float(dist[k]):.6g} from {kind} {int(ent[k])}); e.g. nodes "
-            + " ".join(str(int(n)) for n in loose[:5]))
+    kind = ("vertex", "edge", "face")[min(int(cls[k]), 2)]
+    d = {"code": "unused_nodes", "count": int(loose.size),
+         "format": re.sub(r"\{(vertex|edge|face)\}", "{" + kind + "}", fmt),
+         "nodes": [int(loose[k])] + [int(n) for n in loose[:5]], "elements": [],
+         "faces": [], "edges": [], "vertices": [],
+         "values": {"on_vertices": int(np.sum(cls == 0)), "on_edges": int(np.sum(cls == 1)),
+                    "on_faces": int(np.sum(cls == 2)), "distance": float(dist[k])}}
+    d[_LISTS[kind]] = [int(ent[k])]
+    return d
 
 
 # ---- reading a mesh on its shape -------------------------------------------------------------
@@ -123,11 +193,12 @@ def loose_note(report):
 def glued_nodes(count, kept_id, glued_id, xyz):
     """The bridge's warning on ``count`` nodes glued to another (a crack), naming one pair."""
     x, y, z = xyz
-    return (
-        f"glued {count} node(s) to another node at the same position (the mesh has a "
-        f"crack there, e.g. nodes {kept_id} and {glued_id} at "
-        f"({x:.9g}, {y:.9g}, {z:.9g})): they are measured as one node and move together"
-    )
+    return diagnostic(
+        "glued",
+        "glued {count} node(s) to another node at the same position (the mesh has a crack "
+        f"there, e.g. nodes {{node}} and {{node1}} at ({x:.9g}, {y:.9g}, {z:.9g})): they are "
+        "measured as one node and move together",
+        count=count, nodes=(kept_id, glued_id))
 
 
 def collapsed_refusal(count, first_id, first_nodes, all_bad):
@@ -160,16 +231,17 @@ def left_out_reasons(collapsed=0, folded=0, crowded=0, misjoined=0, flat=0, misw
 
 def left_out(reasons, ids):
     """The bridge's warning on the elements left out (``reasons``: :func:`left_out_reasons`)."""
-    return f"left out {' and '.join(reasons)}: ids {short_id_list(ids)}"
+    return diagnostic("left_out", f"left out {' and '.join(reasons)}: ids {short_id_list(ids)}",
+                      count=len(ids), elements=ids)
 
 
 def side_nodes_astray(ids):
     """The bridge's warning on high-order elements with a side node far from its side."""
-    return (
-        f"{len(ids)} high-order element(s) have a side node farther from its side than the side "
+    return diagnostic(
+        "node_order",
+        f"{{count}} high-order element(s) have a side node farther from its side than the side "
         f"is long (ids {short_id_list(ids)}): is the node order corners first, then the side "
-        "nodes of sides 1-2, 2-3, 3-1?"
-    )
+        "nodes of sides 1-2, 2-3, 3-1?", count=len(ids), elements=ids)
 
 
 def volume_mesh_refusal(count, types=None):
@@ -268,33 +340,24 @@ def standing_across(count, count_before, ids, place):
 
 # ---- notes: the bridge's warnings in a user's words ------------------------------------------
 
-# "364 collapsed element(s)", "10 high-order element(s)": the counts of a "left out" warning
-_COUNTED = re.compile(r"(\d+) [a-z-]*\s*element")
-# (pattern, kind, the note in a user's words from the match): one per warning of this module
-# (and the core's on the nodes of no element) that a user is told once per mesh.
-NOTE_RULES = [
-    (re.compile(r"^(\d+) nodes belong to no element"), "unused",
-     lambda m: f"{m.group(1)} nodes are used by no face element (e.g. nodes of edge "
-               "elements): they stay where they are"),
-    (re.compile(r"^left out (.*?): ids"), "left_out",
-     lambda m: f"{sum(int(n) for n in _COUNTED.findall(m.group(1)))} elements are left out "
-               "(collapsed or degenerate, e.g. where the mesher merged nodes): they keep their "
-               "place and are drawn grey"),
-    (re.compile(r"^(\d+) high-order element\(s\) have a side node farther"), "node_order",
-     lambda m: f"{m.group(1)} curved elements have a side node far from their side (sharp "
-               "features, or a node order other than corners first): they are measured as "
-               "they are"),
-    (re.compile(r"^glued (\d+) node"), "glued",
-     lambda m: f"{m.group(1)} nodes sit on another node (a crack along a CAD edge): they are "
-               "measured as one and move together"),
-]
+#: The note a user is told once per mesh, by diagnostic code (SurfMesh.app.notes): the
+#: diagnostics of the core and of this module that are part of reading most FEM meshes.
+NOTE_WORDS = {
+    "unused_nodes": lambda d: f"{d['count']} nodes are used by no face element (e.g. nodes of "
+                              "edge elements): they stay where they are",
+    "left_out": lambda d: f"{d['count']} elements are left out (collapsed or degenerate, e.g. "
+                          "where the mesher merged nodes): they keep their place and are drawn "
+                          "grey",
+    "node_order": lambda d: f"{d['count']} curved elements have a side node far from their side "
+                            "(sharp features, or a node order other than corners first): they "
+                            "are measured as they are",
+    "glued": lambda d: f"{d['count']} nodes sit on another node (a crack along a CAD edge): "
+                       "they are measured as one and move together",
+}
 
 
-def user_words(warning):
-    """(kind, the note in a user's words) of one bridge warning; an unknown warning is its own
-    kind (numbers aside) and is given as it is."""
-    for pattern, kind, words in NOTE_RULES:
-        m = pattern.search(warning)
-        if m:
-            return kind, words(m)
-    return re.sub(r"\d+(?:\.\d+)?(?:e[-+]?\d+)?", "#", warning)[:60], warning
+def user_words(diag):
+    """(kind, the note in a user's words) of one bridge diagnostic: its code, and the note of
+    :data:`NOTE_WORDS` (a diagnostic of another code is given as its text)."""
+    words = NOTE_WORDS.get(diag["code"])
+    return diag["code"], (words(diag) if words else diag["text"])

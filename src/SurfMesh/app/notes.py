@@ -1,13 +1,13 @@
 """What SurfMesh noticed reading a mesh on its shape (nodes of no element, elements left out,
 curved elements with far side nodes, glued nodes…), told once per mesh in a user's words.
 
-The bridge's warnings (``QualityReport.bridge["warnings"]``) say what happened in the words of
-the algorithm and with counts; every command on a mesh gives them again, and an optimized mesh
+The bridge's diagnostics (``QualityReport.bridge["diagnostics"]``: a code, the text, the ids)
+say what happened in the words of the algorithm and with counts; every command on a mesh gives them again, and an optimized mesh
 (a new object) gives them once more with other counts. Here each kind of note is printed once
 per mesh "lineage" (a mesh and the meshes optimized from it) and document session, in plain
 words; the full texts, with the latest counts, are its details (:func:`details`, shown by the
-Quality report). The patterns that tell a warning's kind and the notes' words are
-SurfMesh.app.messages's (:func:`~SurfMesh.app.messages.user_words`), beside the warnings' texts.
+Quality report). A note's kind is its diagnostic's code; the notes' words are
+SurfMesh.app.messages's (:data:`~SurfMesh.app.messages.NOTE_WORDS`), beside the warnings' texts.
 
 Headless: never imports FreeCADGui.
 """
@@ -35,16 +35,17 @@ def _key(obj):
     return (root.Document.Name, root.Name)
 
 
-def new_notes(obj, warnings):
-    """The notes of ``warnings`` not yet told for ``obj``'s lineage, in a user's words (and
-    they count as told from now on); the details keep every warning's latest text."""
+def new_notes(obj, diagnostics):
+    """The notes of ``diagnostics`` (a bridge report's) not yet told for ``obj``'s lineage, in
+    a user's words (and they count as told from now on); the details keep every diagnostic's
+    latest text."""
     book = _seen.setdefault(_key(obj), {})
     out = []
-    for w in warnings:
-        kind, words = user_words(w)
+    for d in diagnostics:
+        kind, words = user_words(d)
         if kind not in book:
             out.append(words)
-        book[kind] = w
+        book[kind] = d["text"]
     return out
 
 

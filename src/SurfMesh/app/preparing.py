@@ -165,16 +165,13 @@ def prepare_measured(mesh, shape, boundary, tolerance, hints, collapsed, duplica
     if data.kept is not None:
         ids = data.element_ids[bad]
         report = handle.report  # the handle's own dict: additions stay with it
-        report["warnings"] = list(report.get("warnings", [])) + [messages.left_out(reasons, ids)]
+        messages.add_warning(report, messages.left_out(reasons, ids))
         report["skipped_elements"] = [int(i) for i in ids]
     if glue is not None:
         _report_glued(handle, data, glue)
     astray = side_nodes_astray(data)
     if astray.any():
-        report = handle.report
-        report["warnings"] = list(report.get("warnings", [])) + [
-            messages.side_nodes_astray(data.element_ids[astray])
-        ]
+        messages.add_warning(handle.report, messages.side_nodes_astray(data.element_ids[astray]))
     if timings is not None:
         timings["read"] = t_read - t0
         timings["recovery"] = time.perf_counter() - t_read
@@ -236,9 +233,10 @@ def _bridge(cshape, data, w, tolerance, boundary, tolerance_hints, keep=False,
             same_nodes_as=same_nodes_as, left_out_nodes=left_out,
         )
     except ValueError as err:
-        raise ValueError(messages.name_by_ids(str(err), w)) from None
-    report = h.report  # the handle's own dict: the user's ids in its warnings too
-    report["warnings"] = [messages.name_by_ids(x, w) for x in report.get("warnings", [])]
+        raise messages.refusal(err, w) from None
+    report = h.report  # the handle's own dict: the user's ids in its diagnostics too
+    report["diagnostics"] = [messages.for_user(d, w) for d in report.get("diagnostics", [])]
+    report["warnings"] = [d["text"] for d in report["diagnostics"]]
     return h
 
 
@@ -291,15 +289,16 @@ def _report_glued(handle, data, glue):
         kinds = np.asarray(handle.node_kinds())
         report["fixed_nodes"] = int(report["fixed_nodes"]) - glued.size + int(
             np.count_nonzero(kinds[data.glued[glued]] == 0))
-    warnings = []
-    for w in report.get("warnings", []):
-        if messages.is_unused_nodes_warning(w):
+    diagnostics = []
+    for d in report.get("diagnostics", []):
+        if d["code"] == "unused_nodes":
             if not unused:
                 continue
-            w = (messages.name_by_ids(messages.loose_note(report), data)
-                 if "loose_nodes" in report else messages.recount_unused_nodes(w, unused))
-        warnings.append(w)
-    report["warnings"] = warnings + [note]
+            d = messages.for_user(messages.loose_nodes(report, d["format"]), data)
+        diagnostics.append(d)
+    report["diagnostics"] = diagnostics
+    report["warnings"] = [d["text"] for d in diagnostics]
+    messages.add_warning(report, note)
 
 
 def side_nodes_astray(data):

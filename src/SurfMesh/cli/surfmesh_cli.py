@@ -153,7 +153,8 @@ def _mesh_summary(mf):
 def _bridge_summary(bridge, data):
     keys = ("tolerance", "max_distance", "vertex_nodes", "edge_nodes", "face_nodes",
             "unused_nodes", "pole_nodes", "fixed_nodes", "sliding_nodes", "faces_used",
-            "hints_rejected", "flipped_faces", "glued_nodes", "warnings", "summary")
+            "hints_rejected", "flipped_faces", "glued_nodes", "warnings", "diagnostics",
+            "summary")
     out = {k: bridge[k] for k in keys if k in bridge}
     # high-order side nodes put on their element's face, by the file's node ids
     out["placed_nodes"] = [int(n) for n in bridge.get("placed_nodes", [])]

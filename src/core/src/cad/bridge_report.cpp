@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <sstream>
 #include <string>
+#include <utility>
 
 namespace surfmesh {
 
@@ -25,7 +26,13 @@ const char* nodeClassName(NodeClass c) {
 
 namespace cad_detail {
 
-std::string looseNodesNote(const BridgeReport& r) {
+/// The start of the note on the nodes of no element, up to the entity the farthest lies on.
+constexpr const char* kLooseNodesFormat =
+    "{count} nodes belong to no element (e.g. nodes of edge or vertex elements); they are kept "
+    "fixed and lie on the shape: {on_vertices} on CAD vertices, {on_edges} on CAD edges, "
+    "{on_faces} on faces; farthest: node {node} ({distance} from ";
+
+Diagnostic looseNodesNote(const BridgeReport& r) {
   std::size_t on[3] = {0, 0, 0}, worst = 0;
   for (std::size_t k = 0; k < r.looseNodes.size(); ++k) {
     const NodeClass c = r.looseClass[k];
@@ -33,20 +40,40 @@ std::string looseNodesNote(const BridgeReport& r) {
       ++on[static_cast<int>(c)];
     if (r.looseDistance[k] > r.looseDistance[worst]) worst = k;
   }
-  std::ostringstream os;
-  os << r.looseNodes.size()
-     << " nodes belong to no element (e.g. nodes of edge or vertex elements); they are kept "
-        "fixed and lie on the shape: "
-     << on[0] << " on CAD vertices, " << on[1] << " on CAD edges, " << on[2]
-     << " on faces; farthest: node " << r.looseNodes[worst] << " (" << r.looseDistance[worst]
-     << " from " << nodeClassName(r.looseClass[worst]) << " " << r.looseEntity[worst]
-     << "); e.g. nodes";
+  Diagnostic d;
+  d.code = code::kUnusedNodes;
+  d.count = static_cast<std::int64_t>(r.looseNodes.size());
+  d.nodes.push_back(r.looseNodes[worst]);
   for (std::size_t k = 0; k < std::min<std::size_t>(r.looseNodes.size(), 5); ++k)
-    os << " " << r.looseNodes[k];
-  return os.str();
+    d.nodes.push_back(r.looseNodes[k]);
+  const char* entity = "{face}";
+  switch (r.looseClass[worst]) {
+    case NodeClass::Vertex:
+      d.vertices.push_back(r.looseEntity[worst]);
+      entity = "{vertex}";
+      break;
+    case NodeClass::Edge:
+      d.edges.push_back(r.looseEntity[worst]);
+      entity = "{edge}";
+      break;
+    default:
+      d.faces.push_back(r.looseEntity[worst]);
+      break;
+  }
+  d.values = {{"on_vertices", static_cast<double>(on[0])},
+              {"on_edges", static_cast<double>(on[1])},
+              {"on_faces", static_cast<double>(on[2])},
+              {"distance", r.looseDistance[worst]}};
+  d.format = std::string(kLooseNodesFormat) + entity + "); e.g. nodes {nodes1}";
+  return d;
 }
 
 }  // namespace cad_detail
+
+void BridgeReport::warn(Diagnostic d) {
+  warnings.push_back(d.render());
+  diagnostics.push_back(std::move(d));
+}
 
 std::string BridgeReport::summary() const {
   std::ostringstream os;

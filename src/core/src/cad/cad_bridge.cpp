@@ -1,6 +1,7 @@
 // SurfMesh — the CAD bridge (see cad_bridge.h for the algorithm).
 #include "surfmesh/cad/cad_bridge.h"
 
+#include "../common/threads.h"
 #include "recovery.h"
 #include "winding.h"
 
@@ -12,7 +13,6 @@
 #include <memory>
 #include <sstream>
 #include <string>
-#include <thread>
 #include <utility>
 #include <vector>
 
@@ -130,15 +130,20 @@ void placeHighOrderNodes(const Recovery& r, BridgeReport& report,
     }
   }
   if (!report.placedNodes.empty()) {
-    std::ostringstream os;
-    os << report.placedNodes.size() << " high-order node(s) lie farther than the tolerance " << tol
-       << " from their face, within their element's longest side (worst: node " << worst << " at "
-       << worstD << ", " << worstD / diag
-       << " x diagonal); they are taken at their nearest point on their "
-       << nodeClassName(report.nodeClass[worst])
-       << " (a mesher that curves elements places a side node at the midpoint of its ends "
-          "in (u,v), outside the face where its boundary is concave)";
-    report.warnings.push_back(os.str());
+    Diagnostic d;
+    d.code = code::kHighOrderNodesPlaced;
+    d.count = static_cast<std::int64_t>(report.placedNodes.size());
+    d.nodes = {static_cast<std::int64_t>(worst)};
+    d.values = {{"tolerance", tol}, {"distance", worstD}, {"relative", worstD / diag}};
+    d.format = std::string(
+                   "{count} high-order node(s) lie farther than the tolerance {tolerance} from "
+                   "their face, within their element's longest side (worst: node {node} at "
+                   "{distance}, {relative} x diagonal); they are taken at their nearest point "
+                   "on their ") +
+               nodeClassName(report.nodeClass[worst]) +
+               " (a mesher that curves elements places a side node at the midpoint of its ends "
+               "in (u,v), outside the face where its boundary is concave)";
+    report.warn(std::move(d));
   }
 }
 
@@ -177,14 +182,17 @@ void orientFaces(const Recovery& r, BridgeReport& report, SurfaceMesh& M) {
   }
   if (!report.miswoundElements.empty()) {
     const std::int32_t e0 = report.miswoundElements[0];
-    report.warnings.push_back(
-        std::to_string(report.miswoundElements.size()) +
-        " element(s) are wound against the rest of their face's mesh (their nodes listed in "
-        "the opposite order, e.g. element " +
-        std::to_string(e0) + " on " + faceName(elemFace[static_cast<std::size_t>(e0)]) +
-        "): they are tangled whatever their node positions, and moving nodes would only fold "
-        "the mesh over them. Reverse their node order (e.g. FreeCAD's Mesh > Analyze > "
-        "Evaluate and repair > Orientation)");
+    Diagnostic d;
+    d.code = code::kMiswoundElements;
+    d.count = static_cast<std::int64_t>(report.miswoundElements.size());
+    d.elements = {e0};
+    d.faces = {elemFace[static_cast<std::size_t>(e0)]};
+    d.format =
+        "{count} element(s) are wound against the rest of their face's mesh (their nodes listed "
+        "in the opposite order, e.g. element {element} on {face}): they are tangled whatever "
+        "their node positions, and moving nodes would only fold the mesh over them. Reverse "
+        "their node order (e.g. FreeCAD's Mesh > Analyze > Evaluate and repair > Orientation)";
+    report.warn(std::move(d));
   }
   report.faceFlipped.assign(static_cast<std::size_t>(NF), 0);
   for (int f = 0; f < NF; ++f) {
@@ -227,17 +235,20 @@ void reportTrimGaps(const Recovery& r, BridgeReport& report) {
   }
   if (!report.trimGaps.empty()) {
     const BridgeReport::TrimGap& w = report.trimGaps[worst];
-    std::ostringstream os;
-    os << report.trimGaps.size()
-       << " trimming curve(s) of faces with elements lie off their 3D edges by more than twice "
-          "the edges' tolerance (an imported B-rep whose 2D and 3D boundaries disagree): up "
-          "to "
-       << w.gap << " (" << w.gap / diag << " x diagonal), the trimming curve of edge " << w.edge
-       << " on face " << w.face << " (tolerance " << w.tolerance
-       << "). Moves keep nodes out of the strip between such a trimming curve and its 3D "
-          "edge, so they stay inside the face's 3D boundary (nodes the mesh put in that "
-          "strip move only out of it)";
-    report.warnings.push_back(os.str());
+    Diagnostic d;
+    d.code = code::kTrimGaps;
+    d.count = static_cast<std::int64_t>(report.trimGaps.size());
+    d.edges = {w.edge};
+    d.faces = {w.face};
+    d.values = {{"gap", w.gap}, {"relative", w.gap / diag}, {"tolerance", w.tolerance}};
+    d.format =
+        "{count} trimming curve(s) of faces with elements lie off their 3D edges by more than "
+        "twice the edges' tolerance (an imported B-rep whose 2D and 3D boundaries disagree): up "
+        "to {gap} ({relative} x diagonal), the trimming curve of {edge} on {face} (tolerance "
+        "{tolerance}). Moves keep nodes out of the strip between such a trimming curve and its "
+        "3D edge, so they stay inside the face's 3D boundary (nodes the mesh put in that strip "
+        "move only out of it)";
+    report.warn(std::move(d));
   }
 }
 
@@ -273,19 +284,18 @@ void CadMesh::distancesToShape(const std::vector<Vec3>& points,
                                std::vector<double>* toShape) const {
   const CadShape& S = *shape_;
   if (faces.size() != points.size())
-    fail("distancesToShape: " + std::to_string(faces.size()) + " faces for " +
-         std::to_string(points.size()) + " points");
+    fail(code::kBadLayout, "distancesToShape: " + std::to_string(faces.size()) + " faces for " +
+                               std::to_string(points.size()) + " points");
   for (std::size_t k = 0; k < faces.size(); ++k)
     if (faces[k] < -1 || faces[k] >= S.faceCount())
-      fail("distancesToShape: face " + std::to_string(faces[k]) + " of point " + std::to_string(k) +
-           " out of range [-1, " + std::to_string(S.faceCount()) + ")");
+      fail(code::kBadLayout, "distancesToShape: face " + std::to_string(faces[k]) + " of point " +
+                                 std::to_string(k) + " out of range [-1, " +
+                                 std::to_string(S.faceCount()) + ")");
   std::vector<Box> faceBoxes, edgeBoxes;
   std::vector<double> faceSlack;
   const double tol = report_.tolerance > 0.0 ? report_.tolerance : 1e-3 * S.diagonal();
   projectorGeometry(S, tol, &faceBoxes, &edgeBoxes, &faceSlack);
-  const int threads = options_.threads > 0
-                          ? options_.threads
-                          : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  const int threads = detail::resolveThreads(options_.threads);
   ProjectorPool projectors(threads, S, faceBoxes, edgeBoxes, faceSlack);
   toFace->assign(points.size(), kNaN);
   toShape->assign(points.size(), kNaN);
@@ -299,8 +309,8 @@ void CadMesh::distancesToShape(const std::vector<Vec3>& points,
 }
 
 MeshInput triangleMeshInput(const std::vector<double>& xyz, const std::vector<std::int32_t>& tris) {
-  if (xyz.size() % 3 != 0) fail("xyz must hold 3 values per node");
-  if (tris.size() % 3 != 0) fail("triangles must hold 3 node ids each");
+  if (xyz.size() % 3 != 0) fail(code::kBadLayout, "xyz must hold 3 values per node");
+  if (tris.size() % 3 != 0) fail(code::kBadLayout, "triangles must hold 3 node ids each");
   MeshInput in;
   in.nodes.resize(xyz.size() / 3);
   for (std::size_t i = 0; i < in.nodes.size(); ++i)
@@ -316,7 +326,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
                  const BridgeOptions& options, const CadMesh* sameNodes)
     : shape_(std::move(shape)), options_(options) {
   const auto t0 = std::chrono::steady_clock::now();
-  if (!shape_) fail("no shape given");
+  if (!shape_) fail(code::kBadOption, "no shape given");
   Recovery r(*shape_, input, options);
   validateInput(r);
   projectorGeometry(r.S, r.tol, &r.faceBoxes, &r.edgeBoxes, &r.faceSlack);
@@ -338,7 +348,7 @@ CadMesh::CadMesh(std::shared_ptr<const CadShape> shape, const MeshInput& input,
   meshTopology(r);                 // 3. node classes
   classifyNodes(r, report_);
   buildMeshNodes(r, report_, surfaces_, curves_, mesh_);  // 4. the SurfaceMesh
-  if (!report_.looseNodes.empty()) report_.warnings.push_back(looseNodesNote(report_));
+  if (!report_.looseNodes.empty()) report_.warn(looseNodesNote(report_));
   placeHighOrderNodes(r, report_, surfaces_, curves_, mesh_);
   cornerUVs(r, report_);
   orientFaces(r, report_, mesh_);  // 5. orientation

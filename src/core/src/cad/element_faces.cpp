@@ -144,25 +144,35 @@ void assignElementFaces(Recovery& r, BridgeReport& report) {
     if (elemFace[e] < 0) {
       const std::int32_t* nd = input.conn.data() + offsets[e];
       const int nn = static_cast<int>(offsets[e + 1] - offsets[e]);
-      std::ostringstream os;
-      os << "element " << e << " lies on no single face of the shape (its nodes share no face):";
-      for (int k = 0; k < nn; ++k)
-        os << " node " << nd[k] << " on " << faceNames(nodeFaces[static_cast<std::size_t>(nd[k])])
-           << (k + 1 < nn ? ";" : "");
-      os << ". The mesh must conform to the B-rep faces (no element across a CAD edge).";
-      fail(os.str());
+      Diagnostic d;
+      d.code = code::kElementOnNoFace;
+      d.count = 1;
+      d.elements = {static_cast<std::int64_t>(e)};
+      d.format = "element {element} lies on no single face of the shape (its nodes share no face):";
+      for (int k = 0; k < nn; ++k) {
+        d.nodes.push_back(nd[k]);
+        d.format += " node {node" + std::to_string(k) + "} on " +
+                    faceNames(nodeFaces[static_cast<std::size_t>(nd[k])]) + (k + 1 < nn ? ";" : "");
+      }
+      d.format += ". The mesh must conform to the B-rep faces (no element across a CAD edge).";
+      fail(std::move(d));
     }
     if (offFace[e] && offFaceElements++ == 0) firstOffFace = e;
   }
   r.manifoldEdges = manifoldEdgePairs(input, offsets);
   settleDoubtfulFaces(r.manifoldEdges, doubtfulFaces, elemFace);
-  if (offFaceElements)
-    report.warnings.push_back(
-        std::to_string(offFaceElements) +
-        " element(s) whose nodes are each nearest to another face (next to a CAD edge with a "
-        "tolerance as large as the elements) were put on the face all their nodes are within "
-        "the tolerance of (e.g. element " +
-        std::to_string(firstOffFace) + " on " + faceName(elemFace[firstOffFace]) + ")");
+  if (offFaceElements) {
+    Diagnostic d;
+    d.code = code::kElementsOffFace;
+    d.count = static_cast<std::int64_t>(offFaceElements);
+    d.elements = {static_cast<std::int64_t>(firstOffFace)};
+    d.faces = {elemFace[firstOffFace]};
+    d.format =
+        "{count} element(s) whose nodes are each nearest to another face (next to a CAD edge "
+        "with a tolerance as large as the elements) were put on the face all their nodes are "
+        "within the tolerance of (e.g. element {element} on {face})";
+    report.warn(std::move(d));
+  }
 }
 
 }  // namespace surfmesh::cad_detail

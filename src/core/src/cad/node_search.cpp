@@ -253,30 +253,51 @@ void locateNodes(const Recovery& r, BridgeReport& report) {
       if (report.nodeDistance[offNodes[k]] > report.nodeDistance[offNodes[worst]]) worst = k;
     const std::size_t wn = offNodes[worst];
     const double wd = report.nodeDistance[wn];
-    std::ostringstream os;
-    if (wd <= tol) {
+    Diagnostic d;
+    d.code = wd <= tol ? code::kNodesOnNoFace : code::kNodesOffShape;
+    d.count = static_cast<std::int64_t>(offNodes.size());
+    d.nodes = {static_cast<std::int64_t>(wn)};
+    for (std::size_t k = 0; k < std::min<std::size_t>(offNodes.size(), 5); ++k)
+      d.nodes.push_back(static_cast<std::int64_t>(offNodes[k]));
+    d.values = {{"total", static_cast<double>(N)},
+                {"distance", wd},
+                {"tolerance", tol},
+                {"relative", wd / diag},
+                {"checked", static_cast<double>(checked)}};
+    std::string entity = "{face}";
+    if (nearKind[worst] == NodeClass::Vertex) {
+      d.vertices = {nearId[worst]};
+      entity = "{vertex}";
+    } else if (nearKind[worst] == NodeClass::Edge) {
+      d.edges = {nearId[worst]};
+      entity = "{edge}";
+    } else {
+      d.faces = {nearId[worst]};
+    }
+    if (wd <= tol)
       // Every such node is an element's node on a free edge or a lone vertex (else the worst
       // would be farther): an element there lies on no face.
-      os << offNodes.size() << " of " << N << " nodes are nodes of face elements but lie on no "
-         << "face: node " << wn << " lies " << wd << " from " << nodeClassName(nearKind[worst])
-         << " " << nearId[worst] << ", which bounds no face";
-    } else {
-      os << offNodes.size() << " of " << N << " nodes are farther than the tolerance " << tol
-         << " from the shape (its faces, edges and vertices); worst: node " << wn << " at distance "
-         << wd << " (" << wd / diag << " x diagonal) from " << nodeClassName(nearKind[worst]) << " "
-         << nearId[worst] << ", the nearest";
-    }
-    if (checked < offNodes.size()) os << " among the first " << checked << " checked";
-    os << "; e.g. nodes";
-    for (std::size_t k = 0; k < std::min<std::size_t>(offNodes.size(), 5); ++k)
-      os << " " << offNodes[k];
-    if (wd <= tol)
-      os << ". Face elements must lie on the shape's faces: give the face elements only, or the "
-            "shape the mesh was made on.";
+      d.format =
+          "{count} of {total} nodes are nodes of face elements but lie on no face: node "
+          "{node} lies {distance} from " +
+          entity + ", which bounds no face";
     else
-      os << ". Check that the mesh belongs to this shape (same placement), or pass a larger "
-            "tolerance.";
-    fail(os.str());
+      d.format =
+          "{count} of {total} nodes are farther than the tolerance {tolerance} from the "
+          "shape (its faces, edges and vertices); worst: node {node} at distance "
+          "{distance} ({relative} x diagonal) from " +
+          entity + ", the nearest";
+    if (checked < offNodes.size()) d.format += " among the first {checked} checked";
+    d.format += "; e.g. nodes {nodes1}";
+    if (wd <= tol)
+      d.format +=
+          ". Face elements must lie on the shape's faces: give the face elements only, "
+          "or the shape the mesh was made on.";
+    else
+      d.format +=
+          ". Check that the mesh belongs to this shape (same placement), or pass a "
+          "larger tolerance.";
+    fail(std::move(d));
   }
 }
 
@@ -290,11 +311,14 @@ void reportHints(const Recovery& r, BridgeReport& report) {
   if (rejected) {
     std::size_t first = 0;
     while (!hintRejected[first]) ++first;
-    report.warnings.push_back(std::to_string(rejected) +
-                              " node hints were farther than the tolerance from their entity, "
-                              "or farther than another entity of its kind, and were ignored "
-                              "(e.g. node " +
-                              std::to_string(first) + ")");
+    Diagnostic d;
+    d.code = code::kHintsRejected;
+    d.count = static_cast<std::int64_t>(rejected);
+    d.nodes = {static_cast<std::int64_t>(first)};
+    d.format =
+        "{count} node hints were farther than the tolerance from their entity, or farther than "
+        "another entity of its kind, and were ignored (e.g. node {node})";
+    report.warn(std::move(d));
   }
 }
 

@@ -1,7 +1,6 @@
 // SurfMesh — the CAD recovery's Projector (see projector.h).
 #include "projector.h"
 
-#include <BRepClass_FaceClassifier.hxx>
 #include <BRep_Tool.hxx>
 #include <Extrema_ExtPC.hxx>
 #include <Extrema_POnSurf.hxx>
@@ -298,17 +297,6 @@ bool Projector::findTurn(const OccFaceSurface& surf, int f, Vec2* uv) {
       }
     }
   return false;
-}
-
-bool Projector::classifyExact(int f, const Vec2& uv) {
-  const OccFaceSurface& surf = s_.surface(f);
-  const Vec2 w = surf.wrap(uv);
-  try {
-    BRepClass_FaceClassifier c(s_.face(f), gp_Pnt2d(w.x(), w.y()), surf.uvTolerance());
-    return c.State() == TopAbs_IN || c.State() == TopAbs_ON;
-  } catch (const Standard_Failure&) {
-    return false;
-  }
 }
 
 FaceHit Projector::faceDistance(int f, const Vec3& p, double bound) {

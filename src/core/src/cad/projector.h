@@ -211,9 +211,6 @@ class Projector {
   /// surface to a copy inside the face, if any (else leaves it in the face's range).
   bool findTurn(const OccFaceSurface& surf, int f, Vec2* uv);
 
-  /// Same as classify() with BRepClass_FaceClassifier on the exact pcurves (slower).
-  bool classifyExact(int f, const Vec2& uv);
-
   /// This thread's copies of face f's surface and edge e's curve (OCC adaptors are not
   /// thread-safe), made on first use.
   const Surface& surfaceCopy(int f) {

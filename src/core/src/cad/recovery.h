@@ -5,6 +5,7 @@
 
 #include "projector.h"
 #include "surfmesh/cad/cad_bridge.h"
+#include "surfmesh/diagnostic.h"
 #include "winding.h"
 
 #include <algorithm>
@@ -12,6 +13,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace surfmesh {
@@ -83,7 +85,26 @@ inline ElementEdges elementEdges(ElementType t) {
   return r;
 }
 
-inline void fail(const std::string& msg) { throw std::invalid_argument(msg); }
+/// Refuses the input: an InputError with the diagnostic `d`.
+[[noreturn]] inline void fail(Diagnostic d) { throw InputError(std::move(d)); }
+/// Refuses the input with a message that names no node, element or shape entity.
+[[noreturn]] inline void fail(std::string code, std::string text) {
+  Diagnostic d;
+  d.code = std::move(code);
+  d.format = std::move(text);
+  throw InputError(std::move(d));
+}
+/// Refuses the input with a message on one element and / or node ({element}, {node}; -1: none).
+[[noreturn]] inline void failAt(std::string code, std::string text, std::int64_t element,
+                                std::int64_t node = -1) {
+  Diagnostic d;
+  d.code = std::move(code);
+  d.format = std::move(text);
+  d.count = 1;
+  if (element >= 0) d.elements.push_back(element);
+  if (node >= 0) d.nodes.push_back(node);
+  throw InputError(std::move(d));
+}
 
 /// A high-order element's side and interior nodes (those that are no element's corner) may lie
 /// up to this fraction of the element's longest corner-to-corner side off its face, beyond the
@@ -98,7 +119,7 @@ inline void fail(const std::string& msg) { throw std::invalid_argument(msg); }
 inline constexpr double kHighOrderReach = 1.0;
 
 /// The warning on the nodes of no element (BridgeReport::looseNodes): where they lie.
-std::string looseNodesNote(const BridgeReport& r);
+Diagnostic looseNodesNote(const BridgeReport& r);
 
 /// The state of one recovery (CadMesh's constructor), passed from step to step: the input and
 /// options, validated, the projection tools, and what each step found for the next ones.

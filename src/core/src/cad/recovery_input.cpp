@@ -1,5 +1,6 @@
 // SurfMesh — the CAD recovery: the input checked (options, sizes, ids, hints), the reach of
 // high-order nodes, and a fast failure on a mesh of another shape (see cad_bridge.h).
+#include "../common/threads.h"
 #include "recovery.h"
 
 #include <algorithm>
@@ -8,7 +9,6 @@
 #include <memory>
 #include <sstream>
 #include <string>
-#include <thread>
 #include <utility>
 #include <vector>
 
@@ -22,23 +22,23 @@ void validateInput(Recovery& r) {
   const double diag = r.diag;
 
   if (!(options.tolerance >= 0.0) || !std::isfinite(options.tolerance))
-    fail("tolerance must be >= 0 (0 = 1e-3 x shape diagonal), got " +
-         std::to_string(options.tolerance));
+    fail(code::kBadOption, "tolerance must be >= 0 (0 = 1e-3 x shape diagonal), got " +
+                               std::to_string(options.tolerance));
   const double tol = options.tolerance > 0.0 ? options.tolerance : 1e-3 * diag;
   if (options.boundary != "fixed" && options.boundary != "slide")
-    fail("unknown boundary mode '" + options.boundary + "' (expected \"fixed\" or \"slide\")");
+    fail(code::kBadOption,
+         "unknown boundary mode '" + options.boundary + "' (expected \"fixed\" or \"slide\")");
   const bool slide = options.boundary == "slide";
-  const int threads = options.threads > 0
-                          ? options.threads
-                          : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
-  if (N == 0) fail("the mesh has no nodes");
+  const int threads = detail::resolveThreads(options.threads);
+  if (N == 0) fail(code::kEmptyMesh, "the mesh has no nodes");
   if (!input.leftOutNeighbour.empty() && input.leftOutNeighbour.size() != N)
-    fail("leftOutNeighbour has " + std::to_string(input.leftOutNeighbour.size()) + " entries for " +
-         std::to_string(N) + " nodes");
-  if (E == 0) fail("the mesh has no elements");
+    fail(code::kBadLayout, "leftOutNeighbour has " + std::to_string(input.leftOutNeighbour.size()) +
+                               " entries for " + std::to_string(N) + " nodes");
+  if (E == 0) fail(code::kEmptyMesh, "the mesh has no elements");
   for (std::size_t i = 0; i < N; ++i)
     if (!input.nodes[i].allFinite())
-      fail("node " + std::to_string(i) + " has a non-finite coordinate (NaN or inf)");
+      failAt(code::kNonFiniteNode, "node {node} has a non-finite coordinate (NaN or inf)", -1,
+             static_cast<std::int64_t>(i));
   std::vector<std::int64_t> offsets = input.offsets;
   if (offsets.empty()) {
     offsets.resize(E + 1);
@@ -46,37 +46,45 @@ void validateInput(Recovery& r) {
     for (std::size_t e = 0; e < E; ++e) offsets[e + 1] = offsets[e] + nodeCount(input.types[e]);
   }
   if (offsets.size() != E + 1)
-    fail("offsets must have " + std::to_string(E + 1) + " entries (elements + 1), got " +
-         std::to_string(offsets.size()));
-  if (offsets[0] != 0) fail("offsets[0] must be 0");
+    fail(code::kBadLayout, "offsets must have " + std::to_string(E + 1) +
+                               " entries (elements + 1), got " + std::to_string(offsets.size()));
+  if (offsets[0] != 0) fail(code::kBadLayout, "offsets[0] must be 0");
   for (std::size_t e = 0; e < E; ++e) {
     const std::int64_t n = offsets[e + 1] - offsets[e];
     if (n != nodeCount(input.types[e]))
-      fail("element " + std::to_string(e) + " has " + std::to_string(n) + " nodes, expected " +
-           std::to_string(nodeCount(input.types[e])) + " for " + elementTypeName(input.types[e]));
+      failAt(code::kBadLayout,
+             "element {element} has " + std::to_string(n) + " nodes, expected " +
+                 std::to_string(nodeCount(input.types[e])) + " for " +
+                 elementTypeName(input.types[e]),
+             static_cast<std::int64_t>(e));
   }
   if (static_cast<std::size_t>(offsets[E]) != input.conn.size())
-    fail("connectivity has " + std::to_string(input.conn.size()) + " entries, offsets say " +
-         std::to_string(offsets[E]));
+    fail(code::kBadLayout, "connectivity has " + std::to_string(input.conn.size()) +
+                               " entries, offsets say " + std::to_string(offsets[E]));
   for (std::size_t e = 0; e < E; ++e)
     for (std::int64_t k = offsets[e]; k < offsets[e + 1]; ++k) {
       const std::int32_t n = input.conn[static_cast<std::size_t>(k)];
       if (n < 0 || static_cast<std::size_t>(n) >= N)
-        fail("element " + std::to_string(e) + " references node " + std::to_string(n) +
-             ", out of range [0, " + std::to_string(N) + ")");
+        failAt(code::kNodeOutOfRange,
+               "element {element} references node " + std::to_string(n) + ", out of range [0, " +
+                   std::to_string(N) + ")",
+               static_cast<std::int64_t>(e));
       for (std::int64_t j = offsets[e]; j < k; ++j)
         if (input.conn[static_cast<std::size_t>(j)] == n)
-          fail("element " + std::to_string(e) + " repeats node " + std::to_string(n));
+          failAt(code::kRepeatedNode, "element {element} repeats node {node}",
+                 static_cast<std::int64_t>(e), n);
     }
   auto checkHints = [&](const std::vector<std::int32_t>& h, int count, const char* name) {
     if (h.empty()) return;
     if (h.size() != N)
-      fail(std::string(name) + " must be empty or have one entry per node (" + std::to_string(N) +
-           "), got " + std::to_string(h.size()));
+      fail(code::kBadLayout, std::string(name) + " must be empty or have one entry per node (" +
+                                 std::to_string(N) + "), got " + std::to_string(h.size()));
     for (std::size_t i = 0; i < N; ++i)
       if (h[i] < -1 || h[i] >= count)
-        fail(std::string(name) + "[" + std::to_string(i) + "] = " + std::to_string(h[i]) +
-             " out of range [-1, " + std::to_string(count) + ")");
+        failAt(code::kBadHint,
+               std::string(name) + "[{node}] = " + std::to_string(h[i]) + " out of range [-1, " +
+                   std::to_string(count) + ")",
+               -1, static_cast<std::int64_t>(i));
   };
   checkHints(input.hintFace, NF, "hintFace");
   checkHints(input.hintEdge, NE, "hintEdge");
@@ -161,8 +169,9 @@ void checkMeshOnShape(const Recovery& r) {
   for (std::size_t i = 0; i < 3; ++i)
     if (mb[i] > sb[i + 3] + tol || mb[i + 3] < sb[i] - tol) disjoint = true;
   if (disjoint)
-    fail("the mesh does not lie on this shape: its bounding box " + boxText(mb) +
-         " does not meet the shape's " + boxText(sb) + unitHint());
+    fail(code::kMeshOffShape, "the mesh does not lie on this shape: its bounding box " +
+                                  boxText(mb) + " does not meet the shape's " + boxText(sb) +
+                                  unitHint());
   const std::size_t samples = std::min<std::size_t>(N, 64);
   std::vector<double> sd(samples);
   std::vector<int> sf(samples, -1);
@@ -181,12 +190,18 @@ void checkMeshOnShape(const Recovery& r) {
       if (sd[k] > sd[worst] || sd[worst] <= tol) worst = k;
     }
   if (off * 2 > samples) {
-    std::ostringstream os;
-    os << "the mesh does not lie on this shape: " << off << " of " << samples
-       << " sampled nodes are farther than the tolerance " << tol << " from the shape (e.g. node "
-       << worst * N / samples << " at distance " << sd[worst] << "); mesh bounding box "
-       << boxText(mb) << ", shape bounding box " << boxText(sb) << unitHint();
-    fail(os.str());
+    Diagnostic d;
+    d.code = code::kMeshOffShape;
+    d.count = static_cast<std::int64_t>(off);
+    d.nodes = {static_cast<std::int64_t>(worst * N / samples)};
+    d.values = {
+        {"samples", static_cast<double>(samples)}, {"tolerance", tol}, {"distance", sd[worst]}};
+    d.format =
+        "the mesh does not lie on this shape: {count} of {samples} sampled nodes are "
+        "farther than the tolerance {tolerance} from the shape (e.g. node {node} at "
+        "distance {distance}); mesh bounding box " +
+        boxText(mb) + ", shape bounding box " + boxText(sb) + unitHint();
+    fail(std::move(d));
   }
 }
 

@@ -1,5 +1,7 @@
 #include "surfmesh/mesh/surface_mesh.h"
 
+#include "surfmesh/diagnostic.h"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -126,6 +128,7 @@ void SurfaceMesh::addElement(ElementType t, const std::int32_t* nodes, int face,
 namespace {
 
 [[noreturn]] void fail(const std::string& m) { throw std::invalid_argument(m); }
+[[noreturn]] void fail(Diagnostic d) { throw InputError(std::move(d)); }
 
 std::string vecText(const Vec3& p) {
   std::ostringstream s;
@@ -170,12 +173,16 @@ void checkDuplicateNodes(const SurfaceMesh& m) {
       }
     }
   if (count) {
-    std::ostringstream s;
-    s << "mesh has " << count << " duplicate node" << (count > 1 ? "s" : "")
-      << " (used by elements at the position of another node), e.g. nodes " << a0 << " and " << b0
-      << " at " << vecText(m.xyz[static_cast<std::size_t>(a0)])
-      << ": the mesh is not conforming there; merge coincident nodes first";
-    fail(s.str());
+    Diagnostic d;
+    d.code = code::kDuplicateNodes;
+    d.count = static_cast<std::int64_t>(count);
+    d.nodes = {a0, b0};
+    d.format = "mesh has {count} duplicate node" + std::string(count > 1 ? "s" : "") +
+               " (used by elements at the position of another node), e.g. nodes {node} and "
+               "{node1} at " +
+               vecText(m.xyz[static_cast<std::size_t>(a0)]) +
+               ": the mesh is not conforming there; merge coincident nodes first";
+    fail(std::move(d));
   }
 }
 
@@ -219,10 +226,13 @@ void checkDuplicateElements(const SurfaceMesh& m) {
       e1 = keys[k][4];
     }
   if (dup) {
-    std::ostringstream s;
-    s << "mesh has " << dup << " duplicate element" << (dup > 1 ? "s" : "")
-      << " (same corner nodes as another element), e.g. elements " << e0 << " and " << e1;
-    fail(s.str());
+    Diagnostic d;
+    d.code = code::kDuplicateElements;
+    d.count = static_cast<std::int64_t>(dup);
+    d.elements = {e0, e1};
+    d.format = "mesh has {count} duplicate element" + std::string(dup > 1 ? "s" : "") +
+               " (same corner nodes as another element), e.g. elements {element} and {element1}";
+    fail(std::move(d));
   }
 }
 
@@ -282,14 +292,22 @@ void checkTopology(const SurfaceMesh& m) {
   }
   if (bad) {
     const EdgeUse& u = uses[firstBegin];
-    std::ostringstream s;
-    s << "mesh is non-manifold: " << bad << " edge" << (bad > 1 ? "s are" : " is")
-      << " shared by more than two elements of one face, e.g. the edge between nodes " << u.a
-      << " and " << u.b << " is shared by " << (firstEnd - firstBegin) << " elements (elements ";
-    for (std::size_t k = firstBegin; k < firstEnd; ++k)
-      s << (k > firstBegin ? ", " : "") << uses[k].elem;
-    s << ") on face " << u.face;
-    fail(s.str());
+    Diagnostic d;
+    d.code = code::kNonManifold;
+    d.count = static_cast<std::int64_t>(bad);
+    d.nodes = {u.a, u.b};
+    d.faces = {u.face};
+    d.format = "mesh is non-manifold: {count} edge" + std::string(bad > 1 ? "s are" : " is") +
+               " shared by more than two elements of one face, e.g. the edge between nodes "
+               "{node} and {node1} is shared by " +
+               std::to_string(firstEnd - firstBegin) + " elements (elements ";
+    for (std::size_t k = firstBegin; k < firstEnd; ++k) {
+      d.format +=
+          (k > firstBegin ? ", {element" : "{element") + std::to_string(d.elements.size()) + "}";
+      d.elements.push_back(uses[k].elem);
+    }
+    d.format += ") on {face}";
+    fail(std::move(d));
   }
 }
 
@@ -363,10 +381,16 @@ void SurfaceMesh::validate() const {
     if (e == 0) {
       order = p;
     } else if (p != order) {
-      fail("mesh mixes element orders: element " + std::to_string(orderElem) + " is " +
-           elementTypeName(elemType[orderElem]) + " (order " + std::to_string(order) +
-           "), element " + std::to_string(e) + " is " + elementTypeName(elemType[e]) + " (order " +
-           std::to_string(p) + "); use elements of one order");
+      Diagnostic d;
+      d.code = code::kMixedOrders;
+      d.count = 2;
+      d.elements = {static_cast<std::int64_t>(orderElem), static_cast<std::int64_t>(e)};
+      d.format = "mesh mixes element orders: element {element} is " +
+                 std::string(elementTypeName(elemType[orderElem])) + " (order " +
+                 std::to_string(order) + "), element {element1} is " +
+                 elementTypeName(elemType[e]) + " (order " + std::to_string(p) +
+                 "); use elements of one order";
+      fail(std::move(d));
     }
     const int f = elemFace[e];
     if (f < 0 || static_cast<std::size_t>(f) >= surfaces.size() || !surfaces[f])

@@ -2,6 +2,7 @@
 // per-thread geometry and the team of worker threads (optimizer internals).
 #pragma once
 
+#include "../common/threads.h"
 #include "surfmesh/mesh/surface_mesh.h"
 
 #include <algorithm>
@@ -122,11 +123,6 @@ class Team {
   void (*job_)(void*, int) = nullptr;
   void* ctx_ = nullptr;
 };
-inline int resolveThreads(int requested) {
-  if (requested > 0) return requested;
-  const unsigned hc = std::thread::hardware_concurrency();
-  return hc > 0 ? static_cast<int>(hc) : 1;
-}
 
 /// Runs `body(begin, end)` over [0, n) in chunks of fixed size taken dynamically by the team
 /// (chunk boundaries do not depend on the thread count).

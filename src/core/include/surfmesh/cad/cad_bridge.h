@@ -71,6 +71,7 @@
 #pragma once
 
 #include "surfmesh/cad/cad_shape.h"
+#include "surfmesh/diagnostic.h"
 #include "surfmesh/mesh/surface_mesh.h"
 
 #include <cstdint>
@@ -193,8 +194,14 @@ struct BridgeReport {
   std::size_t facesUsed = 0;     ///< faces carrying at least one element
   std::size_t hintsRejected = 0;
   std::size_t hintsTaken = 0;  ///< nodes classified by a hint (given or from tolerances)
+  /// What the recovery noticed, as diagnostics (codes, ids: surfmesh/diagnostic.h) and the
+  /// same as text (warnings[k] is diagnostics[k].render()).
+  std::vector<Diagnostic> diagnostics;
   std::vector<std::string> warnings;
   double seconds = 0.0;  ///< time of the whole recovery
+
+  /// Adds a warning (to `diagnostics`, and its text to `warnings`).
+  void warn(Diagnostic d);
 
   /// A few lines for the user ("1234 nodes: 12 on vertices, …; 2 faces flipped: 3, 7").
   std::string summary() const;
