@@ -1,5 +1,6 @@
 #include "surfmesh/optimize/optimizer.h"
 
+#include "progress_relay.h"
 #include "reference_mode.h"
 #include "straight_sided.h"
 #include "surfmesh/measures/certificate.h"
@@ -39,18 +40,6 @@ namespace {
 using detail::MeshPositions;
 using detail::optimizeOnce;
 
-/// `progress` for a run that follows runs of `offset` sweeps in all (read at each call):
-/// sweeps counted from the first run's start, out of `total` when positive, else out of the
-/// run's own maximum plus `offset`. Empty when `progress` is.
-ProgressCallback afterSweeps(const ProgressCallback& progress, const int& offset, int total = 0) {
-  if (!progress) return {};
-  return [&progress, &offset, total](const OptimizeProgress& p) {
-    OptimizeProgress q = p;
-    q.sweep += offset;
-    q.maxSweeps = total > 0 ? total : p.maxSweeps + offset;
-    return progress(q);
-  };
-}
 /// A run that continues the completed run `first` on the same mesh: `run` (whose sweeps the
 /// progress callback numbers after first's). An exception or a cancellation puts `input` (the
 /// positions before `first`) back; the result covers both runs, its seconds those of `run`.
@@ -89,7 +78,7 @@ OptimizeResult optimizeHolding(SurfaceMesh& mesh, const OptimizeOptions& opt,
                                const ProgressCallback& progress, const QualityStats* before) {
   MeshPositions input;  // kept (no copy: the arrays the first run replaced) for a second run
   int offset = 0;
-  const ProgressCallback shifted = afterSweeps(progress, offset);
+  const ProgressCallback shifted = detail::renumbered(progress, offset);
   OptimizeResult held = optimizeOnce(mesh, opt, shifted, before, true, &input);
   if (held.reason == StopReason::Cancelled || held.tangledMovable.empty() || !held.heldAcross)
     return held;
@@ -131,7 +120,7 @@ OptimizeResult optimizeBoundary(SurfaceMesh& mesh, const OptimizeOptions& opt,
   const auto t0 = std::chrono::steady_clock::now();
   MeshPositions input = MeshPositions::of(mesh);
   int offset = 0;
-  const ProgressCallback phased = afterSweeps(progress, offset, 2 * opt.maxSweeps);
+  const ProgressCallback phased = detail::renumbered(progress, offset, 2 * opt.maxSweeps);
   const OptimizeResult held = withNodesFixed(
       mesh, [&](std::size_t i) { return mesh.nodeKind[i] == NodeKind::Edge; },
       [&] { return optimizeHolding(mesh, opt, phased, before); });
@@ -154,7 +143,7 @@ OptimizeResult optimizeUntanglingFirst(SurfaceMesh& mesh, const OptimizeOptions&
   const auto t0 = std::chrono::steady_clock::now();
   MeshPositions input = MeshPositions::of(mesh);
   int offset = 0;
-  const ProgressCallback shifted = afterSweeps(progress, offset);
+  const ProgressCallback shifted = detail::renumbered(progress, offset);
   OptimizeResult first = optimizeBoundary(mesh, opt, shifted, before);
   if (first.reason == StopReason::Cancelled || first.tangledMovable.empty()) return first;
   MeshPositions reached = MeshPositions::of(mesh);

@@ -26,6 +26,7 @@
 //      the integral mode's result is taken when it leaves fewer.
 #include "reference_mode.h"
 
+#include "progress_relay.h"
 #include "straight_sided.h"
 #include "surfmesh/measures/lagrange_triangle.h"
 #include "surfmesh/measures/measure.h"
@@ -206,15 +207,8 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
   // The stages report their sweeps one after the other: sweep numbers go on from the sweeps
   // of the stages before.
   int done = 0, stage = 0;
-  ProgressCallback staged;
-  if (progress)
-    staged = [&](const OptimizeProgress& p) {
-      OptimizeProgress q = p;
-      q.sweep += done;
-      q.maxSweeps += done;
-      q.stage = stage;
-      return progress(q);
-    };
+  const ProgressCallback staged =
+      detail::renumbered(progress, done, 0, [&stage](int) { return stage; });
   auto integral = [&] {
     ++stage;
     original.copyTo(mesh);

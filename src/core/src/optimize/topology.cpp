@@ -3,6 +3,7 @@
 // nothing.
 #include "topology.h"
 
+#include "progress_relay.h"
 #include "surfmesh/optimize/edge_flips.h"
 #include "sweep.h"
 #include "sweep_support.h"
@@ -117,16 +118,10 @@ OptimizeResult optimizeWithFlips(SurfaceMesh& mesh, const OptimizeOptions& opt,
   inner.topology = "none";
   // The runs report their sweeps one after the other, each run's stages after the last's.
   int done = 0, stageBase = 0, stageTop = 0;
-  ProgressCallback staged;
-  if (progress)
-    staged = [&](const OptimizeProgress& p) {
-      OptimizeProgress q = p;
-      q.sweep += done;
-      q.maxSweeps += done;
-      q.stage = stageBase + p.stage;
-      stageTop = std::max(stageTop, q.stage);
-      return progress(q);
-    };
+  const ProgressCallback staged = detail::renumbered(progress, done, 0, [&](int s) {
+    stageTop = std::max(stageTop, stageBase + s);
+    return stageBase + s;
+  });
   auto seconds = [&] {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   };
