@@ -337,26 +337,15 @@ void NodeClassifier::onSeveralFaces(std::size_t n, const std::vector<int>& F, co
 }
 
 void NodeClassifier::warn() {
-  if (boundaryNoEdge) {
-    Diagnostic d;
-    d.code = code::kBoundaryNodesOffEdges;
-    d.count = static_cast<std::int64_t>(boundaryNoEdge);
-    d.nodes = {static_cast<std::int64_t>(firstBoundaryNoEdge)};
-    d.format =
-        "{count} nodes on the mesh's boundary lie on no CAD edge of their face; they are kept "
-        "fixed (e.g. node {node})";
-    report_.warn(std::move(d));
-  }
-  if (unplaced) {
-    Diagnostic d;
-    d.code = code::kNodesBetweenFaces;
-    d.count = static_cast<std::int64_t>(unplaced);
-    d.nodes = {static_cast<std::int64_t>(firstUnplaced)};
-    d.format =
-        "{count} nodes touch elements of several faces but lie on none of their common CAD "
-        "edges or vertices; they are kept fixed (e.g. node {node})";
-    report_.warn(std::move(d));
-  }
+  if (boundaryNoEdge)
+    report_.warn(nodesNote(code::kBoundaryNodesOffEdges, boundaryNoEdge, firstBoundaryNoEdge,
+                           "{count} nodes on the mesh's boundary lie on no CAD edge of their "
+                           "face; they are kept fixed (e.g. node {node})"));
+  if (unplaced)
+    report_.warn(nodesNote(code::kNodesBetweenFaces, unplaced, firstUnplaced,
+                           "{count} nodes touch elements of several faces but lie on none of "
+                           "their common CAD edges or vertices; they are kept fixed (e.g. node "
+                           "{node})"));
 }
 
 }  // namespace

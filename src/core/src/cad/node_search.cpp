@@ -311,14 +311,10 @@ void reportHints(const Recovery& r, BridgeReport& report) {
   if (rejected) {
     std::size_t first = 0;
     while (!hintRejected[first]) ++first;
-    Diagnostic d;
-    d.code = code::kHintsRejected;
-    d.count = static_cast<std::int64_t>(rejected);
-    d.nodes = {static_cast<std::int64_t>(first)};
-    d.format =
-        "{count} node hints were farther than the tolerance from their entity, or farther than "
-        "another entity of its kind, and were ignored (e.g. node {node})";
-    report.warn(std::move(d));
+    report.warn(nodesNote(code::kHintsRejected, rejected, first,
+                          "{count} node hints were farther than the tolerance from their "
+                          "entity, or farther than another entity of its kind, and were "
+                          "ignored (e.g. node {node})"));
   }
 }
 

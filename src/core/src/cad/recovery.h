@@ -85,6 +85,17 @@ inline ElementEdges elementEdges(ElementType t) {
   return r;
 }
 
+/// A warning `code` on `count` nodes, naming the first of them ({node}) by `first`.
+inline Diagnostic nodesNote(const char* code, std::size_t count, std::size_t first,
+                            std::string format) {
+  Diagnostic d;
+  d.code = code;
+  d.count = static_cast<std::int64_t>(count);
+  d.nodes = {static_cast<std::int64_t>(first)};
+  d.format = std::move(format);
+  return d;
+}
+
 /// Refuses the input: an InputError with the diagnostic `d`.
 [[noreturn]] inline void fail(Diagnostic d) { throw InputError(std::move(d)); }
 /// Refuses the input with a message that names no node, element or shape entity.
