@@ -179,6 +179,7 @@ void bind_optimize(MeshClass& cls) {
         d["flips"] = r.flips;
         d["rewired_elements"] = r.rewiredElements;
         d["needles"] = r.needles;
+        d["restored_nodes"] = r.restoredNodes;
         d["warnings"] = r.warnings;
         return d;
       },
@@ -193,7 +194,9 @@ void bind_optimize(MeshClass& cls) {
       "tangled_unmovable / tangled_movable (ids of the elements left tangled without / with a "
       "movable node), flips, rewired_elements (ids of the elements whose node lists edge flips "
       "changed: element_nodes() gives them), needles (elements with every corner on one CAD "
-      "edge, topology 'flip') and warnings (a line for each non-empty list). before: the stats "
+      "edge, topology 'flip'), restored_nodes (nodes put back where they were because the run "
+      "left invalid an element valid in the input) and warnings (a line for each non-empty "
+      "list). before: the stats "
       "dict of "
       "measure(measure) on the mesh as it is, when the caller has it (not measured again). "
       "fixed: None or a bool per node, True for the nodes the run leaves where they are.");

@@ -723,13 +723,14 @@ TEST(Optimizer, AnotherMeasureLeavingFoldsIsRedoneFromTheShapeMeasuresUntangling
     EXPECT_LT((c.mesh.xyz[i] - torus.value(c.mesh.uv[i].x(), c.mesh.uv[i].y())).norm(), 1e-12);
   for (int stopAt : {2, r.sweeps}) {
     Case d = base;
-    int calls = 0;
+    int cancelledAt = -1;
     const OptimizeResult rc = optimizeMesh(d.mesh, opt, [&](const OptimizeProgress& p) {
-      ++calls;
-      return p.sweep < stopAt;
+      if (p.sweep < stopAt) return true;
+      cancelledAt = p.sweep;
+      return false;
     });
     EXPECT_EQ(rc.reason, StopReason::Cancelled) << stopAt;
-    EXPECT_EQ(calls, stopAt) << stopAt;
+    EXPECT_EQ(cancelledAt, stopAt) << stopAt;
     EXPECT_EQ(d.mesh.xyz, base.mesh.xyz) << stopAt;
     EXPECT_EQ(d.mesh.uv, base.mesh.uv) << stopAt;
     EXPECT_EQ(d.mesh.cornerUV, base.mesh.cornerUV) << stopAt;

@@ -78,6 +78,9 @@ class OptimizeResult:
     straightened_elements: int = 0
     # Nodes that would have moved but were held by ``faces=`` or ``fixed_nodes=``.
     held_nodes: int = 0
+    # Nodes put back where they were because the run left invalid an element that was valid
+    # in the input (the core's last check: no valid element is made invalid).
+    restored_nodes: int = 0
     # topology="flip": the edge flips made, the elements whose node lists they changed (ids
     # and faces kept; ``mesh`` has the new lists) and the needles left (elements of quality
     # below 0.2 with every corner on one CAD edge: only inserting or removing nodes opens them),
@@ -122,6 +125,7 @@ class OptimizeResult:
             "threads": self.threads,
             "straightened_elements": self.straightened_elements,
             "held_nodes": self.held_nodes,
+            "restored_nodes": self.restored_nodes,
             "flips": self.flips,
             "rewired_elements": list(self.rewired_elements),
             "rewired_nodes": [list(n) for n in self.rewired_nodes],

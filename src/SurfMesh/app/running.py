@@ -216,6 +216,7 @@ def optimize(
         threads=int(r.get("threads", 1)),
         straightened_elements=int(r.get("straightened_elements", 0)),
         held_nodes=held_nodes,
+        restored_nodes=int(r.get("restored_nodes", 0)),
         flips=int(r.get("flips", 0)),
         rewired_elements=preparing.user_element_ids(data, rewired_core),
         rewired_nodes=rewired_nodes,

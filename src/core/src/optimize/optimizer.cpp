@@ -61,6 +61,7 @@ OptimizeResult continueRun(SurfaceMesh& mesh, const OptimizeResult& first, MeshP
   res.sweeps += first.sweeps;
   res.patchUntanglings += first.patchUntanglings;
   res.straightenedElements += first.straightenedElements;
+  res.restoredNodes += first.restoredNodes;
   res.heldAcross = res.heldAcross || first.heldAcross;
   res.initialObjective = first.initialObjective;
   if (res.reason == StopReason::NothingToDo) res.reason = first.reason;

@@ -300,6 +300,7 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
     res.movedNodes += mesh.xyz[i] != original.xyz[i] ? 1 : 0;
   res.patchUntanglings = r1.patchUntanglings + (ran2 ? r2.patchUntanglings : 0);
   res.straightenedElements = ran2 ? r2.straightenedElements : 0;
+  res.restoredNodes = r1.restoredNodes + (ran2 ? r2.restoredNodes : 0);
   res.heldAcross = r1.heldAcross || (ran2 && r2.heldAcross);
   if (ran2) {
     res.tangledUnmovable = r2.tangledUnmovable;

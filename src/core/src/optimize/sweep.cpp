@@ -1,5 +1,6 @@
 #include "sweep.h"
 
+#include "keep_valid.h"
 #include "node_updater.h"
 #include "sweep_policy.h"
 #include "tangled_report.h"
@@ -53,8 +54,9 @@ void checkOptions(const OptimizeOptions& opt) {
 /// whole-mesh evaluations; run() sweeps and writes the result back.
 class SweepRun {
  public:
+  /// `tangled0`: measureQuality's tangled flags of the input (keepValidElements).
   SweepRun(SurfaceMesh& mesh, const OptimizeOptions& opt, const ProgressCallback& progress,
-           const PlanarMeasure& measure, bool holdAcross)
+           const PlanarMeasure& measure, bool holdAcross, std::vector<unsigned char> tangled0)
       : mesh_(mesh),
         opt_(opt),
         progress_(progress),
@@ -67,7 +69,8 @@ class SweepRun {
         team_(nthreads_),
         chunkF_((E_ + kChunk - 1) / kChunk),
         frozen_(frozenElements(mesh)),
-        held_(E_, 0) {
+        held_(E_, 0),
+        tangled0_(std::move(tangled0)) {
     for (int k = 0; k < nthreads_; ++k) workers_.push_back(std::make_unique<Worker>(s_));
     for (const auto& c : colors_) movable_ += c.size();
   }
@@ -121,6 +124,7 @@ class SweepRun {
   std::vector<unsigned char> frozen_;
   std::vector<unsigned char> held_;      // frozen by foldHeld (holdFolds)
   std::vector<unsigned char> noEscape_;  // what the escapes leave alone (holdFolds)
+  std::vector<unsigned char> tangled0_;  // the input's invalid elements (measureQuality)
   // The last sweep's largest relative move and number of nodes moved.
   double maxMove_ = 0.0;
   std::size_t moved_ = 0;
@@ -441,6 +445,7 @@ OptimizeResult SweepRun::run(OptimizeResult res, MeshPositions* previous,
 /// swapped in, so that an exception here or while measuring the result leaves the mesh exactly
 /// as it was (as on cancellation). Ends the State and the workers.
 void SweepRun::writeBack(OptimizeResult* res, MeshPositions* previous) {
+  const double lastDelta = s_.mode.deltaHat;
   // What the write-back does not need goes first (it lowers the run's peak memory).
   auto release = [](auto& v) { std::decay_t<decltype(v)>().swap(v); };
   release(s_.d2);
@@ -487,13 +492,58 @@ void SweepRun::writeBack(OptimizeResult* res, MeshPositions* previous) {
     std::swap(mesh_.cornerUV, cornerUV);
   };
   exchange();
+  bool cancelled = false, revertAll = false;
   try {
-    const MeshQuality q = measureQuality(mesh_, measure_);
+    MeshQuality q = measureQuality(mesh_, measure_);
+    // Never worse, element by element: the nodes of the elements valid in the input that
+    // the run left invalid go back. On a valid input that is always kept; on a tangled one,
+    // unless it leaves more tangled elements than the run did (untangling may trade a valid
+    // element for tangled ones the run could not repair otherwise).
+    const std::size_t tangledRun = q.stats.tangled;
+    PutBack undo;
+    const std::size_t restored = keepValidElements(mesh_, InputPositions{xyz, uv, t, cornerUV},
+                                                   tangled0_, measure_, &q, &undo);
+    const bool validInput = std::find(tangled0_.begin(), tangled0_.end(), 1) == tangled0_.end();
+    if (restored > 0 && validInput && opt_.monotone && q.stats.min < res->before.min) {
+      // (The elements around the nodes put back are valid but poorer than the input's worst:
+      // the input, never worse.)
+      revertAll = true;
+    } else if (restored > 0 && q.stats.tangled <= tangledRun) {
+      res->restoredNodes = restored;
+      res->movedNodes -= restored;
+    } else if (restored > 0) {
+      undo.undo(mesh_);
+      q = measureQuality(mesh_, measure_);
+    }
     res->after = q.stats;
     reportTangled(mesh_, q, res);
+    if ((res->restoredNodes > 0 || revertAll) && progress_) {
+      // The last progress record describes the mesh the run returns; like every record, it
+      // may cancel the run (the input back).
+      OptimizeProgress pr;
+      pr.sweep = res->sweeps;
+      pr.maxSweeps = opt_.maxSweeps;
+      pr.objective = res->finalObjective;
+      const QualityStats& shown = revertAll ? res->before : q.stats;
+      pr.tangled = shown.tangled;
+      pr.minQuality = shown.min;
+      pr.delta = lastDelta;
+      cancelled = !progress_(pr);
+    }
   } catch (...) {
     exchange();  // back to the input
     throw;
+  }
+  if (revertAll || cancelled) {
+    exchange();  // back to the input
+    if (cancelled) res->reason = StopReason::Cancelled;
+    res->restoredNodes = cancelled ? 0 : res->movedNodes;
+    res->movedNodes = 0;
+    res->after = res->before;
+    res->tangledUnmovable.clear();
+    res->tangledMovable.clear();
+    res->warnings.clear();
+    return;
   }
   if (previous) {
     previous->xyz = std::move(xyz);
@@ -513,8 +563,14 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
   const PlanarMeasure& measure = measureByName(opt.measure);
   mesh.validate();
   OptimizeResult res;
-  res.before = before ? *before : measureQuality(mesh, measure).stats;
-  return SweepRun(mesh, opt, progress, measure, holdAcross).run(std::move(res), previous, t0);
+  std::vector<unsigned char> tangled0;  // the input's invalid elements (keepValidElements)
+  {
+    MeshQuality q0 = measureQuality(mesh, measure);  // (the rest freed before the run)
+    res.before = before ? *before : q0.stats;
+    tangled0 = std::move(q0.tangled);
+  }
+  return SweepRun(mesh, opt, progress, measure, holdAcross, std::move(tangled0))
+      .run(std::move(res), previous, t0);
 }
 
 }  // namespace detail

@@ -168,6 +168,7 @@ OptimizeResult optimizeWithFlips(SurfaceMesh& mesh, const OptimizeOptions& opt,
       if (r.reason == StopReason::Cancelled) return cancelled(res);
       res.patchUntanglings += r.patchUntanglings;
       res.straightenedElements += r.straightenedElements;
+      res.restoredNodes += r.restoredNodes;
       res.heldAcross = res.heldAcross || r.heldAcross;
       if (r.reason == StopReason::MaxSweeps) res.reason = StopReason::MaxSweeps;
     }

@@ -210,7 +210,9 @@ const char* stopReasonName(StopReason r);
 
 /// Reported after every sweep (and the escapes that follow it), of the mesh as the sweep leaves
 /// it, counted as the quality report counts (a triangle only the across hold counts as tangled
-/// in the run is valid here); return false from the callback to cancel the run.
+/// in the run is valid here); return false from the callback to cancel the run. A run whose
+/// last check put nodes back (OptimizeResult::restoredNodes) reports once more, with the same
+/// sweep number, of the mesh it returns.
 struct OptimizeProgress {
   int sweep = 0;
   int maxSweeps = 0;
@@ -265,6 +267,10 @@ struct OptimizeResult {
   /// vertices): a needle along the edge that neither flips nor moves can open; inserting or
   /// removing nodes would (needleElements in edge_flips.h).
   std::vector<std::int32_t> needles;
+  /// Nodes put back where they were in the input because the run left invalid an element
+  /// that was valid there (and so on, ring by ring: keep_valid.cpp). 0 on most runs: the
+  /// sweeps and escapes keep valid elements valid; this makes it a guarantee.
+  std::size_t restoredNodes = 0;
   /// One line per non-empty list above (count and element ids).
   std::vector<std::string> warnings;
 };
