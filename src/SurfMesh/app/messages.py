@@ -116,14 +116,21 @@ def diagnostic_codes():
         {"code": c, "refusal": False, "meaning": m} for c, m in CODES.items()]
 
 
+def _new(code, format, count, values, **ids):
+    """A diagnostic dict, as the core's bindings give one (``ids``: lists by the keys of
+    :data:`_LISTS`' values), without its text."""
+    d = {"code": code, "format": format, "count": int(count), "values": dict(values or {})}
+    for key in _LISTS.values():
+        d[key] = [int(i) for i in ids.get(key, ())]
+    return d
+
+
 def diagnostic(code, format, count=0, nodes=(), elements=(), values=None):
     """A diagnostic of this module (``code``: one of :data:`CODES`; ids: the user's), with its
     ``text``."""
     if code not in CODES:
         raise KeyError(f"unknown diagnostic code {code!r}")
-    d = {"code": code, "format": format, "count": int(count),
-         "nodes": [int(i) for i in nodes], "elements": [int(i) for i in elements],
-         "faces": [], "edges": [], "vertices": [], "values": dict(values or {})}
+    d = _new(code, format, count, values, nodes=nodes, elements=elements)
     d["text"] = render(d)
     return d
 
@@ -161,10 +168,15 @@ def refusal(err, data):
     return out
 
 
+def set_diagnostics(report, diagnostics):
+    """A bridge report's diagnostics (in the user's ids), and their texts as its "warnings"."""
+    report["diagnostics"] = list(diagnostics)
+    report["warnings"] = [d["text"] for d in report["diagnostics"]]
+
+
 def add_warning(report, diag):
     """Adds a diagnostic (in the user's ids) to a bridge report: its text to "warnings"."""
-    report["diagnostics"] = list(report.get("diagnostics", [])) + [diag]
-    report["warnings"] = list(report.get("warnings", [])) + [diag["text"]]
+    set_diagnostics(report, list(report.get("diagnostics", [])) + [diag])
 
 
 def loose_nodes(report, fmt):
@@ -177,14 +189,11 @@ def loose_nodes(report, fmt):
     ent = np.asarray(report["loose_entity"], dtype=np.int64)
     k = int(np.argmax(dist))
     kind = ("vertex", "edge", "face")[min(int(cls[k]), 2)]
-    d = {"code": "unused_nodes", "count": int(loose.size),
-         "format": re.sub(r"\{(vertex|edge|face)\}", "{" + kind + "}", fmt),
-         "nodes": [int(loose[k])] + [int(n) for n in loose[:5]], "elements": [],
-         "faces": [], "edges": [], "vertices": [],
-         "values": {"on_vertices": int(np.sum(cls == 0)), "on_edges": int(np.sum(cls == 1)),
-                    "on_faces": int(np.sum(cls == 2)), "distance": float(dist[k])}}
-    d[_LISTS[kind]] = [int(ent[k])]
-    return d
+    return _new("unused_nodes", re.sub(r"\{(vertex|edge|face)\}", "{" + kind + "}", fmt),
+                loose.size,
+                {"on_vertices": int(np.sum(cls == 0)), "on_edges": int(np.sum(cls == 1)),
+                 "on_faces": int(np.sum(cls == 2)), "distance": float(dist[k])},
+                nodes=[loose[k]] + list(loose[:5]), **{_LISTS[kind]: [ent[k]]})
 
 
 # ---- reading a mesh on its shape -------------------------------------------------------------

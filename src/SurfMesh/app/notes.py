@@ -2,12 +2,13 @@
 curved elements with far side nodes, glued nodes…), told once per mesh in a user's words.
 
 The bridge's diagnostics (``QualityReport.bridge["diagnostics"]``: a code, the text, the ids)
-say what happened in the words of the algorithm and with counts; every command on a mesh gives them again, and an optimized mesh
-(a new object) gives them once more with other counts. Here each kind of note is printed once
-per mesh "lineage" (a mesh and the meshes optimized from it) and document session, in plain
-words; the full texts, with the latest counts, are its details (:func:`details`, shown by the
-Quality report). A note's kind is its diagnostic's code; the notes' words are
-SurfMesh.app.messages's (:data:`~SurfMesh.app.messages.NOTE_WORDS`), beside the warnings' texts.
+say what happened in the words of the algorithm and with counts; every command on a mesh gives
+them again, and an optimized mesh (a new object) gives them once more with other counts. Here
+each kind of note is printed once per mesh "lineage" (a mesh and the meshes optimized from it)
+and document session, in plain words; the full texts, with the latest counts, are its details
+(:func:`details`, shown by the Quality report). A note's kind is its diagnostic's code; the
+notes' words are SurfMesh.app.messages's (:data:`~SurfMesh.app.messages.NOTE_WORDS`), beside
+the warnings' texts.
 
 Headless: never imports FreeCADGui.
 """

@@ -235,8 +235,8 @@ def _bridge(cshape, data, w, tolerance, boundary, tolerance_hints, keep=False,
     except ValueError as err:
         raise messages.refusal(err, w) from None
     report = h.report  # the handle's own dict: the user's ids in its diagnostics too
-    report["diagnostics"] = [messages.for_user(d, w) for d in report.get("diagnostics", [])]
-    report["warnings"] = [d["text"] for d in report["diagnostics"]]
+    messages.set_diagnostics(report,
+                             [messages.for_user(d, w) for d in report.get("diagnostics", [])])
     return h
 
 
@@ -296,9 +296,7 @@ def _report_glued(handle, data, glue):
                 continue
             d = messages.for_user(messages.loose_nodes(report, d["format"]), data)
         diagnostics.append(d)
-    report["diagnostics"] = diagnostics
-    report["warnings"] = [d["text"] for d in diagnostics]
-    messages.add_warning(report, note)
+    messages.set_diagnostics(report, diagnostics + [note])
 
 
 def side_nodes_astray(data):

@@ -46,20 +46,7 @@ Diagnostic looseNodesNote(const BridgeReport& r) {
   d.nodes.push_back(r.looseNodes[worst]);
   for (std::size_t k = 0; k < std::min<std::size_t>(r.looseNodes.size(), 5); ++k)
     d.nodes.push_back(r.looseNodes[k]);
-  const char* entity = "{face}";
-  switch (r.looseClass[worst]) {
-    case NodeClass::Vertex:
-      d.vertices.push_back(r.looseEntity[worst]);
-      entity = "{vertex}";
-      break;
-    case NodeClass::Edge:
-      d.edges.push_back(r.looseEntity[worst]);
-      entity = "{edge}";
-      break;
-    default:
-      d.faces.push_back(r.looseEntity[worst]);
-      break;
-  }
+  const char* entity = nameEntity(d, r.looseClass[worst], r.looseEntity[worst]);
   d.values = {{"on_vertices", static_cast<double>(on[0])},
               {"on_edges", static_cast<double>(on[1])},
               {"on_faces", static_cast<double>(on[2])},

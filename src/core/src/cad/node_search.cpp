@@ -264,16 +264,7 @@ void locateNodes(const Recovery& r, BridgeReport& report) {
                 {"tolerance", tol},
                 {"relative", wd / diag},
                 {"checked", static_cast<double>(checked)}};
-    std::string entity = "{face}";
-    if (nearKind[worst] == NodeClass::Vertex) {
-      d.vertices = {nearId[worst]};
-      entity = "{vertex}";
-    } else if (nearKind[worst] == NodeClass::Edge) {
-      d.edges = {nearId[worst]};
-      entity = "{edge}";
-    } else {
-      d.faces = {nearId[worst]};
-    }
+    const std::string entity = nameEntity(d, nearKind[worst], nearId[worst]);
     if (wd <= tol)
       // Every such node is an element's node on a free edge or a lone vertex (else the worst
       // would be farther): an element there lies on no face.

@@ -96,6 +96,21 @@ inline Diagnostic nodesNote(const char* code, std::size_t count, std::size_t fir
   return d;
 }
 
+/// Adds CAD entity `id` of kind `c` (a vertex, an edge, else a face) to `d`'s lists and returns
+/// the placeholder that names it in `d`'s text.
+inline const char* nameEntity(Diagnostic& d, NodeClass c, int id) {
+  if (c == NodeClass::Vertex) {
+    d.vertices.push_back(id);
+    return "{vertex}";
+  }
+  if (c == NodeClass::Edge) {
+    d.edges.push_back(id);
+    return "{edge}";
+  }
+  d.faces.push_back(id);
+  return "{face}";
+}
+
 /// Refuses the input: an InputError with the diagnostic `d`.
 [[noreturn]] inline void fail(Diagnostic d) { throw InputError(std::move(d)); }
 /// Refuses the input with a message that names no node, element or shape entity.
