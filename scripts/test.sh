@@ -12,6 +12,7 @@
 #   Python suites           1 per unittest test case (a suite that crashes or does not report
 #                           counts 1 failure)
 #   GUI suites              1 per tests/gui/test_*.py script
+#   peer suite              1 check (bench/peers.sh quick: the suite runs, no speed asserted)
 #   sanitizer build         1 failure when it does not configure or compile
 # Skipped unittest cases and disabled C++ tests are in neither number.
 #
@@ -234,6 +235,23 @@ else
       record "gui $name" 0 1 "(exit $rc)"
     fi
   done
+fi
+
+# ---- f. the peer benchmark suite, quick (bench/peers.sh quick) -------------------------------
+# Checks that the suite runs (every peer available here, one judge, every row present); it
+# asserts no speed and no peer's result. Its JSON goes to $SURFMESH_TEST_OUTPUT_DIR.
+say "peer benchmark suite (bench/peers.sh quick)"
+if [ "$BUILD_OK" -ne 1 ]; then
+  echo "skipped: the build failed"
+else
+  timeout -k 15 600 bash "$REPO/bench/peers.sh" quick </dev/null 2>&1 \
+    | grep -vE '^(Info|DBGTT)' | tee "$LOGS/peers-quick.log"
+  rc=${PIPESTATUS[0]}
+  if [ "$rc" -eq 0 ]; then
+    record "peer suite (bench/peers.sh quick)" 1 0
+  else
+    record "peer suite (bench/peers.sh quick)" 0 1 "(exit $rc, see $LOGS/peers-quick.log)"
+  fi
 fi
 
 # ---- summary -----------------------------------------------------------------------------
