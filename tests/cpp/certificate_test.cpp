@@ -641,6 +641,99 @@ TEST(JacobianCertificate, AgainstNodeNormalsAtAPoleAndWithoutNormals) {
             JacobianSign::Undecided);
 }
 
+TEST(JacobianCertificate, BezierBoundIsTheFirstExpansionAndTheVerdictIsTheCertificates) {
+  // The Bernstein coefficients from the Bézier control points (products of Bernstein
+  // polynomials) against the certificate's from its samples: the same smallest coefficient up
+  // to rounding, a margin at least the certificate's, the same verdict through
+  // triangleJacobianPositive…; and the quick proof concludes on most valid elements.
+  for (int p : {1, 2, 3, 4, 5}) {
+    std::mt19937 rng(4242u + static_cast<unsigned>(p));
+    const int trials = p <= 3 ? 1500 : 600;
+    int positive = 0, quick = 0, other = 0;
+    for (int t = 0; t < trials; ++t) {
+      const int kind = t % 3;
+      Element e = kind == 0 ? flat(p) : kind == 1 ? sphere(p) : cylinder(p);
+      const double size = (e.x[1] - e.x[0]).norm();
+      std::uniform_real_distribution<double> u(-1.0, 1.0);
+      const double amp = (t % 5 + 1) * 0.08 * size / p;
+      for (Vec3& x : e.x) x += amp * Vec3(u(rng), u(rng), u(rng));
+      const JacobianCertificate c = certifyTriangleJacobian(p, e.x.data(), e.n);
+      const CoefficientBound b = bezierCoefficientBound(p, e.x.data(), e.n);
+      EXPECT_NEAR(b.minCoefficient, c.minCoefficient, 0.1 * b.tolerance)
+          << "p = " << p << " trial " << t;
+      EXPECT_GE(b.tolerance, c.tolerance * (1 - 1e-12)) << "p = " << p << " trial " << t;
+      const bool certified = c.sign == JacobianSign::Positive;
+      EXPECT_EQ(triangleJacobianPositive(p, e.x.data(), e.n), certified)
+          << "p = " << p << " trial " << t;
+      EXPECT_EQ(elementCertifiedValid(typeOf(p), e.x.data(), e.n), certified);
+      positive += certified;
+      quick += b.minCoefficient > b.tolerance;
+      other += !certified;
+    }
+    std::printf("p = %d: %d of %d certified positive, %d of them by the Bezier bound alone\n", p,
+                positive, trials, quick);
+    if (p > 1) EXPECT_GT(other, 0) << "p = " << p;
+    EXPECT_LE(quick, positive);
+    // Curved elements as a smoothed mesh has them (every node moved by up to 0.05 size / p²):
+    // the first expansion decides.
+    int mild = 0, mildQuick = 0;
+    for (int t = 0; t < 300; ++t) {
+      Element e = t % 2 ? sphere(p) : cylinder(p);
+      const double size = (e.x[1] - e.x[0]).norm(), amp = 0.05 * size / (p * p);
+      std::uniform_real_distribution<double> u(-amp, amp);
+      for (Vec3& x : e.x) x += Vec3(u(rng), u(rng), u(rng));
+      mild += triangleJacobianPositive(p, e.x.data(), e.n);
+      const CoefficientBound b = bezierCoefficientBound(p, e.x.data(), e.n);
+      mildQuick += b.minCoefficient > b.tolerance;
+    }
+    EXPECT_EQ(mild, 300) << "p = " << p;
+    EXPECT_EQ(mildQuick, 300) << "p = " << p;
+  }
+  // Against the nodes' normals, on the cylinder.
+  for (int p : {1, 2, 3, 4, 5}) {
+    std::mt19937 rng(99u + static_cast<unsigned>(p));
+    std::uniform_real_distribution<double> wide(0.3, 1.8), tall(0.3, 1.2);
+    const int trials = p <= 3 ? 600 : 200;
+    int positive = 0, quick = 0;
+    for (int t = 0; t < trials; ++t) {
+      const CylinderElement ce = onCylinder(p, wide(rng), 0.2 * wide(rng), 0.1 * tall(rng),
+                                            tall(rng), &rng, (t % 4) * 0.1 / p);
+      const JacobianCertificate c =
+          certifyTriangleAgainstNodeNormals(p, ce.e.x.data(), ce.normals.data());
+      const CoefficientBound b =
+          bezierCoefficientBoundAgainstNodeNormals(p, ce.e.x.data(), ce.normals.data());
+      EXPECT_NEAR(b.minCoefficient, c.minCoefficient, 0.1 * b.tolerance)
+          << "p = " << p << " trial " << t;
+      EXPECT_GE(b.tolerance, c.tolerance * (1 - 1e-12)) << "p = " << p << " trial " << t;
+      const bool certified = c.sign == JacobianSign::Positive;
+      EXPECT_EQ(triangleJacobianPositiveAgainstNodeNormals(p, ce.e.x.data(), ce.normals.data()),
+                certified)
+          << "p = " << p << " trial " << t;
+      positive += certified;
+      quick += b.minCoefficient > b.tolerance;
+    }
+    std::printf("p = %d against node normals: %d of %d positive, %d by the Bezier bound\n", p,
+                positive, trials, quick);
+    EXPECT_GT(quick, positive / 2) << "p = " << p;
+    EXPECT_LE(quick, positive);
+  }
+  // A pole's zero normal, no normal at all, a non-finite one: the certificate's verdicts.
+  const Element s = sphere(3);
+  std::vector<Vec3> normals;
+  for (const Vec3& x : s.x) normals.push_back(x.normalized());
+  normals[0] = Vec3::Zero();
+  EXPECT_TRUE(triangleJacobianPositiveAgainstNodeNormals(3, s.x.data(), normals.data()));
+  EXPECT_GT(bezierCoefficientBoundAgainstNodeNormals(3, s.x.data(), normals.data()).minCoefficient,
+            0.0);
+  for (Vec3& n : normals) n = Vec3::Zero();
+  EXPECT_FALSE(triangleJacobianPositiveAgainstNodeNormals(3, s.x.data(), normals.data()));
+  normals[1] = Vec3(NAN, 0, 0);
+  EXPECT_FALSE(triangleJacobianPositiveAgainstNodeNormals(3, s.x.data(), normals.data()));
+  EXPECT_FALSE(triangleJacobianPositive(3, s.x.data(), Vec3(NAN, 0, 1)));
+  EXPECT_FALSE(triangleJacobianPositive(3, s.x.data(), Vec3::Zero()));
+  EXPECT_THROW(triangleJacobianPositive(6, s.x.data(), s.n), std::invalid_argument);
+}
+
 // ---- (f) order 1 --------------------------------------------------------------------------------
 
 TEST(JacobianCertificate, OrderOneIsThePlainOrientationTest) {

@@ -180,6 +180,177 @@ const CertificateBasis& fieldBasis(int order) {
   return b[order - 1];
 }
 
+/// The quick proof of a Positive verdict: D's Bernstein coefficients on the whole triangle,
+/// computed exactly from the element's Bézier control points instead of from samples. With
+/// λ = (1 − ξ − η, ξ, η) and the control points P_α (|α| = p) of x (P = toControl · nodes),
+///     x_ξ = Σ_{|α|=p−1} p (P_{α+e1} − P_{α+e0}) B_α,   x_η = Σ p (P_{α+e2} − P_{α+e0}) B_α,
+/// and a product of Bernstein polynomials is one too: Σ_α f_α B_α^m · Σ_β g_β B_β^n =
+/// Σ_γ (Σ_{α+β=γ} C(m,α) C(n,β) / C(m+n,γ) f_α g_β) B_γ^{m+n}, C the multinomial coefficients.
+/// Every coefficient of the degree-2(p − 1) (or, against the interpolated normals N_δ, degree
+/// 3p − 2) product above τ' proves D > τ' everywhere. τ' bounds the certificate's τ from above
+/// (‖x_ξ‖ ≤ max ‖a_α‖ on the whole triangle, and so on), so this proof implies the
+/// certificate's at depth 0; where it does not conclude, the certificate decides.
+struct ProductBasis {
+  int order = 0;
+  int nodes = 0;
+  /// Row-major nodes × nodes: control point of index position(p, j, k) from the nodes.
+  std::vector<double> toControl;
+  /// For each α of degree p − 1 (position(p − 1, ·)): positions of α + e0, α + e1, α + e2.
+  std::vector<std::array<int, 3>> deriv;
+  struct Term {
+    int f, g, out;
+    double w;
+  };
+  std::vector<Term> cross;  ///< (p − 1) × (p − 1) → 2(p − 1)
+  std::vector<Term> field;  ///< 2(p − 1) × p → 3p − 2
+  int crossCount = 0, fieldCount = 0;
+};
+
+double multinomial(int d, int i, int j) { return binomial(d, i) * binomial(d - i, j); }
+
+/// The products' terms of two degrees (m, n): each pair of indices and its weight.
+std::vector<ProductBasis::Term> productTerms(int m, int n) {
+  std::vector<ProductBasis::Term> t;
+  for (int k1 = 0; k1 <= m; ++k1)
+    for (int j1 = 0; j1 <= m - k1; ++j1)
+      for (int k2 = 0; k2 <= n; ++k2)
+        for (int j2 = 0; j2 <= n - k2; ++j2) {
+          const int i1 = m - j1 - k1, i2 = n - j2 - k2;
+          const double w = multinomial(m, i1, j1) * multinomial(n, i2, j2) /
+                           multinomial(m + n, i1 + i2, j1 + j2);
+          t.push_back(
+              {position(m, j1, k1), position(n, j2, k2), position(m + n, j1 + j2, k1 + k2), w});
+        }
+  return t;
+}
+
+ProductBasis makeProductBasis(int order) {
+  ProductBasis b;
+  const LagrangeTriangle& lt = lagrangeTriangle(order);
+  const int p = order, nn = lt.nodeCount();
+  b.order = p;
+  b.nodes = nn;
+  // M(node, α) = B_α^p at the node; control points = M⁻¹ · nodes.
+  Eigen::MatrixXd M(nn, nn);
+  for (int r = 0; r < nn; ++r) {
+    const Eigen::Vector2d& xi = lt.nodes()[static_cast<std::size_t>(r)];
+    const double l[3] = {1.0 - xi.x() - xi.y(), xi.x(), xi.y()};
+    for (int k = 0; k <= p; ++k)
+      for (int j = 0; j <= p - k; ++j) {
+        const int i = p - j - k;
+        M(r, position(p, j, k)) =
+            multinomial(p, i, j) * std::pow(l[0], i) * std::pow(l[1], j) * std::pow(l[2], k);
+      }
+  }
+  const Eigen::MatrixXd inv = M.fullPivLu().inverse();
+  b.toControl.resize(static_cast<std::size_t>(nn * nn));
+  for (int r = 0; r < nn; ++r)
+    for (int c = 0; c < nn; ++c) b.toControl[static_cast<std::size_t>(r * nn + c)] = inv(r, c);
+  for (int k = 0; k <= p - 1; ++k)
+    for (int j = 0; j <= p - 1 - k; ++j)
+      b.deriv.push_back({position(p, j, k), position(p, j + 1, k), position(p, j, k + 1)});
+  b.cross = productTerms(p - 1, p - 1);
+  b.field = productTerms(2 * (p - 1), p);
+  b.crossCount = (2 * p - 1) * 2 * p / 2;
+  b.fieldCount = (3 * p - 1) * 3 * p / 2;
+  return b;
+}
+
+const ProductBasis& productBasis(int order) {
+  static const ProductBasis b[5] = {makeProductBasis(1), makeProductBasis(2), makeProductBasis(3),
+                                    makeProductBasis(4), makeProductBasis(5)};
+  return b[order - 1];
+}
+
+/// Control points (order p, position order) of the nodal values v (Gmsh order).
+void controlPoints(const ProductBasis& B, const Vec3* v, Vec3* out) {
+  for (int r = 0; r < B.nodes; ++r) {
+    const double* row = B.toControl.data() + static_cast<std::size_t>(r * B.nodes);
+    double s0 = 0, s1 = 0, s2 = 0;
+    for (int c = 0; c < B.nodes; ++c) {
+      s0 += row[c] * v[c].x();
+      s1 += row[c] * v[c].y();
+      s2 += row[c] * v[c].z();
+    }
+    out[r] = Vec3(s0, s1, s2);
+  }
+}
+
+/// The Bézier coefficients of x_ξ and x_η (degree p − 1) of nodes x, and the largest norms.
+void derivativeControls(const ProductBasis& B, const Vec3* x, Vec3* a, Vec3* b, double* scale) {
+  Vec3 P[kMaxElementNodes];
+  controlPoints(B, x, P);
+  double ma = 0.0, mb = 0.0;
+  const double p = B.order;
+  for (std::size_t q = 0; q < B.deriv.size(); ++q) {
+    const std::array<int, 3>& d = B.deriv[q];
+    a[q] = p * (P[d[1]] - P[d[0]]);
+    b[q] = p * (P[d[2]] - P[d[0]]);
+    ma = std::max(ma, a[q].norm());
+    mb = std::max(mb, b[q].norm());
+  }
+  *scale = ma * mb;
+}
+
+CoefficientBound productBound(int order, const Vec3* x, const Vec3& n) {
+  const ProductBasis& B = productBasis(order);
+  Vec3 a[kMaxElementNodes], b[kMaxElementNodes];
+  double scale = 0.0;
+  derivativeControls(B, x, a, b, &scale);
+  // (a_α × b_β)·n = a_α · (b_β × n)
+  Vec3 bn[kMaxElementNodes];
+  for (std::size_t q = 0; q < B.deriv.size(); ++q) bn[q] = b[q].cross(n);
+  double c[kMaxCoefficients] = {};
+  for (const ProductBasis::Term& t : B.cross) c[t.out] += t.w * a[t.f].dot(bn[t.g]);
+  CoefficientBound r;
+  r.tolerance = kPerpendicularTol * n.norm() * scale;
+  r.minCoefficient = *std::min_element(c, c + B.crossCount);
+  return r;
+}
+
+/// productBound against node normals already with the poles' replaced (fillPoleNormals).
+CoefficientBound productBoundAgainstNodeNormals(int order, const Vec3* x, const Vec3* nodeNormals) {
+  const ProductBasis& B = productBasis(order);
+  Vec3 a[kMaxElementNodes], b[kMaxElementNodes];
+  double scale = 0.0;
+  derivativeControls(B, x, a, b, &scale);
+  Vec3 N[kMaxElementNodes];
+  controlPoints(B, nodeNormals, N);
+  double mn = 0.0;
+  for (int i = 0; i < B.nodes; ++i) mn = std::max(mn, N[i].norm());
+  Vec3 c[kMaxCoefficients];
+  for (int i = 0; i < B.crossCount; ++i) c[i] = Vec3::Zero();
+  for (const ProductBasis::Term& t : B.cross) c[t.out] += t.w * a[t.f].cross(b[t.g]);
+  double d[kMaxCoefficients] = {};
+  for (const ProductBasis::Term& t : B.field) d[t.out] += t.w * c[t.f].dot(N[t.g]);
+  CoefficientBound r;
+  r.tolerance = kPerpendicularTol * scale * mn;
+  r.minCoefficient = *std::min_element(d, d + B.fieldCount);
+  return r;
+}
+
+/// Whether the bound proves D > τ' (false on anything not finite).
+bool proves(const CoefficientBound& r) {
+  return std::isfinite(r.tolerance) && r.minCoefficient > r.tolerance;
+}
+
+/// The node normals the certificate against them takes: a node at a pole (zero normal) takes
+/// the direction of the others' sum. *sumNorm: the length of that sum; false when a normal is
+/// not finite.
+bool fillPoleNormals(const Vec3* in, int nn, Vec3* out, double* sumNorm) {
+  bool finite = true;
+  Vec3 sum = Vec3::Zero();
+  for (int i = 0; i < nn; ++i) {
+    finite = finite && in[i].allFinite();
+    sum += in[i];
+  }
+  const double normals = sum.norm();
+  for (int i = 0; i < nn; ++i)
+    out[i] = in[i].squaredNorm() > 0.0 || normals == 0.0 ? in[i] : Vec3(sum / normals);
+  *sumNorm = normals;
+  return finite;
+}
+
 /// Σ_i N_i n_i from the shape function values at one point.
 inline Vec3 interpolate(const Vec3* n, const double* N, int nn) {
   Vec3 r = Vec3::Zero();
@@ -371,18 +542,9 @@ JacobianCertificate certifyTriangleAgainstNodeNormals(int order, const Vec3* x,
   const int nn = B.nodes, m = B.count;
   double values[kMaxCoefficients] = {};
   double scale = 0.0;
-  bool finite = true;
-  // A node at a pole (zero normal) takes the direction of the others' sum.
   Vec3 nodeNormals[kMaxElementNodes];
-  Vec3 sum = Vec3::Zero();
-  for (int i = 0; i < nn; ++i) {
-    finite = finite && nodeNormalsIn[i].allFinite();
-    sum += nodeNormalsIn[i];
-  }
-  const double normals = sum.norm();
-  for (int i = 0; i < nn; ++i)
-    nodeNormals[i] = nodeNormalsIn[i].squaredNorm() > 0.0 || normals == 0.0 ? nodeNormalsIn[i]
-                                                                            : Vec3(sum / normals);
+  double normals = 0.0;
+  bool finite = fillPoleNormals(nodeNormalsIn, nn, nodeNormals, &normals);
   for (int a = 0; a < m && finite; ++a) {
     const std::size_t o = static_cast<std::size_t>(a) * static_cast<std::size_t>(nn);
     Vec3 xa, xb;
@@ -411,6 +573,7 @@ bool markUncertifiedFold(ElementType type, const Vec3* x, const Vec3& n, double 
                          const PlanarMeasure* m, int freeLocal) {
   if (r->tangled || !isHighOrderTriangle(type)) return false;
   const int p = elementOrder(type);
+  if (proves(productBound(p, x, n))) return false;
   const JacobianCertificate c = certifyTriangleJacobian(p, x, n);
   if (c.sign == JacobianSign::Positive) return false;
   constexpr double kInf = std::numeric_limits<double>::infinity();
@@ -462,8 +625,32 @@ bool markUncertifiedFold(ElementType type, const Vec3* x, const Vec3& n, double 
   return true;
 }
 
+CoefficientBound bezierCoefficientBound(int order, const Vec3* x, const Vec3& n) {
+  basis(order);  // (the order's check)
+  return productBound(order, x, n);
+}
+
+CoefficientBound bezierCoefficientBoundAgainstNodeNormals(int order, const Vec3* x,
+                                                          const Vec3* nodeNormals) {
+  const CertificateBasis& B = fieldBasis(order);  // (the order's check)
+  Vec3 filled[kMaxElementNodes];
+  double normals = 0.0;
+  if (!fillPoleNormals(nodeNormals, B.nodes, filled, &normals)) return CoefficientBound{};
+  return productBoundAgainstNodeNormals(order, x, filled);
+}
+
+bool triangleJacobianPositive(int order, const Vec3* x, const Vec3& n) {
+  return proves(bezierCoefficientBound(order, x, n)) ||
+         certifyTriangleJacobian(order, x, n).sign == JacobianSign::Positive;
+}
+
+bool triangleJacobianPositiveAgainstNodeNormals(int order, const Vec3* x, const Vec3* nodeNormals) {
+  return proves(bezierCoefficientBoundAgainstNodeNormals(order, x, nodeNormals)) ||
+         certifyTriangleAgainstNodeNormals(order, x, nodeNormals).sign == JacobianSign::Positive;
+}
+
 bool elementCertifiedValid(ElementType type, const Vec3* x, const Vec3& n) {
-  if (!isQuad(type)) return certifyElementJacobian(type, x, n).sign == JacobianSign::Positive;
+  if (!isQuad(type)) return triangleJacobianPositive(elementOrder(type), x, n);
   // Quad4 and quad8: their own proofs, inside their distortion (any measure: validity only).
   return !elementDistortion(measureByName("shape"), type, x, n, 0.0).tangled;
 }

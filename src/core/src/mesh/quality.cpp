@@ -49,8 +49,7 @@ ElementQuality elementQuality(const SurfaceMesh& mesh, std::size_t e, const Plan
     Vec3 nodeNormals[kMaxElementNodes];
     elementNodeNormals(mesh, e, surfaces, nodeNormals);
     across =
-        certifyTriangleAgainstNodeNormals(elementOrder(mesh.elemType[e]), x, nodeNormals).sign !=
-        JacobianSign::Positive;
+        !triangleJacobianPositiveAgainstNodeNormals(elementOrder(mesh.elemType[e]), x, nodeNormals);
   }
   ElementQuality q;
   q.tangled = bad;

@@ -219,8 +219,7 @@ struct State {
     if (!isHighOrderTriangle(mesh.elemType[e])) return cornerSidesAt(e, local, x, normals).against;
     Vec3 xs[kMaxElementNodes];
     positions(e, local, x, xs);
-    return certifyTriangleAgainstNodeNormals(elementOrder(mesh.elemType[e]), xs, normals).sign !=
-           JacobianSign::Positive;
+    return !triangleJacobianPositiveAgainstNodeNormals(elementOrder(mesh.elemType[e]), xs, normals);
   }
 
   /// The Jacobians of high-order triangle e at its nodes and quadrature points without the

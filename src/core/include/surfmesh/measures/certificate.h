@@ -128,6 +128,32 @@ JacobianCertificate certifyTriangleAgainstNodeNormals(int order, const Vec3* x,
                                                       const Vec3* nodeNormals,
                                                       int maxDepth = kCertificateMaxDepth);
 
+/// D's smallest Bernstein coefficient on the whole reference triangle (no subdivision),
+/// computed exactly from the element's Bézier control points P_α (|α| = p) rather than from
+/// samples: with λ = (1 − ξ − η, ξ, η), x_ξ = Σ_{|α|=p−1} p (P_{α+e1} − P_{α+e0}) B_α and
+/// x_η = Σ p (P_{α+e2} − P_{α+e0}) B_α, and a product of Bernstein polynomials is one,
+///     Σ f_α B_α^m · Σ g_β B_β^n = Σ_γ (Σ_{α+β=γ} C(m,α) C(n,β) / C(m+n,γ) f_α g_β) B_γ^{m+n}
+/// (C the multinomial coefficients): the certificate's minCoefficient up to rounding. Its
+/// margin bounds the certificate's τ from above (‖x_ξ‖ ≤ max_α ‖p (P_{α+e1} − P_{α+e0})‖ on
+/// the whole triangle, likewise x_η and the interpolated normals), so minCoefficient >
+/// tolerance proves what the certificate proves at depth 0. NaN when something is not finite.
+struct CoefficientBound {
+  double minCoefficient = std::numeric_limits<double>::quiet_NaN();
+  double tolerance = std::numeric_limits<double>::quiet_NaN();  ///< τ' ≥ τ
+};
+CoefficientBound bezierCoefficientBound(int order, const Vec3* x, const Vec3& n);
+/// The same for D_h against the nodes' normals (zero at a pole, as the certificate takes them).
+CoefficientBound bezierCoefficientBoundAgainstNodeNormals(int order, const Vec3* x,
+                                                          const Vec3* nodeNormals);
+
+/// Whether certifyTriangleJacobian(order, x, n).sign is Positive (within its margin τ), for
+/// callers that need the verdict alone: first by bezierCoefficientBound (about a third of the
+/// certificate's work at order 5), the certificate deciding where that does not conclude.
+bool triangleJacobianPositive(int order, const Vec3* x, const Vec3& n);
+
+/// The same for certifyTriangleAgainstNodeNormals.
+bool triangleJacobianPositiveAgainstNodeNormals(int order, const Vec3* x, const Vec3* nodeNormals);
+
 /// certifyTriangleJacobian for a triangle type (Tri3, Tri6, Tri10, Tri15, Tri21). Throws
 /// std::invalid_argument for a quadrilateral (see elementCertifiedValid).
 JacobianCertificate certifyElementJacobian(ElementType type, const Vec3* x, const Vec3& n);
