@@ -13,7 +13,9 @@
 //      caller) goes to its straight-sided place on the face: the point of the face nearest to
 //      the straight-sided element's node (the corners' interpolation in 3D; a side node: its
 //      side's midpoint), searched from the corners' interpolation in (u,v) — independent of
-//      the parametrization, as Gmsh's setOrder places them;
+//      the parametrization, as Gmsh's setOrder places them; with a sliding boundary, a
+//      high-order node on a CAD edge whose side lies along that edge goes to the edge's point
+//      nearest the straight side's node (the corners slid in step 1);
 //   3. the elements left invalid (tangled, or standing across the surface) and the high-order
 //      nodes sliding along CAD edges are optimized with the paper's Definition-4 measure
 //      ("integral" mode) with the nodes of the elements within one ring around them, every
@@ -91,6 +93,32 @@ SurfaceMesh cornerMesh(const SurfaceMesh& mesh) {
   return L;
 }
 
+/// The parameter of the point of curve c nearest to x: damped Newton steps on
+/// C'(t)·(C(t) − x) = 0 from t, within the curve's range unless it is periodic, each kept only
+/// when it comes closer.
+double nearestCurveParameter(const Curve& c, const Vec3& x, double t) {
+  double d = (c.value(t) - x).squaredNorm();
+  for (int it = 0; it < 30 && std::isfinite(d); ++it) {
+    const CurveD2 g = c.d2(t);
+    const Vec3 r = g.p - x;
+    const double slope = g.dt.dot(r), curv = g.dtt.dot(r) + g.dt.squaredNorm();
+    double step = curv > 0.0 ? -slope / curv : -slope / std::max(g.dt.squaredNorm(), 1e-300);
+    bool closer = false;
+    for (int half = 0; half < 30 && !closer; ++half, step *= 0.5) {
+      double tn = t + step;
+      if (!c.isPeriodic()) tn = std::clamp(tn, c.tmin(), c.tmax());
+      const double dn = (c.value(tn) - x).squaredNorm();
+      if (dn < d) {
+        closer = tn != t;
+        t = tn;
+        d = dn;
+      }
+    }
+    if (!closer || std::abs(step) <= 1e-14 * (std::abs(t) + 1.0)) break;
+  }
+  return t;
+}
+
 /// Steps 1's result copied back and step 2 (see the file comment).
 void placeStraightSided(SurfaceMesh& mesh, const SurfaceMesh& L) {
   for (std::size_t e = 0; e < mesh.elementCount(); ++e) {
@@ -135,6 +163,36 @@ void placeStraightSided(SurfaceMesh& mesh, const SurfaceMesh& L) {
       placed[j] = 1;
     }
   }
+  // A high-order node sliding along a CAD edge (boundary "slide") on a side whose corners lie
+  // on that edge (or at its vertices): the point of the edge nearest to the straight side's
+  // node. Left where it was, it would stay behind the corners that slid in step 1 and fold
+  // its elements at a corner.
+  for (std::size_t e = 0; e < mesh.elementCount() && !mesh.nodeT.empty(); ++e) {
+    const ElementType type = mesh.elemType[e];
+    if (type == ElementType::Tri3 || type == ElementType::Quad4) continue;
+    const std::int32_t* nd = mesh.elementNodes(e);
+    const int nc = cornerCount(type), p = elementOrder(type);
+    Vec3 corners[4];
+    for (int c = 0; c < nc; ++c) corners[c] = mesh.xyz[static_cast<std::size_t>(nd[c])];
+    for (int k = nc; k < nc * p && k < mesh.elementSize(e); ++k) {  // the side nodes
+      const std::size_t j = static_cast<std::size_t>(nd[k]);
+      if (placed[j] || mesh.nodeKind[j] != NodeKind::Edge) continue;
+      const int side = (k - nc) / (p - 1);
+      const std::int32_t curve = mesh.nodeEdge[j];
+      bool along = true;
+      for (int c : {side, (side + 1) % nc}) {
+        const std::size_t q = static_cast<std::size_t>(nd[c]);
+        along = along && (mesh.nodeKind[q] == NodeKind::Fixed || mesh.nodeEdge[q] == curve);
+      }
+      if (!along) continue;
+      const Curve& cv = *mesh.curves[static_cast<std::size_t>(curve)];
+      const double t = nearestCurveParameter(cv, straightPlace(type, k, corners), mesh.nodeT[j]);
+      if (!std::isfinite(t) || t == mesh.nodeT[j]) continue;
+      mesh.nodeT[j] = t;
+      mesh.xyz[j] = cv.value(t);
+      placed[j] = 2;
+    }
+  }
   // The placed nodes' parameters in the other elements around them, unwrapped there.
   for (std::size_t e = 0; e < mesh.elementCount(); ++e) {
     const std::int32_t* nd = mesh.elementNodes(e);
@@ -142,8 +200,12 @@ void placeStraightSided(SurfaceMesh& mesh, const SurfaceMesh& L) {
     const Surface& s = *mesh.surfaces[static_cast<std::size_t>(mesh.elemFace[e])];
     for (int k = 0; k < mesh.elementSize(e); ++k) {
       const std::size_t j = static_cast<std::size_t>(nd[k]);
-      if (placed[j] && mesh.nodeFace[j] == mesh.elemFace[e])
+      if (placed[j] == 1 && mesh.nodeFace[j] == mesh.elemFace[e])
         cuv[k] = s.unwrapNear(mesh.uv[j], cuv[0]);
+      else if (placed[j] == 2)
+        cuv[k] = s.unwrapNear(mesh.curves[static_cast<std::size_t>(mesh.nodeEdge[j])]->uvOnFace(
+                                  mesh.elemFace[e], mesh.nodeT[j], cuv[k]),
+                              cuv[k]);
     }
   }
 }
