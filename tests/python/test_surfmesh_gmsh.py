@@ -56,6 +56,21 @@ class GmshCase(unittest.TestCase):
         obj.Shape = Part.read(path)
         return obj
 
+    def stored_crankarm_order2(self, name):
+        """The stored second-order Gmsh mesh of the crank arm (FreeCAD's Gmsh mesher gives
+        another mesh at each call), written to the output dir as `name` and read back."""
+        import gzip
+        import os
+        import shutil
+
+        import Fem
+
+        path = os.path.join(T.output_dir(), name)
+        with gzip.open(os.path.join(T.data_dir(), "occt_crankarm_gmsh_order2.inp.gz")) as src:
+            with open(path, "wb") as dst:
+                shutil.copyfileobj(src, dst)
+        return Fem.read(path)
+
     def check_classification(self, part, mesh):
         shape = part.Shape
         data, handle = api.prepare(mesh, shape, hints="none")  # the core's own search only
@@ -291,18 +306,8 @@ class GmshCase(unittest.TestCase):
         # does not. The mesh is stored (tests/data/occt_crankarm_gmsh_order2.inp.gz): FreeCAD's
         # Gmsh mesher gives another mesh at each call (9009, 8932, 9013 nodes), and only some
         # of them keep such an element from the optimizer's escapes.
-        import gzip
-        import os
-        import shutil
-
-        import Fem
-
         part = self.part("occt_crankarm.brep")
-        path = os.path.join(T.output_dir(), "occt_crankarm_gmsh_order2.inp")
-        with gzip.open(os.path.join(T.data_dir(), "occt_crankarm_gmsh_order2.inp.gz")) as src:
-            with open(path, "wb") as dst:
-                shutil.copyfileobj(src, dst)
-        mesh = Fem.read(path)
+        mesh = self.stored_crankarm_order2("occt_crankarm_gmsh_order2.inp")
         runs = {}
         for sweeps in (2, 40):
             seen = []
@@ -335,18 +340,8 @@ class GmshCase(unittest.TestCase):
         # then go to the edge's point nearest their side's midpoint, so the repair of the
         # curved elements starts with no more invalid elements than the input had (left
         # behind, they folded about 280 elements at a corner and the run took 500 sweeps).
-        import gzip
-        import os
-        import shutil
-
-        import Fem
-
         part = self.part("occt_crankarm.brep")
-        path = os.path.join(T.output_dir(), "occt_crankarm_gmsh_order2_slide.inp")
-        with gzip.open(os.path.join(T.data_dir(), "occt_crankarm_gmsh_order2.inp.gz")) as src:
-            with open(path, "wb") as dst:
-                shutil.copyfileobj(src, dst)
-        mesh = Fem.read(path)
+        mesh = self.stored_crankarm_order2("occt_crankarm_gmsh_order2_slide.inp")
         seen = []
         res = SurfMesh.optimize(mesh, part, boundary="slide", max_sweeps=20,
                                 progress=lambda p: seen.append((p["stage"], p["tangled"])))
