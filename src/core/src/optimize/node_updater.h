@@ -280,7 +280,9 @@ class NodeUpdater {
         const int nc = s_.heldNormalCount(e);
         Vec3* kept = w_.cornerNormals.data() + kHeldSlots * j;
         if (!cur)
-          for (int k = 0; k < nc; ++k) kept[k] = s_.heldNormal(e, k);
+          for (int k = 0; k < nc; ++k)
+            kept[k] = s_.heldNormal(
+                e, k, *w_.geo.surfaces[static_cast<std::size_t>(s_.mesh.elemFace[e])]);
         for (int k = 0; k < nc; ++k) corners[k] = k == local ? nfree(j) : kept[k];
         if (!cur) w_.holdHere[j] = !s_.turnedAgainst(e, -1, Vec3::Zero(), corners);
         guarded = w_.holdHere[j] != 0;

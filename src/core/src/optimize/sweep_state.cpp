@@ -88,7 +88,8 @@ State::State(const SurfaceMesh& m, const PlanarMeasure& pm, const OptimizeOption
     for (int k = 0; k < m.elementSize(e); ++k)
       sliding = sliding || m.nodeKind[static_cast<std::size_t>(nd[k])] == NodeKind::Edge;
     Vec3 corners[kHeldSlots];
-    for (int k = 0; k < heldNormalCount(e); ++k) corners[k] = heldNormal(e, k);
+    const Surface& surf = *m.surfaces[static_cast<std::size_t>(m.elemFace[e])];
+    for (int k = 0; k < heldNormalCount(e); ++k) corners[k] = heldNormal(e, k, surf);
     const CornerSides sides = cornerSidesAt(e, -1, Vec3::Zero(), corners);
     if (!sliding && sides.along && !turnedAgainst(e, -1, Vec3::Zero(), corners))
       faceCorners[e] = static_cast<std::uint8_t>(faceCorners[e] | kAcrossGuard);

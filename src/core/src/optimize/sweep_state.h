@@ -202,12 +202,17 @@ struct State {
   }
 
   /// The surface's unit normal at node k of element e (zero at a pole): cornerNormal for a
-  /// corner; a high-order node's own for a Face node, else at its (u,v) in e.
-  Vec3 heldNormal(std::size_t e, int k) const {
+  /// corner; a high-order node's own for a Face node, else at its (u,v) in e on `surf`, the
+  /// surface of e's face that the calling thread owns (an OCC surface's evaluation caches are
+  /// not thread-safe: the mesh's own surfaces are the main thread's).
+  Vec3 heldNormal(std::size_t e, int k, const Surface& surf) const {
     if (k < cornerCount(mesh.elemType[e])) return cornerNormal(e, k);
     const std::size_t j = static_cast<std::size_t>(mesh.elementNodes(e)[k]);
     if (mesh.nodeKind[j] == NodeKind::Face) return nodeNormal[j];
-    return mesh.referenceNormal(mesh.elemFace[e], mesh.elementUV(e)[k]);
+    const std::size_t f = static_cast<std::size_t>(mesh.elemFace[e]);
+    const int o = mesh.faceOrientation.empty() ? 1 : mesh.faceOrientation[f];
+    const Vec2 uv = mesh.elementUV(e)[k];
+    return (o * surf.normal(uv.x(), uv.y())).eval();
   }
 
   /// Whether element e, its node `local` at x (local < 0: at the current positions), with the
