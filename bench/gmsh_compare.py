@@ -139,7 +139,7 @@ def perturb(target, amp, seed, max_rounds=60, fraction=0.02, count=None):
                 new[j, 0] += amp * h / max(hu[j], 1e-12) * rng.uniform(-1, 1)
                 new[j, 1] += amp * h / max(hv[j], 1e-12) * rng.uniform(-1, 1)
             for j, k in enumerate(ks):
-                if gmsh.model.isInside(2, tag, new[j].tolist()) != 1:
+                if not inside_face(tag, new[j].tolist()):
                     continue
                 x = gmsh.model.getValue(2, tag, new[j].tolist())
                 gmsh.model.mesh.setNode(int(nt[k]), list(x), new[j].tolist())
@@ -149,6 +149,15 @@ def perturb(target, amp, seed, max_rounds=60, fraction=0.02, count=None):
 
 
 H_LOCAL = 1.0
+
+
+def inside_face(tag, uv):
+    """Whether the point of parameters uv lies inside surface `tag`: Gmsh 4.8's isInside takes
+    parametric coordinates, later versions take (x, y, z) unless parametric=True."""
+    try:
+        return gmsh.model.isInside(2, tag, uv, parametric=True) > 0
+    except TypeError:
+        return gmsh.model.isInside(2, tag, uv) > 0
 
 
 def snapshot_nodes():
