@@ -101,7 +101,10 @@ ElementType triangleOfOrder(int p) {
 }
 
 Vec3 SurfaceMesh::referenceNormal(int f, const Vec2& uvp) const {
-  const Surface& s = *surfaces[static_cast<std::size_t>(f)];
+  return referenceNormal(f, uvp, *surfaces[static_cast<std::size_t>(f)]);
+}
+
+Vec3 SurfaceMesh::referenceNormal(int f, const Vec2& uvp, const Surface& s) const {
   const int o = faceOrientation.empty() ? 1 : faceOrientation[static_cast<std::size_t>(f)];
   return (o * s.normal(uvp.x(), uvp.y())).eval();
 }

@@ -209,10 +209,7 @@ struct State {
     if (k < cornerCount(mesh.elemType[e])) return cornerNormal(e, k);
     const std::size_t j = static_cast<std::size_t>(mesh.elementNodes(e)[k]);
     if (mesh.nodeKind[j] == NodeKind::Face) return nodeNormal[j];
-    const std::size_t f = static_cast<std::size_t>(mesh.elemFace[e]);
-    const int o = mesh.faceOrientation.empty() ? 1 : mesh.faceOrientation[f];
-    const Vec2 uv = mesh.elementUV(e)[k];
-    return (o * surf.normal(uv.x(), uv.y())).eval();
+    return mesh.referenceNormal(mesh.elemFace[e], mesh.elementUV(e)[k], surf);
   }
 
   /// Whether element e, its node `local` at x (local < 0: at the current positions), with the

@@ -94,6 +94,9 @@ struct SurfaceMesh {
   const Vec2* elementUV(std::size_t e) const { return cornerUV.data() + elemOffset[e]; }
   /// Reference (outward) unit normal of face f at (u,v): surface normal × faceOrientation[f].
   Vec3 referenceNormal(int f, const Vec2& uv) const;
+  /// The same on `s`, a copy of face f's surface (a worker thread's own: an OCC surface's
+  /// evaluation caches are not thread-safe).
+  Vec3 referenceNormal(int f, const Vec2& uv, const Surface& s) const;
 
   /// Appends an element; `uvs` may be null (then the nodes' uv are used, unwrapped).
   void addElement(ElementType t, const std::int32_t* nodes, int face, const Vec2* uvs = nullptr);
