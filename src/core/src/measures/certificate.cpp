@@ -8,14 +8,16 @@
 // belongs to the domain point (i v0 + j v1 + k v2)/d of a piece with corners v0, v1, v2;
 // c_{d00}, c_{0d0}, c_{00d} are D's values at the corners.
 //
-// First expansion: D at the domain points of the reference triangle (the equispaced points of
-// order d), c = V⁻¹ D with V(a, b) = B_b(ξ_a), precomputed per order (45 × 45 for p = 5).
-// Subdivision: the piece is split at its edge midpoints m01, m12, m20 into (v0, m01, m20),
-// (m01, v1, m12), (m20, m12, v2) and (m12, m20, m01). A child with corners u0, u1, u2 (in the
-// parent's barycentric coordinates) has the coefficients c'_{ijk} = blossom of the parent at
-// (u0 × i, u1 × j, u2 × k), i.e. d de Casteljau steps; as every u has coordinates in {0, ½, 1},
-// the four matrices mapping parent to child coefficients are computed once, exactly (dyadic
-// entries, nonnegative, rows summing to 1), and applied as matrix–vector products.
+// First expansion: exactly from the element's Bézier control points, as products of Bernstein
+// polynomials (ProductBasis below), no sampling.
+// Subdivision: a piece is bisected at the midpoint P of its longest edge (v_a, v_b) (in the
+// reference triangle's (ξ, η): the halves of a right isosceles triangle are right isosceles
+// triangles again, so two bisections halve a piece's size). One de Casteljau pyramid at
+// λ(P) = ½ e_a + ½ e_b, b^r_α = ½ b^{r−1}_{α+e_a} + ½ b^{r−1}_{α+e_b} (|α| = d − r), gives both
+// halves (the blossom): the half whose corner a is replaced by P has c'_α = b^{α_a}_{α − α_a e_a},
+// likewise for b. That is O(d³) work for both halves, instead of the O(d⁴) of the four dense
+// matrices of a split in four. The pieces are examined depth first, the half with the smaller
+// coefficient first (a fold is found without visiting the rest).
 #include "surfmesh/measures/certificate.h"
 
 #include "surfmesh/measures/lagrange_triangle.h"
@@ -32,60 +34,27 @@ namespace surfmesh {
 
 namespace {
 
-/// Coefficients of the largest degree (d = 13: p = 5 against the nodes' normals): 105.
-constexpr int kMaxCoefficients = 105;
+/// The largest degree (p = 5 against the nodes' normals: 3p − 2 = 13) and its coefficients.
+constexpr int kMaxDegree = 13;
+constexpr int kMaxCoefficients = (kMaxDegree + 1) * (kMaxDegree + 2) / 2;
+/// The coefficients of a de Casteljau pyramid of degree kMaxDegree (every level).
+constexpr int kMaxPyramid = (kMaxDegree + 1) * (kMaxDegree + 2) * (kMaxDegree + 3) / 6;
 
 int position(int d, int j, int k) { return k * (d + 1) - k * (k - 1) / 2 + j; }
 
-using Bary = std::array<double, 3>;
-
-/// Everything the certificate of order p needs, precomputed once.
+/// The sample points of the certificate's diagnostics (minSampled), precomputed once.
 struct CertificateBasis {
   int order = 0;
   int nodes = 0;                        ///< shape functions of the element
   bool field = false;                   ///< against the interpolated nodal normals
   int degree = 0;                       ///< d = 2(p − 1), or 3p − 2 for the normal field
   int count = 0;                        ///< (d + 1)(d + 2)/2 coefficients
-  std::vector<Eigen::Vector3i> index;   ///< (i, j, k) of each coefficient
   std::vector<Eigen::Vector2d> points;  ///< the domain points (j/d, k/d) of the reference triangle
   /// grad[a * nodes + i] = ∇N_i(points[a]).
   std::vector<Eigen::Vector2d> grad;
   /// shape[a * nodes + i] = N_i(points[a]) (the normal field's interpolation; field only).
   std::vector<double> shape;
-  /// Row-major count × count: coefficients = fromValues · (D at points).
-  std::vector<double> fromValues;
-  /// Row-major count × count per child: child coefficients = child[c] · parent coefficients.
-  std::array<std::vector<double>, 4> child;
-  int corner[3] = {0, 0, 0};  ///< positions of c_{d00}, c_{0d0}, c_{00d}
 };
-
-/// Row of the linear map parent coefficients → the blossom at `args` (d barycentric points).
-std::vector<double> blossomRow(int d, int count, const std::vector<Bary>& args) {
-  // level[L] coefficients, each a row over the parent's coefficients (symbolic de Casteljau).
-  std::vector<std::vector<double>> level(static_cast<std::size_t>(count),
-                                         std::vector<double>(static_cast<std::size_t>(count), 0));
-  for (int a = 0; a < count; ++a)
-    level[static_cast<std::size_t>(a)][static_cast<std::size_t>(a)] = 1;
-  for (int L = d; L > 0; --L) {
-    const Bary& u = args[static_cast<std::size_t>(d - L)];
-    const int m = L * (L + 1) / 2;  // coefficients of degree L − 1
-    std::vector<std::vector<double>> next(static_cast<std::size_t>(m),
-                                          std::vector<double>(static_cast<std::size_t>(count), 0));
-    for (int k = 0; k <= L - 1; ++k)
-      for (int j = 0; j <= L - 1 - k; ++j) {
-        auto& row = next[static_cast<std::size_t>(position(L - 1, j, k))];
-        const auto& r0 = level[static_cast<std::size_t>(position(L, j, k))];  // i + 1
-        const auto& r1 = level[static_cast<std::size_t>(position(L, j + 1, k))];
-        const auto& r2 = level[static_cast<std::size_t>(position(L, j, k + 1))];
-        for (int c = 0; c < count; ++c) {
-          const std::size_t s = static_cast<std::size_t>(c);
-          row[s] = u[0] * r0[s] + u[1] * r1[s] + u[2] * r2[s];
-        }
-      }
-    level.swap(next);
-  }
-  return level[0];
-}
 
 double binomial(int n, int k) {
   double r = 1.0;
@@ -104,58 +73,16 @@ CertificateBasis makeBasis(int order, bool field) {
   b.count = (d + 1) * (d + 2) / 2;
   const std::size_t m = static_cast<std::size_t>(b.count);
   for (int k = 0; k <= d; ++k)
-    for (int j = 0; j <= d - k; ++j) {
-      b.index.emplace_back(d - j - k, j, k);
+    for (int j = 0; j <= d - k; ++j)
       // d = 0 (p = 1): one point, D constant; take the first corner.
       b.points.emplace_back(d > 0 ? static_cast<double>(j) / d : 0.0,
                             d > 0 ? static_cast<double>(k) / d : 0.0);
-    }
-  b.corner[0] = position(d, 0, 0);
-  b.corner[1] = position(d, d, 0);
-  b.corner[2] = position(d, 0, d);
   const std::size_t nn = static_cast<std::size_t>(b.nodes);
   b.grad.resize(m * nn);
   for (std::size_t a = 0; a < m; ++a) lt.gradients(b.points[a], b.grad.data() + a * nn);
   if (field) {
     b.shape.resize(m * nn);
     for (std::size_t a = 0; a < m; ++a) lt.shape(b.points[a], b.shape.data() + a * nn);
-  }
-  // V(a, b) = B_b(points[a]).
-  Eigen::MatrixXd V(b.count, b.count);
-  for (int a = 0; a < b.count; ++a) {
-    const double l[3] = {
-        1.0 - b.points[static_cast<std::size_t>(a)].x() - b.points[static_cast<std::size_t>(a)].y(),
-        b.points[static_cast<std::size_t>(a)].x(), b.points[static_cast<std::size_t>(a)].y()};
-    for (int c = 0; c < b.count; ++c) {
-      const Eigen::Vector3i& e = b.index[static_cast<std::size_t>(c)];
-      V(a, c) = binomial(d, e(0)) * binomial(d - e(0), e(1)) * std::pow(l[0], e(0)) *
-                std::pow(l[1], e(1)) * std::pow(l[2], e(2));
-    }
-  }
-  const Eigen::MatrixXd inv = V.fullPivLu().inverse();
-  b.fromValues.resize(m * m);
-  for (int r = 0; r < b.count; ++r)
-    for (int c = 0; c < b.count; ++c)
-      b.fromValues[static_cast<std::size_t>(r) * m + static_cast<std::size_t>(c)] = inv(r, c);
-  // Children corners in the parent's barycentric coordinates.
-  const Bary e0 = {1, 0, 0}, e1 = {0, 1, 0}, e2 = {0, 0, 1};
-  const Bary m01 = {0.5, 0.5, 0}, m12 = {0, 0.5, 0.5}, m20 = {0.5, 0, 0.5};
-  const std::array<std::array<Bary, 3>, 4> kids = {{{e0, m01, m20},  //
-                                                    {m01, e1, m12},
-                                                    {m20, m12, e2},
-                                                    {m12, m20, m01}}};
-  for (int c = 0; c < 4; ++c) {
-    auto& M = b.child[static_cast<std::size_t>(c)];
-    M.resize(m * m);
-    for (int r = 0; r < b.count; ++r) {
-      const Eigen::Vector3i& e = b.index[static_cast<std::size_t>(r)];
-      std::vector<Bary> args;
-      for (int v = 0; v < 3; ++v)
-        for (int t = 0; t < e(v); ++t)
-          args.push_back(kids[static_cast<std::size_t>(c)][static_cast<std::size_t>(v)]);
-      const std::vector<double> row = blossomRow(d, b.count, args);
-      std::copy(row.begin(), row.end(), M.begin() + static_cast<std::ptrdiff_t>(r * b.count));
-    }
   }
   return b;
 }
@@ -180,16 +107,16 @@ const CertificateBasis& fieldBasis(int order) {
   return b[order - 1];
 }
 
-/// The quick proof of a Positive verdict: D's Bernstein coefficients on the whole triangle,
-/// computed exactly from the element's Bézier control points instead of from samples. With
+/// D's Bernstein coefficients on the whole triangle, computed exactly from the element's Bézier
+/// control points. With
 /// λ = (1 − ξ − η, ξ, η) and the control points P_α (|α| = p) of x (P = toControl · nodes),
 ///     x_ξ = Σ_{|α|=p−1} p (P_{α+e1} − P_{α+e0}) B_α,   x_η = Σ p (P_{α+e2} − P_{α+e0}) B_α,
 /// and a product of Bernstein polynomials is one too: Σ_α f_α B_α^m · Σ_β g_β B_β^n =
 /// Σ_γ (Σ_{α+β=γ} C(m,α) C(n,β) / C(m+n,γ) f_α g_β) B_γ^{m+n}, C the multinomial coefficients.
 /// Every coefficient of the degree-2(p − 1) (or, against the interpolated normals N_δ, degree
-/// 3p − 2) product above τ' proves D > τ' everywhere. τ' bounds the certificate's τ from above
-/// (‖x_ξ‖ ≤ max ‖a_α‖ on the whole triangle, and so on), so this proof implies the
-/// certificate's at depth 0; where it does not conclude, the certificate decides.
+/// 3p − 2) product above τ proves D > τ everywhere; τ = kPerpendicularTol ‖n‖ max_α ‖a_α‖
+/// max_β ‖b_β‖ (against the nodes' normals, times max ‖N_δ‖) bounds ‖x_ξ‖ ‖x_η‖ ‖n‖ on the
+/// whole triangle from above.
 struct ProductBasis {
   int order = 0;
   int nodes = 0;
@@ -292,7 +219,8 @@ void derivativeControls(const ProductBasis& B, const Vec3* x, Vec3* a, Vec3* b, 
   *scale = ma * mb;
 }
 
-CoefficientBound productBound(int order, const Vec3* x, const Vec3& n) {
+/// D's coefficients c (degree 2(p − 1)) against the direction n, with their smallest and τ.
+CoefficientBound referenceCoefficients(int order, const Vec3* x, const Vec3& n, double* c) {
   const ProductBasis& B = productBasis(order);
   Vec3 a[kMaxElementNodes], b[kMaxElementNodes];
   double scale = 0.0;
@@ -300,7 +228,7 @@ CoefficientBound productBound(int order, const Vec3* x, const Vec3& n) {
   // (a_α × b_β)·n = a_α · (b_β × n)
   Vec3 bn[kMaxElementNodes];
   for (std::size_t q = 0; q < B.deriv.size(); ++q) bn[q] = b[q].cross(n);
-  double c[kMaxCoefficients] = {};
+  std::fill(c, c + B.crossCount, 0.0);
   for (const ProductBasis::Term& t : B.cross) c[t.out] += t.w * a[t.f].dot(bn[t.g]);
   CoefficientBound r;
   r.tolerance = kPerpendicularTol * n.norm() * scale;
@@ -308,8 +236,9 @@ CoefficientBound productBound(int order, const Vec3* x, const Vec3& n) {
   return r;
 }
 
-/// productBound against node normals already with the poles' replaced (fillPoleNormals).
-CoefficientBound productBoundAgainstNodeNormals(int order, const Vec3* x, const Vec3* nodeNormals) {
+/// D_h's coefficients d (degree 3p − 2) against node normals already with the poles' replaced
+/// (fillPoleNormals), with their smallest and τ.
+CoefficientBound fieldCoefficients(int order, const Vec3* x, const Vec3* nodeNormals, double* d) {
   const ProductBasis& B = productBasis(order);
   Vec3 a[kMaxElementNodes], b[kMaxElementNodes];
   double scale = 0.0;
@@ -321,17 +250,12 @@ CoefficientBound productBoundAgainstNodeNormals(int order, const Vec3* x, const 
   Vec3 c[kMaxCoefficients];
   for (int i = 0; i < B.crossCount; ++i) c[i] = Vec3::Zero();
   for (const ProductBasis::Term& t : B.cross) c[t.out] += t.w * a[t.f].cross(b[t.g]);
-  double d[kMaxCoefficients] = {};
+  std::fill(d, d + B.fieldCount, 0.0);
   for (const ProductBasis::Term& t : B.field) d[t.out] += t.w * c[t.f].dot(N[t.g]);
   CoefficientBound r;
   r.tolerance = kPerpendicularTol * scale * mn;
   r.minCoefficient = *std::min_element(d, d + B.fieldCount);
   return r;
-}
-
-/// Whether the bound proves D > τ' (false on anything not finite).
-bool proves(const CoefficientBound& r) {
-  return std::isfinite(r.tolerance) && r.minCoefficient > r.tolerance;
 }
 
 /// The node normals the certificate against them takes: a node at a pole (zero normal) takes
@@ -373,11 +297,209 @@ inline void tangents(const Vec3* x, const Eigen::Vector2d* g, int nn, Vec3* a, V
   *b = Vec3(b0, b1, b2);
 }
 
-/// One piece of the reference triangle: its corners (ξ, η) and D's coefficients on it.
+/// One piece of the reference triangle: its corners (ξ, η), D's coefficients on it, and its
+/// number of bisections from the whole triangle.
 struct Piece {
   Eigen::Vector2d v[3];
   double c[kMaxCoefficients];
+  int level;
 };
+
+/// The pieces still to examine (a depth-first stack: at most one per level and the current
+/// one), kept by each thread from one certificate to the next.
+std::vector<Piece>& pieceStack(std::size_t size) {
+  thread_local std::vector<Piece> stack;
+  if (stack.size() < size) stack.resize(size);
+  return stack;
+}
+
+/// The two halves of piece P (degree d) bisected at the midpoint of its longest edge.
+void bisect(const Piece& P, int d, Piece* h0, Piece* h1) {
+  // The edge (a, b) opposite corner o, the longest (the first of equal ones).
+  int o = 0;
+  double longest = -1.0;
+  for (int k = 0; k < 3; ++k) {
+    const double l = (P.v[(k + 1) % 3] - P.v[(k + 2) % 3]).squaredNorm();
+    if (l > longest) {
+      longest = l;
+      o = k;
+    }
+  }
+  const int a = (o + 1) % 3, b = (o + 2) % 3;
+  // The de Casteljau pyramid at λ = ½ e_a + ½ e_b: level r (degree d − r) from offset off[r].
+  double pyr[kMaxPyramid];
+  int off[kMaxDegree + 1];
+  off[0] = 0;
+  const int m = (d + 1) * (d + 2) / 2;
+  std::copy(P.c, P.c + m, pyr);
+  for (int r = 1; r <= d; ++r) {
+    const int up = d - r + 1;  // degree of level r − 1
+    off[r] = off[r - 1] + (up + 1) * (up + 2) / 2;
+    const double* prev = pyr + off[r - 1];
+    double* cur = pyr + off[r];
+    for (int k = 0; k <= d - r; ++k)
+      for (int j = 0; j <= d - r - k; ++j) {
+        // α + e0, α + e1, α + e2 in degree up.
+        const double e[3] = {prev[position(up, j, k)], prev[position(up, j + 1, k)],
+                             prev[position(up, j, k + 1)]};
+        cur[position(d - r, j, k)] = 0.5 * (e[a] + e[b]);
+      }
+  }
+  const Eigen::Vector2d mid = 0.5 * (P.v[a] + P.v[b]);
+  Piece* halves[2] = {h0, h1};
+  const int replaced[2] = {a, b};
+  for (int h = 0; h < 2; ++h) {
+    Piece& H = *halves[h];
+    const int q = replaced[h];
+    for (int k = 0; k < 3; ++k) H.v[k] = P.v[k];
+    H.v[q] = mid;
+    H.level = P.level + 1;
+    for (int k = 0; k <= d; ++k)
+      for (int j = 0; j <= d - k; ++j) {
+        int alpha[3] = {d - j - k, j, k};
+        const int r = alpha[q];
+        alpha[q] = 0;
+        H.c[position(d, j, k)] = pyr[off[r] + position(d - r, alpha[1], alpha[2])];
+      }
+  }
+}
+
+/// The certificate proper on D's coefficients c (degree d) on the reference triangle, margin
+/// τ = tol; `direct(ξ)` is D at any reference point, evaluated from the nodes. Sets r's sign,
+/// point, value, depth, pieces, lowerBound, minCoefficient and tolerance.
+template <class Direct>
+void search(int d, const double* c, double tol, const Direct& direct, int maxDepth,
+            JacobianCertificate* r) {
+  const int m = (d + 1) * (d + 2) / 2;
+  r->tolerance = tol;
+  r->minCoefficient = *std::min_element(c, c + m);
+  r->depth = 0;
+  r->pieces = 1;
+  if (r->minCoefficient > tol) {  // the first expansion proves it
+    r->sign = JacobianSign::Positive;
+    r->lowerBound = r->minCoefficient;
+    return;
+  }
+  auto nonPositive = [&](const Eigen::Vector2d& p, double value, int level) {
+    r->sign = JacobianSign::NonPositive;
+    r->point = p;
+    r->value = value;
+    r->depth = (level + 1) / 2;
+  };
+  if (d == 0) {  // D constant (a linear triangle): its value decides, not a rounded coefficient
+    const Eigen::Vector2d p(1.0 / 3.0, 1.0 / 3.0);
+    const double v = direct(p);
+    if (v <= tol) return nonPositive(p, v, 0);
+    r->sign = JacobianSign::Positive;
+    r->lowerBound = v;
+    return;
+  }
+  // Two bisections per level of the split in four (maxDepth counts those).
+  const int maxLevel = 2 * std::max(maxDepth, 0);
+  std::vector<Piece>& stack = pieceStack(static_cast<std::size_t>(maxLevel) + 2);
+  const int corner[3] = {0, d, m - 1};  // c_{d00}, c_{0d0}, c_{00d}
+  std::size_t top = 0;
+  {
+    Piece& R = stack[top++];
+    R.v[0] = Eigen::Vector2d(0, 0);
+    R.v[1] = Eigen::Vector2d(1, 0);
+    R.v[2] = Eigen::Vector2d(0, 1);
+    std::copy(c, c + m, R.c);
+    R.level = 0;
+  }
+  r->pieces = 0;
+  double lowerBound = std::numeric_limits<double>::infinity();
+  bool undecided = false;
+  int deepest = 0;
+  while (top > 0) {
+    const Piece& P = stack[--top];
+    ++r->pieces;
+    deepest = std::max(deepest, P.level);
+    const int lo = static_cast<int>(std::min_element(P.c, P.c + m) - P.c);
+    if (P.c[lo] > tol) {
+      lowerBound = std::min(lowerBound, P.c[lo]);
+      continue;
+    }
+    // A point of the piece where D ≤ τ, evaluated from the nodes (the coefficients only point
+    // to it: a corner coefficient equals D there up to rounding).
+    for (int k = 0; k < 3; ++k)
+      if (P.c[corner[k]] <= tol) {
+        const double v = direct(P.v[k]);
+        if (v <= tol) return nonPositive(P.v[k], v, P.level);
+      }
+    int j = lo, k = 0;
+    while (j > d - k) j -= d - k++ + 1;
+    const Eigen::Vector2d p = ((d - j - k) * P.v[0] + j * P.v[1] + k * P.v[2]) / d;
+    const double v = direct(p);
+    if (v <= tol) return nonPositive(p, v, P.level);
+    if (P.level >= maxLevel || r->pieces + static_cast<int>(top) >= kCertificateMaxPieces) {
+      undecided = true;
+      continue;
+    }
+    // P's slot is reused: the halves go to top and top + 1 (P copied first).
+    const Piece parent = P;
+    Piece& h0 = stack[top];
+    Piece& h1 = stack[top + 1];
+    bisect(parent, d, &h0, &h1);
+    // The half with the smaller coefficient on top (examined first).
+    if (*std::min_element(h0.c, h0.c + m) < *std::min_element(h1.c, h1.c + m)) std::swap(h0, h1);
+    top += 2;
+  }
+  r->depth = (deepest + 1) / 2;
+  if (undecided) return;
+  r->sign = JacobianSign::Positive;
+  r->lowerBound = lowerBound;
+}
+
+/// Whether every value is finite.
+bool allFinite(const double* v, int n) {
+  for (int i = 0; i < n; ++i)
+    if (!std::isfinite(v[i])) return false;
+  return true;
+}
+
+/// The verdict on D's coefficients c (degree d) with their τ (no diagnostics from samples);
+/// `zero`: D ≡ 0 (no direction to judge against), NonPositive at the centroid.
+template <class Direct>
+JacobianCertificate decide(int d, const double* c, const CoefficientBound& b, bool zero,
+                           const Direct& direct, int maxDepth) {
+  JacobianCertificate r;
+  if (!std::isfinite(b.tolerance) || !allFinite(c, (d + 1) * (d + 2) / 2)) return r;  // Undecided
+  if (zero) {
+    r.tolerance = b.tolerance;
+    r.minCoefficient = b.minCoefficient;
+    r.sign = JacobianSign::NonPositive;
+    r.point = Eigen::Vector2d(1.0 / 3.0, 1.0 / 3.0);
+    r.value = 0.0;
+    r.pieces = 1;
+    return r;
+  }
+  search(d, c, b.tolerance, direct, maxDepth, &r);
+  return r;
+}
+
+/// The verdict against the direction n.
+JacobianCertificate decideReference(int order, const Vec3* x, const Vec3& n, int maxDepth) {
+  if (!n.allFinite()) return JacobianCertificate{};  // Undecided
+  double c[kMaxCoefficients];
+  const CoefficientBound b = referenceCoefficients(order, x, n, c);
+  auto direct = [&](const Eigen::Vector2d& p) {
+    return triangleJacobianDeterminant(order, x, n, p);
+  };
+  return decide(2 * (order - 1), c, b, n.norm() == 0.0, direct, maxDepth);
+}
+
+/// The verdict against the nodes' normals; `filled`: the normals with the poles' replaced,
+/// `normals` the length of their sum (fillPoleNormals).
+JacobianCertificate decideAgainstNodeNormals(int order, const Vec3* x, const Vec3* filled,
+                                             double normals, int maxDepth) {
+  double c[kMaxCoefficients];
+  const CoefficientBound b = fieldCoefficients(order, x, filled, c);
+  auto direct = [&](const Eigen::Vector2d& p) {
+    return triangleJacobianAgainstNodeNormals(order, x, filled, p);
+  };
+  return decide(3 * order - 2, c, b, normals == 0.0, direct, maxDepth);
+}
 
 }  // namespace
 
@@ -402,126 +524,21 @@ double triangleJacobianDeterminant(int order, const Vec3* x, const Vec3& n,
   return a.cross(b).dot(n);
 }
 
-namespace {
-
-/// The certificate proper: D's values at B's sample points, its margin τ, `direct(ξ)` D at any
-/// reference point (evaluated from the nodes), `zero`: D ≡ 0 (no direction to judge against).
-template <class Direct>
-JacobianCertificate certify(const CertificateBasis& B, const double* values, double tol, bool zero,
-                            const Direct& direct, int maxDepth) {
-  const int m = B.count, d = B.degree;
-  const std::size_t mm = static_cast<std::size_t>(m);
-  JacobianCertificate r;
-  r.tolerance = tol;
-  int lowest = 0;
-  for (int a = 1; a < m; ++a)
-    if (values[a] < values[lowest]) lowest = a;
-  r.minSampled = values[lowest];
-
-  Piece root;
-  root.v[0] = Eigen::Vector2d(0, 0);
-  root.v[1] = Eigen::Vector2d(1, 0);
-  root.v[2] = Eigen::Vector2d(0, 1);
-  for (int i = 0; i < m; ++i) {
-    double s = 0.0;
-    const double* row = B.fromValues.data() + static_cast<std::size_t>(i) * mm;
-    for (int j = 0; j < m; ++j) s += row[j] * values[j];
-    root.c[i] = s;
-  }
-  if (d == 0) root.c[0] = values[0];  // exact: D is constant
-  r.minCoefficient = *std::min_element(root.c, root.c + m);
-  r.ratio = r.minCoefficient / r.minSampled;
-
-  auto nonPositive = [&](const Eigen::Vector2d& p, double value, int depth) {
-    r.sign = JacobianSign::NonPositive;
-    r.point = p;
-    r.value = value;
-    r.depth = depth;
-    return r;
-  };
-  if (zero) return nonPositive(Eigen::Vector2d(1.0 / 3.0, 1.0 / 3.0), 0.0, 0);
-  if (values[lowest] <= tol)
-    return nonPositive(B.points[static_cast<std::size_t>(lowest)], values[lowest], 0);
-
-  // A point of a piece where D ≤ τ, evaluated from the nodes (the coefficients only point to
-  // it: a corner coefficient equals D there up to rounding).
-  double lowerBound = std::numeric_limits<double>::infinity();
-  bool undecided = false;
-  std::vector<Piece> level{root}, next;
-  for (int depth = 0; !level.empty(); ++depth) {
-    r.depth = depth;
-    next.clear();
-    for (const Piece& P : level) {
-      ++r.pieces;
-      const int lo = static_cast<int>(std::min_element(P.c, P.c + m) - P.c);
-      if (P.c[lo] > tol) {
-        lowerBound = std::min(lowerBound, P.c[lo]);
-        continue;
-      }
-      for (int k = 0; k < 3; ++k)
-        if (P.c[B.corner[k]] <= tol) {
-          const double v = direct(P.v[k]);
-          if (v <= tol) return nonPositive(P.v[k], v, depth);
-        }
-      if (d > 0) {
-        const Eigen::Vector3i& e = B.index[static_cast<std::size_t>(lo)];
-        const Eigen::Vector2d p = (e(0) * P.v[0] + e(1) * P.v[1] + e(2) * P.v[2]) / d;
-        const double v = direct(p);
-        if (v <= tol) return nonPositive(p, v, depth);
-      }
-      if (depth >= maxDepth || r.pieces + static_cast<int>(next.size()) >= kCertificateMaxPieces) {
-        undecided = true;
-        continue;
-      }
-      const Eigen::Vector2d m01 = 0.5 * (P.v[0] + P.v[1]), m12 = 0.5 * (P.v[1] + P.v[2]),
-                            m20 = 0.5 * (P.v[2] + P.v[0]);
-      const Eigen::Vector2d corners[4][3] = {
-          {P.v[0], m01, m20}, {m01, P.v[1], m12}, {m20, m12, P.v[2]}, {m12, m20, m01}};
-      for (int c = 0; c < 4; ++c) {
-        next.emplace_back();
-        Piece& C = next.back();
-        for (int k = 0; k < 3; ++k) C.v[k] = corners[c][k];
-        const double* M = B.child[static_cast<std::size_t>(c)].data();
-        for (int i = 0; i < m; ++i) {
-          double s = 0.0;
-          const double* row = M + static_cast<std::size_t>(i) * mm;
-          for (int j = 0; j < m; ++j) s += row[j] * P.c[j];
-          C.c[i] = s;
-        }
-      }
-    }
-    level.swap(next);
-  }
-  if (undecided) return r;
-  r.sign = JacobianSign::Positive;
-  r.lowerBound = lowerBound;
-  return r;
-}
-
-}  // namespace
-
 JacobianCertificate certifyTriangleJacobian(int order, const Vec3* x, const Vec3& n, int maxDepth) {
   const CertificateBasis& B = basis(order);
-  const int nn = B.nodes, m = B.count;
-  if (!n.allFinite()) return JacobianCertificate{};  // Undecided
-  const double nNorm = n.norm();
-  // D at the sample points, and the scale of τ.
-  double values[kMaxCoefficients] = {};
-  double scale = 0.0;
-  bool finite = true;
-  for (int a = 0; a < m; ++a) {
+  JacobianCertificate r = decideReference(order, x, n, maxDepth);
+  if (!n.allFinite()) return r;
+  // Diagnostics: D at the equispaced points of order d, against the first expansion.
+  double lowest = std::numeric_limits<double>::infinity();
+  for (int a = 0; a < B.count; ++a) {
     Vec3 xa, xb;
-    tangents(x, B.grad.data() + static_cast<std::size_t>(a) * static_cast<std::size_t>(nn), nn, &xa,
-             &xb);
-    values[a] = xa.cross(xb).dot(n);
-    scale = std::max(scale, xa.norm() * xb.norm());
-    finite = finite && std::isfinite(values[a]) && std::isfinite(scale);
+    tangents(x, B.grad.data() + static_cast<std::size_t>(a) * static_cast<std::size_t>(B.nodes),
+             B.nodes, &xa, &xb);
+    lowest = std::min(lowest, xa.cross(xb).dot(n));
   }
-  if (!finite) return JacobianCertificate{};  // Undecided
-  auto direct = [&](const Eigen::Vector2d& p) {
-    return triangleJacobianDeterminant(order, x, n, p);
-  };
-  return certify(B, values, kPerpendicularTol * nNorm * scale, nNorm == 0.0, direct, maxDepth);
+  r.minSampled = lowest;
+  r.ratio = r.minCoefficient / r.minSampled;
+  return r;
 }
 
 double triangleJacobianAgainstNodeNormals(int order, const Vec3* x, const Vec3* nodeNormals,
@@ -539,26 +556,23 @@ double triangleJacobianAgainstNodeNormals(int order, const Vec3* x, const Vec3* 
 JacobianCertificate certifyTriangleAgainstNodeNormals(int order, const Vec3* x,
                                                       const Vec3* nodeNormalsIn, int maxDepth) {
   const CertificateBasis& B = fieldBasis(order);
-  const int nn = B.nodes, m = B.count;
-  double values[kMaxCoefficients] = {};
-  double scale = 0.0;
+  const int nn = B.nodes;
   Vec3 nodeNormals[kMaxElementNodes];
   double normals = 0.0;
-  bool finite = fillPoleNormals(nodeNormalsIn, nn, nodeNormals, &normals);
-  for (int a = 0; a < m && finite; ++a) {
+  if (!fillPoleNormals(nodeNormalsIn, nn, nodeNormals, &normals))
+    return JacobianCertificate{};  // Undecided
+  JacobianCertificate r = decideAgainstNodeNormals(order, x, nodeNormals, normals, maxDepth);
+  // Diagnostics: D_h at the equispaced points of order d, against the first expansion.
+  double lowest = std::numeric_limits<double>::infinity();
+  for (int a = 0; a < B.count; ++a) {
     const std::size_t o = static_cast<std::size_t>(a) * static_cast<std::size_t>(nn);
     Vec3 xa, xb;
     tangents(x, B.grad.data() + o, nn, &xa, &xb);
-    const Vec3 na = interpolate(nodeNormals, B.shape.data() + o, nn);
-    values[a] = xa.cross(xb).dot(na);
-    scale = std::max(scale, xa.norm() * xb.norm() * na.norm());
-    finite = std::isfinite(values[a]) && std::isfinite(scale);
+    lowest = std::min(lowest, xa.cross(xb).dot(interpolate(nodeNormals, B.shape.data() + o, nn)));
   }
-  if (!finite) return JacobianCertificate{};  // Undecided
-  auto direct = [&](const Eigen::Vector2d& p) {
-    return triangleJacobianAgainstNodeNormals(order, x, nodeNormals, p);
-  };
-  return certify(B, values, kPerpendicularTol * scale, normals == 0.0, direct, maxDepth);
+  r.minSampled = lowest;
+  r.ratio = r.minCoefficient / r.minSampled;
+  return r;
 }
 
 JacobianCertificate certifyElementJacobian(ElementType type, const Vec3* x, const Vec3& n) {
@@ -573,8 +587,7 @@ bool markUncertifiedFold(ElementType type, const Vec3* x, const Vec3& n, double 
                          const PlanarMeasure* m, int freeLocal) {
   if (r->tangled || !isHighOrderTriangle(type)) return false;
   const int p = elementOrder(type);
-  if (proves(productBound(p, x, n))) return false;
-  const JacobianCertificate c = certifyTriangleJacobian(p, x, n);
+  const JacobianCertificate c = decideReference(p, x, n, kCertificateMaxDepth);
   if (c.sign == JacobianSign::Positive) return false;
   constexpr double kInf = std::numeric_limits<double>::infinity();
   r->tangled = true;
@@ -627,7 +640,8 @@ bool markUncertifiedFold(ElementType type, const Vec3* x, const Vec3& n, double 
 
 CoefficientBound bezierCoefficientBound(int order, const Vec3* x, const Vec3& n) {
   basis(order);  // (the order's check)
-  return productBound(order, x, n);
+  double c[kMaxCoefficients];
+  return referenceCoefficients(order, x, n, c);
 }
 
 CoefficientBound bezierCoefficientBoundAgainstNodeNormals(int order, const Vec3* x,
@@ -636,17 +650,22 @@ CoefficientBound bezierCoefficientBoundAgainstNodeNormals(int order, const Vec3*
   Vec3 filled[kMaxElementNodes];
   double normals = 0.0;
   if (!fillPoleNormals(nodeNormals, B.nodes, filled, &normals)) return CoefficientBound{};
-  return productBoundAgainstNodeNormals(order, x, filled);
+  double c[kMaxCoefficients];
+  return fieldCoefficients(order, x, filled, c);
 }
 
 bool triangleJacobianPositive(int order, const Vec3* x, const Vec3& n) {
-  return proves(bezierCoefficientBound(order, x, n)) ||
-         certifyTriangleJacobian(order, x, n).sign == JacobianSign::Positive;
+  basis(order);  // (the order's check)
+  return decideReference(order, x, n, kCertificateMaxDepth).sign == JacobianSign::Positive;
 }
 
 bool triangleJacobianPositiveAgainstNodeNormals(int order, const Vec3* x, const Vec3* nodeNormals) {
-  return proves(bezierCoefficientBoundAgainstNodeNormals(order, x, nodeNormals)) ||
-         certifyTriangleAgainstNodeNormals(order, x, nodeNormals).sign == JacobianSign::Positive;
+  const CertificateBasis& B = fieldBasis(order);  // (the order's check)
+  Vec3 filled[kMaxElementNodes];
+  double normals = 0.0;
+  if (!fillPoleNormals(nodeNormals, B.nodes, filled, &normals)) return false;
+  return decideAgainstNodeNormals(order, x, filled, normals, kCertificateMaxDepth).sign ==
+         JacobianSign::Positive;
 }
 
 bool elementCertifiedValid(ElementType type, const Vec3* x, const Vec3& n) {

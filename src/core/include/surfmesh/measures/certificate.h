@@ -12,18 +12,21 @@
 // coefficients, which converge to D's values (Johnen, Remacle, Geuzaine, "Geometrical validity
 // of curvilinear finite elements", JCP 233, 2013; Gmsh's Numeric/bezierBasis, JacobianBasis).
 //
-// The certificate (certificate.cpp): D at the equispaced points of order d, converted to
-// Bernstein coefficients by a precomputed inverse matrix per order; then the triangle is split
-// into 4 at its edge midpoints (exact dyadic subdivision matrices), level by level:
+// The certificate (certificate.cpp): D's Bernstein coefficients computed exactly from the
+// element's Bézier control points (products of Bernstein polynomials, no sampling); then the
+// triangle is bisected at the midpoint of a piece's longest edge (one de Casteljau pyramid
+// gives both halves), depth first, the half with the smaller coefficient first:
 //   - a piece whose coefficients are all > τ is proven valid;
-//   - a point with D ≤ τ (a sample, a piece's corner, or the domain point of a piece's smallest
+//   - a point with D ≤ τ (a piece's corner, or the domain point of a piece's smallest
 //     coefficient, each re-evaluated from the nodes) proves the element invalid;
-//   - pieces still undecided at depth kCertificateMaxDepth (or beyond kCertificateMaxPieces
-//     pieces) leave the verdict Undecided, which callers must treat as invalid.
-// τ = kPerpendicularTol ‖n‖ max_a ‖x_ξ(ξ_a)‖ ‖x_η(ξ_a)‖ over the sample points: the same
-// relative margin as orientationDefined() (|c·n| > 1e-9 ‖c‖ ‖n‖ with ‖c‖ ≤ ‖x_ξ‖ ‖x_η‖), so a
-// determinant that is zero within rounding (a side node exactly at the quarter point) counts
-// as a fold, not as valid, and the verdict does not hang on the last bits.
+//   - pieces still undecided after 2 kCertificateMaxDepth bisections (kCertificateMaxDepth
+//     splits in four), or beyond kCertificateMaxPieces pieces, leave the verdict Undecided,
+//     which callers must treat as invalid.
+// τ = kPerpendicularTol ‖n‖ max_α ‖a_α‖ max_β ‖b_β‖, a_α and b_β the Bézier coefficients of
+// x_ξ and x_η, which bound ‖x_ξ‖ and ‖x_η‖ on the whole triangle: the same relative margin as
+// orientationDefined() (|c·n| > 1e-9 ‖c‖ ‖n‖ with ‖c‖ ≤ ‖x_ξ‖ ‖x_η‖), so a determinant that is
+// zero within rounding (a side node exactly at the quarter point) counts as a fold, not as
+// valid, and the verdict does not hang on the last bits.
 //
 // The reference normal n and poles / degenerate parametrizations. The certificate needs only
 // the nodes' 3D positions and the direction n; it never evaluates the surface, so a node at a
@@ -67,7 +70,8 @@
 
 namespace surfmesh {
 
-/// Subdivision levels of the certificate (each splits a piece in 4), as quad8's proof.
+/// Subdivision levels of the certificate (each as deep as a split in 4: two bisections), as
+/// quad8's proof.
 constexpr int kCertificateMaxDepth = 8;
 /// Most pieces examined before giving up (Undecided): bounds the work on a determinant that
 /// touches zero along a curve (a nearly degenerate element) to a few milliseconds.
@@ -92,7 +96,8 @@ struct JacobianCertificate {
   double value = std::numeric_limits<double>::quiet_NaN();
   /// Smallest Bernstein coefficient of D on the whole triangle (before any subdivision).
   double minCoefficient = std::numeric_limits<double>::quiet_NaN();
-  /// Smallest D over the order-2(p − 1) sample points the coefficients come from.
+  /// Smallest D over the equispaced points of order d (a diagnostic: the verdict does not use
+  /// them).
   double minSampled = std::numeric_limits<double>::quiet_NaN();
   /// minCoefficient / minSampled: 1 when the first expansion is already sharp, larger (or
   /// negative) when subdivision was needed (Johnen et al.'s measure of the bound's quality).
@@ -101,7 +106,9 @@ struct JacobianCertificate {
   double lowerBound = std::numeric_limits<double>::quiet_NaN();
   /// τ, the margin below which D counts as zero (see the file comment).
   double tolerance = 0.0;
-  int depth = 0;   ///< deepest subdivision level reached (0: the first expansion decided)
+  /// Deepest subdivision level reached, in splits in four (two bisections; a single bisection
+  /// counts as 1); 0: the first expansion decided.
+  int depth = 0;
   int pieces = 0;  ///< pieces whose coefficients were examined
 };
 
@@ -122,24 +129,23 @@ double triangleJacobianAgainstNodeNormals(int order, const Vec3* x, const Vec3* 
 
 /// Certifies the sign of D_h over the whole reference triangle for the Lagrange triangle of
 /// order p ∈ [1, 5] with nodes x and the face's unit normals at its nodes (Gmsh order; zero at
-/// a pole). τ = kPerpendicularTol max ‖x_ξ‖ ‖x_η‖ ‖n_h‖ over the sample points. Throws
+/// a pole). τ = kPerpendicularTol max_α ‖a_α‖ max_β ‖b_β‖ max_δ ‖N_δ‖ (the Bézier coefficients
+/// of x_ξ, x_η and n_h). Throws
 /// std::invalid_argument for another order.
 JacobianCertificate certifyTriangleAgainstNodeNormals(int order, const Vec3* x,
                                                       const Vec3* nodeNormals,
                                                       int maxDepth = kCertificateMaxDepth);
 
 /// D's smallest Bernstein coefficient on the whole reference triangle (no subdivision),
-/// computed exactly from the element's Bézier control points P_α (|α| = p) rather than from
-/// samples: with λ = (1 − ξ − η, ξ, η), x_ξ = Σ_{|α|=p−1} p (P_{α+e1} − P_{α+e0}) B_α and
+/// computed exactly from the element's Bézier control points P_α (|α| = p): with λ = (1 − ξ − η, ξ, η), x_ξ = Σ_{|α|=p−1} p (P_{α+e1} − P_{α+e0}) B_α and
 /// x_η = Σ p (P_{α+e2} − P_{α+e0}) B_α, and a product of Bernstein polynomials is one,
 ///     Σ f_α B_α^m · Σ g_β B_β^n = Σ_γ (Σ_{α+β=γ} C(m,α) C(n,β) / C(m+n,γ) f_α g_β) B_γ^{m+n}
-/// (C the multinomial coefficients): the certificate's minCoefficient up to rounding. Its
-/// margin bounds the certificate's τ from above (‖x_ξ‖ ≤ max_α ‖p (P_{α+e1} − P_{α+e0})‖ on
-/// the whole triangle, likewise x_η and the interpolated normals), so minCoefficient >
-/// tolerance proves what the certificate proves at depth 0. NaN when something is not finite.
+/// (C the multinomial coefficients): the certificate's first expansion, minCoefficient and τ.
+/// minCoefficient > tolerance is the certificate's proof at depth 0. NaN when something is
+/// not finite.
 struct CoefficientBound {
   double minCoefficient = std::numeric_limits<double>::quiet_NaN();
-  double tolerance = std::numeric_limits<double>::quiet_NaN();  ///< τ' ≥ τ
+  double tolerance = std::numeric_limits<double>::quiet_NaN();  ///< τ
 };
 CoefficientBound bezierCoefficientBound(int order, const Vec3* x, const Vec3& n);
 /// The same for D_h against the nodes' normals (zero at a pole, as the certificate takes them).
@@ -147,8 +153,7 @@ CoefficientBound bezierCoefficientBoundAgainstNodeNormals(int order, const Vec3*
                                                           const Vec3* nodeNormals);
 
 /// Whether certifyTriangleJacobian(order, x, n).sign is Positive (within its margin τ), for
-/// callers that need the verdict alone: first by bezierCoefficientBound (about a third of the
-/// certificate's work at order 5), the certificate deciding where that does not conclude.
+/// callers that need the verdict alone (the same search, without the sampled diagnostics).
 bool triangleJacobianPositive(int order, const Vec3* x, const Vec3& n);
 
 /// The same for certifyTriangleAgainstNodeNormals.
