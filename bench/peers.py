@@ -30,7 +30,12 @@ Peers, each from the case's files (a peer that cannot run on this machine gets a
     this runs as root;
   * Netgen's OCC surface optimizer (netgen_surface_opt.py, needs netgen-headers and
     libnglib-dev; "smsmSmSm", no node removal) for order 1;
-  * Mesquite: only with MESQUITE_DIR set to a built Mesquite (no driver yet: a note).
+  * Mesquite (bench/mesquite/driver.cpp, built once per run by bench/mesquite/build.sh), on
+    the spheres only, when MESQUITE_DIR is set to an installed Mesquite (a note otherwise, or
+    when the driver does not build): UntangleWrapper then ShapeImprover with the nodes on a
+    SphericalDomain (center 0, radius 1), no node fixed, two runs capped at SurfMesh's time on
+    the case and at 10 × it (Mesquite's CPU-time criteria); time = the driver's wall seconds
+    of both wrappers;
 Judge, the same for every mesh: `surfmesh measure --metrics jacobian_ratio` (invalid elements:
 tangled, or for curved ones not proven valid, the certificate; min / mean shape quality; min /
 mean scaled Jacobian ratio); a mesh it refuses (nodes off the shape) is measured again with
@@ -214,6 +219,63 @@ def netgen_peer(shape, mesh, out):
     seconds = time.perf_counter() - t0
     write_msh_tri3(out, nx, nt)
     return {"seconds": seconds, "output": out, "note": "time includes the helper's setup"}
+
+
+def mesquite_available(work):
+    """(driver path, '') when the Mesquite peer can run, else (None, why not): MESQUITE_DIR set
+    and bench/mesquite/build.sh building the driver against it (once per suite run)."""
+    mdir = os.environ.get("MESQUITE_DIR")
+    if not mdir:
+        return None, "MESQUITE_DIR is not set to a built Mesquite"
+    exe = os.path.join(work, "mesquite_driver")
+    run = subprocess.run(["sh", os.path.join(HERE, "mesquite", "build.sh"), exe],
+                         capture_output=True, text=True)
+    if run.returncode != 0 or not os.path.exists(exe):
+        tail = (run.stderr or run.stdout).strip().splitlines()[-1:] or ["no output"]
+        return None, (f"MESQUITE_DIR={mdir} is set, but bench/mesquite/build.sh failed "
+                      f"(exit {run.returncode}): {tail[0][:200]}")
+    return exe, ""
+
+
+def mesquite_input(mesh, path):
+    """The driver's input (bench/mesquite/driver.cpp): "N T", N lines x y z, T lines of
+    0-based i j k, from a linear triangle mesh file (gmsh initialized around the reading)."""
+    gmsh.initialize()
+    gmsh.option.setNumber("General.Terminal", 0)
+    try:
+        gmsh.open(mesh)
+        _, xyz, tris = gc.mesh_arrays()
+    finally:
+        gmsh.finalize()
+    with open(path, "w") as f:
+        f.write("%d %d\n" % (len(xyz), len(tris)))
+        np.savetxt(f, xyz, fmt="%.17g")
+        np.savetxt(f, tris, fmt="%d")
+
+
+def mesquite_peer(exe, inp, out, seconds, timeout):
+    """The Mesquite driver on a sphere case's input (mesquite_input), capped at `seconds`, in a
+    process of its own; its moved nodes written as a Gmsh file for the judge."""
+    txt = out[:-4] + ".txt"
+    cmd = [exe, inp, txt, repr(seconds)]
+    try:
+        run = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout + seconds)
+    except subprocess.TimeoutExpired:
+        return {"error": f"timed out after {timeout + seconds:.0f} s", "cap_seconds": seconds}
+    res = None
+    for line in reversed(run.stdout.splitlines()):
+        if line.startswith("{"):
+            res = json.loads(line)
+            break
+    if res is None or not os.path.exists(txt):
+        tail = (run.stderr or run.stdout).strip().splitlines()[-1:] or ["no output"]
+        return {"error": f"crashed (exit {run.returncode}): {tail[0][:200]}",
+                "cap_seconds": seconds}
+    with open(txt) as f:
+        n, t = (int(v) for v in f.readline().split())
+        data = np.loadtxt(f)
+    write_msh_tri3(out, data[:n], data[n:n + t].astype(np.int64))
+    return {**res, "cap_seconds": seconds, "output": out}
 
 
 def write_msh_tri3(path, xyz, tris):
@@ -464,11 +526,9 @@ def main():
     ng = netgen_available()
     if ng:
         notes.append(f"Netgen skipped: {ng}")
-    if not os.environ.get("MESQUITE_DIR"):
-        notes.append("Mesquite skipped: MESQUITE_DIR is not set to a built Mesquite")
-    else:
-        notes.append(f"Mesquite skipped: MESQUITE_DIR={os.environ['MESQUITE_DIR']} is set, but "
-                     "this suite has no Mesquite driver yet")
+    mq_exe, mq = mesquite_available(work)
+    if mq:
+        notes.append(f"Mesquite skipped: {mq}")
     for n in notes:
         print("note: " + n, flush=True)
     first_notes = len(notes)  # those below are printed after the table
@@ -527,6 +587,23 @@ def main():
                 r = {"error": f"{type(err).__name__}: {str(err)[:200]}"}
                 notes.append(f"{c['name']}: Netgen {r['error']}")
             runs.append(("Netgen", r.get("output"), r))
+        if c["source"] == "sphere" and mq_exe:
+            ours = runs[1][2].get("seconds")
+            if ours is None:
+                notes.append(f"{c['name']}: Mesquite not run (no SurfMesh time to cap it at)")
+            else:
+                inp = stem + "_mesquite_in.txt"
+                try:
+                    mesquite_input(c["mesh"], inp)
+                except Exception as err:  # noqa: BLE001 - a peer's failure is its row
+                    inp = None
+                    bad = {"error": f"no input: {type(err).__name__}: {str(err)[:200]}"}
+                for label, factor in (("SurfMesh's time", 1), ("10× time", 10)):
+                    r = (mesquite_peer(mq_exe, inp, stem + f"_mesquite_{factor}x.msh",
+                                       factor * ours, timeout) if inp else dict(bad))
+                    if r.get("error"):  # the peer's outcome (its row), not the suite's
+                        notes.append(f"{c['name']}: Mesquite ({label}) {r['error']}")
+                    runs.append((f"Mesquite ({label})", r.get("output"), r))
         for tool, mesh, r in runs:
             row = {"case": c["name"], "tool": tool, "mesh": mesh,
                    **{k: v for k, v in r.items() if k not in ("output", "crash")}}
