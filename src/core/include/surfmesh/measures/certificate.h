@@ -137,8 +137,9 @@ JacobianCertificate certifyTriangleAgainstNodeNormals(int order, const Vec3* x,
                                                       int maxDepth = kCertificateMaxDepth);
 
 /// D's smallest Bernstein coefficient on the whole reference triangle (no subdivision),
-/// computed exactly from the element's Bézier control points P_α (|α| = p): with λ = (1 − ξ − η, ξ, η), x_ξ = Σ_{|α|=p−1} p (P_{α+e1} − P_{α+e0}) B_α and
-/// x_η = Σ p (P_{α+e2} − P_{α+e0}) B_α, and a product of Bernstein polynomials is one,
+/// computed exactly from the element's Bézier control points P_α (|α| = p): with λ = (1 − ξ − η, ξ,
+/// η), x_ξ = Σ_{|α|=p−1} p (P_{α+e1} − P_{α+e0}) B_α and x_η = Σ p (P_{α+e2} − P_{α+e0}) B_α, and a
+/// product of Bernstein polynomials is one,
 ///     Σ f_α B_α^m · Σ g_β B_β^n = Σ_γ (Σ_{α+β=γ} C(m,α) C(n,β) / C(m+n,γ) f_α g_β) B_γ^{m+n}
 /// (C the multinomial coefficients): the certificate's first expansion, minCoefficient and τ.
 /// minCoefficient > tolerance is the certificate's proof at depth 0. NaN when something is
