@@ -377,7 +377,7 @@ def root_available(suite):
 def netgen_available():
     if ngopt is None:
         return "netgen_surface_opt.py does not import"
-    if not os.path.exists("/usr/include/netgen/meshing.hpp") or not os.path.isdir(ngopt.NG):
+    if not os.path.exists("/usr/include/netgen/include/meshing.hpp") or not os.path.isdir(ngopt.NG):
         return "Debian's netgen-headers / libnglib-dev are not installed"
     return ""
 
