@@ -209,11 +209,15 @@ def netgen_peer(shape, mesh, out):
     """Netgen's OCC surface optimizer on an order-1 case (bench/netgen_surface_opt.py)."""
     import flips_compare as fc
 
-    gmsh.clear()
-    gmsh.open(shape)
-    gmsh.merge(mesh)
-    _, xyz, tris = gc.mesh_arrays()
-    faces = fc.triangle_faces(tris)
+    gmsh.initialize()  # (finalized once the cases are written)
+    gmsh.option.setNumber("General.Terminal", 0)
+    try:
+        gmsh.open(shape)
+        gmsh.merge(mesh)
+        _, xyz, tris = gc.mesh_arrays()
+        faces = fc.triangle_faces(tris)
+    finally:
+        gmsh.finalize()
     t0 = time.perf_counter()
     nx, nt = ngopt.optimize(shape, xyz, tris, faces, sched="smsmSmSm")
     seconds = time.perf_counter() - t0
