@@ -34,8 +34,7 @@
 using namespace Mesquite;
 
 static double now() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
-      .count();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
 // Mesquite's count of inverted elements (a QualityAssessor without a metric checks just that).
