@@ -183,8 +183,7 @@ def gmsh_peer(shape, mesh, method, niter, out, timeout, python=sys.executable):
     for line in reversed(run.stdout.splitlines()):
         if line.startswith("PEERS_JSON "):
             return json.loads(line[len("PEERS_JSON "):])
-    tail = (run.stderr or run.stdout).strip().splitlines()[-1:] or ["no output"]
-    return {"error": f"crashed (exit {run.returncode}): {tail[0][:200]}", "crash": True}
+    return {"error": f"crashed (exit {run.returncode}): {last_line(run)}", "crash": True}
 
 
 def surfmesh_peer(shape, mesh, out, report, timeout, extra=()):
@@ -197,27 +196,40 @@ def surfmesh_peer(shape, mesh, out, report, timeout, extra=()):
         return {"error": f"timed out after {timeout} s", "crash": True}
     wall = time.perf_counter() - t0
     if run.returncode != 0 or not os.path.exists(report):
-        tail = (run.stderr or run.stdout).strip().splitlines()[-1:] or ["no output"]
-        return {"error": f"exit {run.returncode}: {tail[0][:200]}", "crash": True}
+        return {"error": f"exit {run.returncode}: {last_line(run)}", "crash": True}
     with open(report) as f:
         r = json.load(f)
     return {"seconds": r["seconds"], "wall_seconds": wall, "sweeps": r.get("sweeps"),
             "reason": r.get("reason"), "output": out}
 
 
+def last_line(run):
+    """The last line a finished subprocess wrote (stderr first), cut to 200 characters."""
+    tail = (run.stderr or run.stdout).strip().splitlines()[-1:] or ["no output"]
+    return tail[0][:200]
+
+
+def case_arrays(first, *merged, faces=None):
+    """(nodes, 0-based triangles, faces(triangles) or None) of a case's files opened in Gmsh
+    (`first` opened, `merged` merged into it), Gmsh initialized around the reading: the suite
+    finalizes it once the cases are written."""
+    gmsh.initialize()
+    gmsh.option.setNumber("General.Terminal", 0)
+    try:
+        gmsh.open(first)
+        for f in merged:
+            gmsh.merge(f)
+        _, xyz, tris = gc.mesh_arrays()
+        return xyz, tris, faces(tris) if faces else None
+    finally:
+        gmsh.finalize()
+
+
 def netgen_peer(shape, mesh, out):
     """Netgen's OCC surface optimizer on an order-1 case (bench/netgen_surface_opt.py)."""
     import flips_compare as fc
 
-    gmsh.initialize()  # (finalized once the cases are written)
-    gmsh.option.setNumber("General.Terminal", 0)
-    try:
-        gmsh.open(shape)
-        gmsh.merge(mesh)
-        _, xyz, tris = gc.mesh_arrays()
-        faces = fc.triangle_faces(tris)
-    finally:
-        gmsh.finalize()
+    xyz, tris, faces = case_arrays(shape, mesh, faces=fc.triangle_faces)
     t0 = time.perf_counter()
     nx, nt = ngopt.optimize(shape, xyz, tris, faces, sched="smsmSmSm")
     seconds = time.perf_counter() - t0
@@ -235,22 +247,15 @@ def mesquite_available(work):
     run = subprocess.run(["sh", os.path.join(HERE, "mesquite", "build.sh"), exe],
                          capture_output=True, text=True)
     if run.returncode != 0 or not os.path.exists(exe):
-        tail = (run.stderr or run.stdout).strip().splitlines()[-1:] or ["no output"]
         return None, (f"MESQUITE_DIR={mdir} is set, but bench/mesquite/build.sh failed "
-                      f"(exit {run.returncode}): {tail[0][:200]}")
+                      f"(exit {run.returncode}): {last_line(run)}")
     return exe, ""
 
 
 def mesquite_input(mesh, path):
     """The driver's input (bench/mesquite/driver.cpp): "N T", N lines x y z, T lines of
     0-based i j k, from a linear triangle mesh file (gmsh initialized around the reading)."""
-    gmsh.initialize()
-    gmsh.option.setNumber("General.Terminal", 0)
-    try:
-        gmsh.open(mesh)
-        _, xyz, tris = gc.mesh_arrays()
-    finally:
-        gmsh.finalize()
+    xyz, tris, _ = case_arrays(mesh)
     with open(path, "w") as f:
         f.write("%d %d\n" % (len(xyz), len(tris)))
         np.savetxt(f, xyz, fmt="%.17g")
@@ -272,8 +277,7 @@ def mesquite_peer(exe, inp, out, seconds, timeout):
             res = json.loads(line)
             break
     if res is None or not os.path.exists(txt):
-        tail = (run.stderr or run.stdout).strip().splitlines()[-1:] or ["no output"]
-        return {"error": f"crashed (exit {run.returncode}): {tail[0][:200]}",
+        return {"error": f"crashed (exit {run.returncode}): {last_line(run)}",
                 "cap_seconds": seconds}
     with open(txt) as f:
         n, t = (int(v) for v in f.readline().split())
@@ -318,8 +322,7 @@ def judge(shape, mesh, report, diag):
         off = run.stderr.strip().splitlines()[-1][:200]
         run = measure("--tolerance", repr(0.05 * diag))
     if run.returncode != 0 or not os.path.exists(report):
-        tail = (run.stderr or run.stdout).strip().splitlines()[-1:] or ["no output"]
-        raise SuiteError(f"judge failed on {mesh} (exit {run.returncode}): {tail[0][:200]}")
+        raise SuiteError(f"judge failed on {mesh} (exit {run.returncode}): {last_line(run)}")
     with open(report) as f:
         r = json.load(f)
     s, jr = r["stats"], r["metrics"]["jacobian_ratio"]
