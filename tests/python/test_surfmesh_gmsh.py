@@ -148,9 +148,10 @@ class GmshCase(unittest.TestCase):
             self.assertGreater(int((data.hint_edge >= 0).sum()), 0)
             d_fc, h_fc = api.prepare(data, part.Shape, hints="given")
             r_core, r_fc = h_core.report, h_fc.report
-            # Except for a high-order side node on a CAD edge inside one face's mesh (all its
-            # elements on one face, no side of theirs through it on the mesh's boundary):
-            # FreeCAD's queries name the edge, the rule leaves it a face node.
+            # Except for a high-order node inside one face's mesh (all its elements on one
+            # face, no side of theirs through it on the mesh's boundary) on a CAD edge, or
+            # within its tolerance on a side that does not follow it: FreeCAD's queries name
+            # the edge, the rule leaves it a face node.
             inside = inside_one_face(d_core, h_core)
             cls_core = np.asarray(r_core["node_class"])
             cls_fc = np.asarray(r_fc["node_class"])

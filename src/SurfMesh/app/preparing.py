@@ -52,9 +52,10 @@ def prepare(mesh, shape, boundary="fixed", tolerance=None, hints="auto", collaps
     hints: "auto" (FEM inputs: a node within a CAD vertex's or a single CAD edge's own
     tolerance is hinted to it — the rule of FreeCAD's ``getNodesByVertex/Edge``, applied by the
     core with a box grid instead of a distance query per node and entity: seconds instead of
-    minutes on big parts; face nodes are classified by the core, and a high-order side node
-    lying on a CAD edge inside one face's mesh — all its elements on that face, not on the
-    mesh's boundary — is a face node, unlike FreeCAD's queries; other inputs: no hints),
+    minutes on big parts; face nodes are classified by the core, and a high-order node
+    inside one face's mesh — all its elements on that face, not on the mesh's boundary — is
+    a face node, unlike FreeCAD's queries, when it lies on the CAD edge or when its side
+    does not follow that edge; other inputs: no hints),
     "tolerance" (that rule whatever the input: for the arrays of a FEM mesher's mesh read
     from a file, whose nodes on CAD edges were put there by the mesher), "all" (FreeCAD's
     own ``getNodesByVertex/Edge/Face`` queries: slow on big parts), "none", or "given" (the

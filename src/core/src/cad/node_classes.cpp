@@ -5,6 +5,7 @@
 #include <BRep_Tool.hxx>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <memory>
@@ -25,6 +26,7 @@ void meshTopology(Recovery& r) {
   std::vector<unsigned char> onMeshBoundary(N, 0);
   // Per node: bit 0 a corner of some element, bit 1 a high-order node of some element.
   std::vector<unsigned char> nodeRoles(N, 0);
+  std::vector<std::array<std::int32_t, 2>> sideEnds(N, {-1, -1});
   {
     // Mesh edges (corner to corner) counted through buckets by their smaller node: an edge
     // used by one element only is on the mesh's boundary.
@@ -56,6 +58,7 @@ void meshTopology(Recovery& r) {
         for (int j = 0; j < ee.perEdge; ++j) {
           const std::size_t m = static_cast<std::size_t>(nd[ee.corners + k * ee.perEdge + j]);
           hmin[m] = std::min(hmin[m], len);
+          if (sideEnds[m][0] < 0) sideEnds[m] = {a, b};
         }
       }
     }
@@ -102,6 +105,7 @@ void meshTopology(Recovery& r) {
   r.hmin = std::move(hmin);
   r.onMeshBoundary = std::move(onMeshBoundary);
   r.nodeRoles = std::move(nodeRoles);
+  r.sideEnds = std::move(sideEnds);
 }
 
 namespace {
@@ -122,6 +126,7 @@ struct NodeClassifier {
         hmin(r.hmin),
         onMeshBoundary(r.onMeshBoundary),
         nodeRoles(r.nodeRoles),
+        sideEnds(r.sideEnds),
         elemFacesOfNode(r.elemFacesOfNode),
         nodeUV(r.nodeUV),
         isPole(r.isPole),
@@ -202,6 +207,20 @@ struct NodeClassifier {
   void onSeveralFaces(std::size_t n, const std::vector<int>& F, const Vec3& p, double vs);
   /// The warnings on the nodes left fixed.
   void warn();
+  /// Whether both corners at the ends of high-order node n's side are hinted to CAD edge e or
+  /// to one of its vertices (false for an element's interior node).
+  bool sideAlongEdge(std::size_t n, int e) const {
+    for (std::int32_t c : sideEnds[n]) {
+      if (c < 0) return false;
+      const std::size_t q = static_cast<std::size_t>(c);
+      const bool onEdge = forced[q] == Forced::Edge && forcedId[q] == e;
+      const auto& ev = S.edgeVertices(e);
+      const bool atVertex =
+          forced[q] == Forced::Vertex && std::find(ev.begin(), ev.end(), forcedId[q]) != ev.end();
+      if (!onEdge && !atVertex) return false;
+    }
+    return true;
+  }
 
   const CadShape& S;
   const MeshInput& input;
@@ -214,6 +233,7 @@ struct NodeClassifier {
   const std::vector<double>& hmin;
   const std::vector<unsigned char>& onMeshBoundary;
   const std::vector<unsigned char>& nodeRoles;
+  const std::vector<std::array<std::int32_t, 2>>& sideEnds;
   const std::vector<std::vector<int>>& elemFacesOfNode;
   std::vector<Vec2>& nodeUV;
   std::vector<unsigned char>& isPole;
@@ -238,21 +258,25 @@ void NodeClassifier::classify(std::size_t n) {
     report_.nodeEntity[n] = best;
     return;
   }
-  // A tolerance hint (not a given one) on a CAD edge is not taken for a high-order side node
-  // that lies on the edge but inside one face's mesh (all its elements on that face, none
-  // with a side on the mesh's boundary): a mesher that curves an element across a corner of
-  // its face puts the side node at its nearest point of the face, on the CAD edge (Gmsh's
-  // second-order meshes); held there, such elements could not be repaired. Corners and nodes
-  // merely within an edge's tolerance keep the rule (the nodes of a face narrower than its
-  // edges' tolerance, the bottle's thread, must stay where FreeCAD's queries put them).
-  const bool sideOnEdgeInside = forced[n] == Forced::Edge && !givenHint(input, n) &&
-                                nodeRoles[n] == 2u && F.size() == 1 && !onMeshBoundary[n] &&
-                                !hits[n].empty() && hits[n].front().dist <= 1e-6 * diag;
+  // A tolerance hint (not a given one) on a CAD edge is not taken for a high-order node inside
+  // one face's mesh (all its elements on that face, none with a side on the mesh's boundary)
+  // that lies on the edge, or whose side does not lie along the edge (a corner at its ends
+  // neither hinted to the edge nor to one of its vertices; an element's interior node has no
+  // side). A mesher that curves an element across a corner of its face puts the side node at
+  // its nearest point of the face, on the CAD edge (Gmsh's second-order meshes); on a face
+  // narrower than its edges' tolerance (the bottle's thread) every side across the face has
+  // its node within that tolerance. Held there, such elements could not be repaired, and no
+  // conforming mesh has a node on a CAD edge that its side does not follow. Corners, and side
+  // nodes of sides along the edge, keep the rule (they stay where FreeCAD's queries put them).
+  const bool sideOffEdge =
+      forced[n] == Forced::Edge && !givenHint(input, n) && nodeRoles[n] == 2u && F.size() == 1 &&
+      !onMeshBoundary[n] &&
+      ((!hits[n].empty() && hits[n].front().dist <= 1e-6 * diag) || !sideAlongEdge(n, forcedId[n]));
   if (forced[n] == Forced::Vertex && includesAll(S.vertexFaces(forcedId[n]), F)) {
     setVertex(n, forcedId[n]);
     return;
   }
-  if (forced[n] == Forced::Edge && includesAll(S.edgeFaces(forcedId[n]), F) && !sideOnEdgeInside) {
+  if (forced[n] == Forced::Edge && includesAll(S.edgeFaces(forcedId[n]), F) && !sideOffEdge) {
     setEdge(n, forcedId[n], forcedT[n]);
     return;
   }

@@ -9,6 +9,7 @@
 #include "winding.h"
 
 #include <algorithm>
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <stdexcept>
@@ -192,6 +193,9 @@ struct Recovery {
   std::vector<std::vector<int>> elemFacesOfNode;
   std::vector<double> hmin;
   std::vector<unsigned char> onMeshBoundary, nodeRoles;
+  // a high-order node's side: the corners at its ends (-1, -1 for an element's interior
+  // nodes and for corners)
+  std::vector<std::array<std::int32_t, 2>> sideEnds;
   std::vector<Vec2> nodeUV;
   std::vector<unsigned char> isPole;
   // the elements' corner (u,v) and their votes on the winding (+1 along the surface normal)

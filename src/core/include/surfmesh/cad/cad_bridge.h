@@ -117,9 +117,11 @@ struct BridgeOptions {
   /// instead of one distance query per node and entity: a node within a vertex's tolerance
   /// is hinted to the nearest such vertex; else a node closer than its tolerance to exactly
   /// one edge, to that edge. These hints are checked like given ones (and not counted in
-  /// hintsRejected when they do not check out), except that a high-order side node lying on
-  /// a CAD edge inside one face's mesh (all its elements on that face, not on the mesh's
-  /// boundary) is a face node: a mesher put it there across a corner of its face.
+  /// hintsRejected when they do not check out), except that a high-order node inside one
+  /// face's mesh (all its elements on that face, not on the mesh's boundary) is a face node
+  /// when it lies on the edge (a mesher put it there across a corner of its face) or when its
+  /// side does not follow the edge (a corner at its ends hinted neither to the edge nor to one
+  /// of its vertices: a side across a face narrower than the edge's tolerance).
   bool toleranceHints = false;
   /// Keep the per-node face search (step 1 of the recovery, the costly part) in the CadMesh,
   /// so that a CadMesh of the same nodes with other elements (e.g. some left out) can reuse
