@@ -2,7 +2,7 @@
 """Every peer on the same inputs, judged by one judge (issue #45): bench/peers.sh runs this.
 
     /usr/bin/python3 bench/peers.py [quick|medium|full] [--json OUT.json] [--work DIR]
-        [--plots DIR] [--cap N]
+        [--plots DIR] [--cap N] [--only REGEX]
     python3 bench/peers.py gmsh-only --manifest WORK/manifest.json --label trixie   (in a root)
 
 Cases: each is one CAD shape file and one mesh file, written once by Gmsh (this process); every
@@ -13,10 +13,20 @@ tool starts from that same pair of files.
     diagonal / 21 and / 42, volumes removed (high_order_peers.raw_mesh): order 1 as meshed,
     order 1 perturbed (amplitude 1.2 × the size until 0.1 % of the triangles, at least 20, are
     tangled), orders 2 and 3 raw (setOrder without Gmsh's high-order optimization);
-  * spheres (radius 1) of about 10³, 10⁴, 10⁵, 10⁶ triangles, perturbed as the parts.
+  * spheres (radius 1) of about 10³, 10⁴, 10⁵, 10⁶ triangles, perturbed as the parts;
+  * FreeCAD's own FEM examples with a surface mesh (femexamples: the cantilever's quad4, quad8,
+    tria3 and tria6 plates, mystran_plate, rc_wall_2d, the buckling plate, the five-face
+    bending beam, the twisted square pipe, the I-beam, the two contact tubes), as FreeCAD
+    builds them (bench/python/fem_examples.py, one freecadcmd) and perturbed in (u, v) of their
+    faces (bench/fem_cases.py: the mesh classified on the shape's entities with its (u, v) in
+    a .msh 4.1, so Gmsh's optimizers can run on it; second-order side nodes follow their
+    corners).
 quick: the torus, occt_bottle.brep at diagonal / 15 order 2 raw, a 10³ sphere. medium: the
-torus, three parts at diagonal / 21 (all four kinds), spheres 10³–10⁵. full: every part at both
-sizes, spheres up to 10⁶.
+torus, three parts at diagonal / 21 (all four kinds), spheres 10³–10⁵, the FEM examples raw and
+perturbed. full: every part at both sizes, spheres up to 10⁶, the FEM examples.
+--only REGEX keeps the cases whose name matches it (e.g. --only fem, --only '/21 o[23] raw'); the
+JSON then goes to bench/out/peers-MODE-only-REGEX.json (REGEX's other characters than letters
+and digits as _) and the plots to bench/out/ unless told.
 
 Peers, each from the case's files (a peer that cannot run on this machine gets a note line):
   * SurfMesh: `surfmesh optimize --threads 1` (boundary fixed; curved elements: the default
@@ -55,6 +65,7 @@ import argparse
 import json
 import math
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -65,6 +76,7 @@ import numpy as np
 
 import gmsh
 
+import fem_cases
 import gmsh_compare as gc
 import high_order_peers as hop
 
@@ -106,6 +118,8 @@ def case_list(mode):
     for n in spheres:
         cases.append(dict(name=f"sphere 1e{round(math.log10(n))} perturbed", source="sphere",
                           order=1, kind="perturbed", target=n))
+    if mode != "quick":
+        cases += fem_cases.cases()
     return cases
 
 
@@ -116,7 +130,10 @@ def file_stem(case):
 def write_case(case, work, seed=5):
     """Meshes one case with Gmsh and writes its shape (.brep) and mesh (.msh with the nodes'
     (u,v)); returns (shape path, mesh path, tangled triangles after the perturbation or None,
-    meshing seconds). Needs gmsh initialized."""
+    meshing seconds). Needs gmsh initialized. A FEM example: fem_cases.write_case (its shape
+    is FreeCAD's .brep)."""
+    if case["source"] == "fem":
+        return fem_cases.write_case(case, work, os.path.join(work, file_stem(case)), seed)
     gmsh.clear()
     gmsh.option.setNumber("General.Terminal", 0)
     gmsh.option.setNumber("Mesh.HighOrderOptimize", 0)
@@ -453,8 +470,7 @@ def plots(rows, cases, directory):
     for ax, name in zip(axes.flat, timed):
         for r in rows:
             if r["case"] == name and r.get("seconds") and r.get("judge"):
-                ax.scatter(r["seconds"], r["judge"]["mean_jr"] if "o1" not in name
-                           and "torus" not in name and "sphere" not in name
+                ax.scatter(r["seconds"], r["judge"]["mean_jr"] if case_order(cases, name) > 1
                            else r["judge"]["min_q"], marker=marks[r["tool"]], label=r["tool"])
         ax.set_xscale("log")
         ax.set_title(name, fontsize=8)
@@ -483,7 +499,8 @@ def plots(rows, cases, directory):
     ax.set_yscale("log")
     ax.set_xlabel("triangles (perturbed sphere)")
     ax.set_ylabel("seconds")
-    ax.legend(fontsize=8)
+    if ax.get_legend_handles_labels()[0]:  # (no sphere among the cases of --only)
+        ax.legend(fontsize=8)
     fig.tight_layout()
     out2 = os.path.join(directory, "peers_scaling.png")
     fig.savefig(out2, dpi=80)
@@ -504,6 +521,9 @@ def main():
     ap.add_argument("--plots", default=None, help="PNG plots here (medium, full; default docs/)")
     ap.add_argument("--cap", type=int, default=None,
                     help="nodes per mesh measured by OCC (default 1500 quick, 2000 otherwise)")
+    ap.add_argument("--only", default=None,
+                    help="only the cases whose name matches this regular expression (e.g. fem, "
+                    "'/21 o[23] raw')")
     ap.add_argument("--manifest", help="gmsh-only: the host's manifest.json")
     ap.add_argument("--label", help="gmsh-only: the root's name")
     a = ap.parse_args()
@@ -514,7 +534,13 @@ def main():
     mode = a.mode
     cap = a.cap or (1500 if mode == "quick" else 2000)
     timeout = TIMEOUT[mode]
-    out_json = a.json or os.path.join(HERE, "out", f"peers-{mode}.json")
+    only = "".join(ch if ch.isalnum() else "_" for ch in a.only) if a.only else ""
+    out_json = a.json or os.path.join(HERE, "out", f"peers-{mode}"
+                                      + (f"-only-{only}" if only else "") + ".json")
+    cases = [c for c in case_list(mode) if not a.only or re.search(a.only, c["name"])]
+    if not cases:
+        print(f"no case of {mode} mode holds {a.only!r}", file=sys.stderr)
+        return 2
     roots = {s: root_available(s) if mode != "quick" else
              "not in quick mode (scripts/test.sh runs the quick suite in each root)"
              for s in ("trixie", "sid")}
@@ -541,8 +567,10 @@ def main():
     first_notes = len(notes)  # those below are printed after the table
 
     problems = []
-    cases = case_list(mode)
     gmsh.option.setNumber("General.Terminal", 0)
+    fem = [c["example"] for c in cases if c["source"] == "fem"]
+    if fem:  # FreeCAD builds the examples once (one freecadcmd)
+        fem_cases.export(work, sorted(set(fem)))
     manifest = []
     for c in cases:
         c["shape"], c["mesh"], c["perturbed_tangled"], c["mesh_seconds"] = write_case(c, work)
@@ -587,7 +615,9 @@ def main():
             for r in rr:
                 if r["case"] == c["name"]:
                     runs.append((f"Gmsh {r.get('gmsh', s)} {r['method']}", r.get("output"), r))
-        if c["order"] == 1 and not ng:
+        if c["order"] == 1 and not ng and c.get("quads"):
+            notes.append(f"{c['name']}: Netgen not run (its driver takes triangles only)")
+        elif c["order"] == 1 and not ng:
             try:
                 r = netgen_peer(c["shape"], c["mesh"], stem + "_netgen.msh")
             except Exception as err:  # noqa: BLE001 - a peer's failure is its row
@@ -687,7 +717,8 @@ def main():
               "wall_seconds": wall, "notes": notes, "problems": problems, "cap": cap,
               "cases": [{k: v for k, v in c.items()} for c in cases], "rows": rows}
     if mode != "quick":
-        result["plots"] = plots(rows, cases, a.plots or os.path.join(REPO, "docs"))
+        result["plots"] = plots(rows, cases, a.plots or (
+            os.path.join(HERE, "out") if a.only else os.path.join(REPO, "docs")))
     with open(out_json, "w") as f:
         json.dump(result, f, indent=1)
     print(f"{len(rows)} rows, {expected} cases, {wall:.0f} s; raw JSON in {out_json}")
