@@ -460,6 +460,7 @@ def plots(rows, cases, directory):
     except ImportError:
         print("note: matplotlib is not importable: no plots (apt-get install python3-matplotlib)")
         return []
+    os.makedirs(directory, exist_ok=True)  # (--plots may name a new directory)
     tools = sorted({r["tool"] for r in rows if r["tool"] != "input"})
     marks = dict(zip(tools, "o s ^ v D P X * h < >".split() * 3))
     timed = [c["name"] for c in cases
