@@ -540,7 +540,7 @@ def main():
                                       + (f"-only-{only}" if only else "") + ".json")
     cases = [c for c in case_list(mode) if not a.only or re.search(a.only, c["name"])]
     if not cases:
-        print(f"no case of {mode} mode holds {a.only!r}", file=sys.stderr)
+        print(f"no case of {mode} mode matches {a.only!r}", file=sys.stderr)
         return 2
     roots = {s: root_available(s) if mode != "quick" else
              "not in quick mode (scripts/test.sh runs the quick suite in each root)"
@@ -550,6 +550,12 @@ def main():
         work = os.path.join(HERE, "out", f"work-{mode}")  # the roots see the repository
     work = work or tempfile.mkdtemp(prefix="surfmesh_peers_")
     os.makedirs(work, exist_ok=True)
+    inside = os.path.realpath(work).startswith(os.path.realpath(REPO) + os.sep)
+    for s, why in roots.items():
+        if not why and not inside:  # the roots mount the repository only
+            roots[s] = (f"the work directory {work} is outside the repository, which is all "
+                        "the roots see (use --work bench/out/...)")
+
     os.makedirs(os.path.dirname(os.path.abspath(out_json)), exist_ok=True)
     gmsh.initialize()
     version = gmsh_version()
