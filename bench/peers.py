@@ -344,6 +344,7 @@ def judge(shape, mesh, report, diag):
         r = json.load(f)
     s, jr = r["stats"], r["metrics"]["jacobian_ratio"]
     return {"elements": s["elements"], "invalid": s["invalid"], "tangled": s["tangled"],
+            "skipped": s.get("skipped", 0),
             "min_q": s["min"], "mean_q": s["mean"], "min_jr": jr["min"], "mean_jr": jr["mean"],
             "judge_max_distance": r["bridge"]["max_distance"], "off_shape": off}
 
@@ -442,6 +443,8 @@ def table(rows):
                  and min(best) > 0 else "")
         before = r.get("invalid_before")
         inv = f"{before} → {j['invalid']}" if r["tool"] != "input" else f"{j['invalid']}"
+        if j.get("skipped"):  # left out of the measure (folded pairs, collapsed elements)
+            inv += f" (+{j['skipped']} left out)"
         dist = fmt(r.get("occ_distance"), ".1e")
         if j.get("off_shape"):
             dist += " (off the shape)"
