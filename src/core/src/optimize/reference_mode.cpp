@@ -23,9 +23,13 @@
 //   4. never worse: when an element valid in the input is invalid in the result, or the result
 //      has more invalid elements than the input, or a lower minimum quality where the input
 //      has no tangled element, or, on a valid input, a lower minimum Jacobian ratio
-//      (elementJacobianRatio), the input is optimized in
-//      "integral" mode instead, whose own guarantees hold; and where elements stay invalid,
-//      the integral mode's result is taken when it leaves fewer.
+//      (elementJacobianRatio): on a valid input the result is cut back (keepNoWorse: every
+//      node the same share of its move, or element by element the moves of the elements
+//      below halved then undone, whichever keeps the higher mean Jacobian ratio) until no
+//      element is invalid or below the input's smallest Jacobian ratio and quality; the
+//      integral mode, cut back the same way, only when that leaves the input as it was. On an
+//      invalid input the integral mode's result instead, whose own guarantees hold; and where
+//      elements stay invalid, the integral mode's result when it leaves fewer.
 #include "reference_mode.h"
 
 #include "progress_relay.h"
@@ -58,6 +62,12 @@ double smallest(const std::vector<double>& v) {
   double m = std::numeric_limits<double>::infinity();
   for (double x : v) m = std::min(m, x);
   return m;
+}
+
+double mean(const std::vector<double>& v) {
+  double s = 0.0;
+  for (double x : v) s += x;
+  return v.empty() ? 0.0 : s / static_cast<double>(v.size());
 }
 
 /// The linear mesh of the corners of `mesh`: the same nodes (the others held), each element's
@@ -244,6 +254,122 @@ bool judge(const SurfaceMesh& mesh, const MeshQuality& q0, const MeshQuality& q,
   return false;
 }
 
+/// Never worse on a valid input: cuts back the moves from `input` to `mesh` (the result) until
+/// no element is invalid, below `ratioFloor` by its Jacobian ratio or below `qualityFloor` by
+/// its quality. Two ways, the one with the higher mean Jacobian ratio kept:
+///  * every node the same share of its move, 7/8, 6/8, … 1/8 (in (u,v) on its face; a node on
+///    a CAD edge, or one whose share leaves the face, goes back): the elements keep the shape
+///    the result gave them, only less of it;
+///  * element by element from the whole result: the nodes of every element below have their
+///    share halved, four times at most, then go back; and so on until no element is below (a
+///    local backtracking). An element whose every node is back is the input's, so this ends.
+/// Returns the number of nodes not where the result had them; *q is the quality of the mesh as
+/// it ends.
+std::size_t keepNoWorse(SurfaceMesh& mesh, const detail::MeshPositions& input, double ratioFloor,
+                        double qualityFloor, const PlanarMeasure& measure, MeshQuality* q) {
+  const std::size_t N = mesh.nodeCount(), E = mesh.elementCount();
+  const detail::MeshPositions result = detail::MeshPositions::of(mesh);
+  std::vector<Vec2> move(N, Vec2::Zero());
+  for (std::size_t i = 0; i < N; ++i)
+    if (mesh.nodeKind[i] == NodeKind::Face) {
+      const Surface& s = *mesh.surfaces[static_cast<std::size_t>(mesh.nodeFace[i])];
+      move[i] = s.unwrapNear(result.uv[i], input.uv[i]) - input.uv[i];
+    }
+  std::vector<double> share(N, 1.0);
+  // Puts node i at `share[i]` of its move (0 when it cannot be).
+  auto place = [&](std::size_t i) {
+    if (share[i] >= 1.0) {
+      mesh.xyz[i] = result.xyz[i];
+      mesh.uv[i] = result.uv[i];
+      if (!mesh.nodeT.empty()) mesh.nodeT[i] = result.nodeT[i];
+      return;
+    }
+    if (share[i] > 0.0 && mesh.nodeKind[i] == NodeKind::Face) {
+      const Surface& s = *mesh.surfaces[static_cast<std::size_t>(mesh.nodeFace[i])];
+      const Vec2 w = s.wrap(input.uv[i] + share[i] * move[i]);
+      if (w.allFinite() && s.contains(w.x(), w.y())) {
+        mesh.uv[i] = w;
+        mesh.xyz[i] = s.value(w.x(), w.y());
+        return;
+      }
+    }
+    share[i] = 0.0;
+    mesh.xyz[i] = input.xyz[i];
+    mesh.uv[i] = input.uv[i];
+    if (!mesh.nodeT.empty()) mesh.nodeT[i] = input.nodeT[i];
+  };
+  auto cornerParameters = [&] {
+    for (std::size_t e = 0; e < E; ++e) {
+      const std::size_t off = static_cast<std::size_t>(mesh.elemOffset[e]);
+      const std::int32_t* nd = mesh.elementNodes(e);
+      for (int k = 0; k < mesh.elementSize(e); ++k) {
+        const std::size_t i = static_cast<std::size_t>(nd[k]);
+        mesh.cornerUV[off + k] = share[i] >= 1.0 ? result.cornerUV[off + k]
+                                                 : input.cornerUV[off + k] + share[i] * move[i];
+      }
+    }
+  };
+  auto isBelow = [&](const MeshQuality& mq, const std::vector<double>& ratio, std::size_t e) {
+    return mq.tangled[e] || mq.across[e] || ratio[e] < ratioFloor || mq.quality[e] < qualityFloor;
+  };
+  auto anyBelow = [&](const MeshQuality& mq) {
+    const std::vector<double> ratio = elementJacobianRatio(mesh);
+    for (std::size_t e = 0; e < E; ++e)
+      if (isBelow(mq, ratio, e)) return true;
+    return false;
+  };
+  *q = measureQuality(mesh, measure);
+  if (!anyBelow(*q)) return 0;
+
+  // The same share for every node.
+  detail::MeshPositions uniform;
+  MeshQuality qUniform;
+  for (int eighths = 7; eighths > 0; --eighths) {
+    std::fill(share.begin(), share.end(), eighths / 8.0);
+    for (std::size_t i = 0; i < N; ++i) place(i);
+    cornerParameters();
+    qUniform = measureQuality(mesh, measure);
+    if (!anyBelow(qUniform)) {
+      uniform = detail::MeshPositions::of(mesh);
+      break;
+    }
+  }
+  const double meanUniform = uniform.empty() ? -1.0 : mean(elementJacobianRatio(mesh));
+
+  // Element by element.
+  std::fill(share.begin(), share.end(), 1.0);
+  result.copyTo(mesh);
+  *q = measureQuality(mesh, measure);
+  for (;;) {
+    const std::vector<double> ratio = elementJacobianRatio(mesh);
+    std::vector<unsigned char> cut(N, 0);
+    bool any = false;
+    for (std::size_t e = 0; e < E; ++e) {
+      if (!isBelow(*q, ratio, e)) continue;
+      const std::int32_t* nd = mesh.elementNodes(e);
+      for (int k = 0; k < mesh.elementSize(e); ++k) {
+        const std::size_t i = static_cast<std::size_t>(nd[k]);
+        if (share[i] > 0.0 && !cut[i]) cut[i] = 1, any = true;
+      }
+    }
+    if (!any) break;
+    for (std::size_t i = 0; i < N; ++i)
+      if (cut[i]) {
+        share[i] = share[i] > 0.1 ? 0.5 * share[i] : 0.0;
+        place(i);
+      }
+    cornerParameters();
+    *q = measureQuality(mesh, measure);
+  }
+  if (!uniform.empty() && meanUniform > mean(elementJacobianRatio(mesh))) {
+    uniform.copyTo(mesh);
+    *q = qUniform;
+  }
+  std::size_t changed = 0;
+  for (std::size_t i = 0; i < N; ++i) changed += result.xyz[i] != mesh.xyz[i] ? 1 : 0;
+  return changed;
+}
+
 }  // namespace
 
 bool hasCurvedElements(const SurfaceMesh& mesh) {
@@ -344,7 +470,35 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
   const bool worse = madeInvalid || invalid2 > invalid0 ||
                      (q0.stats.tangled == 0 && q2.stats.min < q0.stats.min - kRounding) ||
                      (invalid0 == 0 && ratio2 < ratio0 - kRounding);
-  if (worse) return integral();
+  // On a valid input, a result worse than it is cut back (keepNoWorse): what it makes invalid,
+  // or lowers below the input's smallest Jacobian ratio or quality, takes less of its move or
+  // goes back. Only when that leaves the input as it was is the integral mode tried, cut back
+  // the same way (it keeps the minimum quality and every valid element valid, not the
+  // Jacobian ratio). On an invalid input, the integral mode's result.
+  std::size_t backRef = 0;
+  if (worse && invalid0 == 0) {
+    backRef =
+        keepNoWorse(mesh, original, ratio0 - kRounding, q0.stats.min - kRounding, measure, &q2);
+    invalid2 = invalidCount(q2);
+  }
+  bool moved = false;
+  for (std::size_t i = 0; i < mesh.nodeCount() && !moved; ++i)
+    moved = mesh.xyz[i] != original.xyz[i];
+  if (worse && (invalid0 > 0 || !moved)) {
+    OptimizeResult alt = integral();
+    if (alt.reason == StopReason::Cancelled || invalid0 > 0) return alt;
+    MeshQuality qa;
+    const std::size_t back =
+        keepNoWorse(mesh, original, ratio0 - kRounding, q0.stats.min - kRounding, measure, &qa);
+    if (back > 0) {
+      alt.after = qa.stats;
+      alt.restoredNodes += back;
+      alt.movedNodes = 0;
+      for (std::size_t i = 0; i < mesh.nodeCount(); ++i)
+        alt.movedNodes += mesh.xyz[i] != original.xyz[i] ? 1 : 0;
+    }
+    return alt;
+  }
   if (invalid2 > 0) {
     const detail::MeshPositions mine = detail::MeshPositions::of(mesh);
     OptimizeResult alt = integral();
@@ -362,7 +516,7 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
     res.movedNodes += mesh.xyz[i] != original.xyz[i] ? 1 : 0;
   res.patchUntanglings = r1.patchUntanglings + (ran2 ? r2.patchUntanglings : 0);
   res.straightenedElements = ran2 ? r2.straightenedElements : 0;
-  res.restoredNodes = r1.restoredNodes + (ran2 ? r2.restoredNodes : 0);
+  res.restoredNodes = r1.restoredNodes + (ran2 ? r2.restoredNodes : 0) + backRef;
   res.heldAcross = r1.heldAcross || (ran2 && r2.heldAcross);
   if (ran2) {
     res.tangledUnmovable = r2.tangledUnmovable;
