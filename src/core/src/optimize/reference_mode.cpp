@@ -23,13 +23,14 @@
 //   4. never worse: when an element valid in the input is invalid in the result, or the result
 //      has more invalid elements than the input, or a lower minimum quality where the input
 //      has no tangled element, or, on a valid input, a lower minimum Jacobian ratio
-//      (elementJacobianRatio): on a valid input the result is cut back (keepNoWorse: every
-//      node the same share of its move, or element by element the moves of the elements
-//      below halved then undone, whichever keeps the higher mean Jacobian ratio) until no
-//      element is invalid or below the input's smallest Jacobian ratio and quality; the
-//      integral mode, cut back the same way, only when that leaves the input as it was. On an
-//      invalid input the integral mode's result instead, whose own guarantees hold; and where
-//      elements stay invalid, the integral mode's result when it leaves fewer.
+//      (elementJacobianRatio) or corner quality: on a valid input the result is cut back
+//      (keepNoWorse: every node the same share of its move, or element by element the moves
+//      of the elements below halved then undone, whichever keeps the higher mean Jacobian
+//      ratio) until no element is invalid or below the input's smallest Jacobian ratio,
+//      quality and corner quality; the integral mode, cut back the same way, only when that
+//      leaves the input as it was. On an invalid input the integral mode's result instead,
+//      whose own guarantees hold; and where elements stay invalid, the integral mode's result
+//      when it leaves fewer.
 #include "reference_mode.h"
 
 #include "progress_relay.h"
@@ -101,6 +102,12 @@ SurfaceMesh cornerMesh(const SurfaceMesh& mesh) {
   for (std::size_t i = 0; i < mesh.nodeCount(); ++i)
     if (!corner[i]) L.nodeKind[i] = NodeKind::Fixed;
   return L;
+}
+
+/// The quality of each element's corner triangle or quadrilateral (the paper's linear
+/// measure on the corners' mesh).
+std::vector<double> cornerQuality(const SurfaceMesh& mesh, const PlanarMeasure& measure) {
+  return measureQuality(cornerMesh(mesh), measure).quality;
 }
 
 /// The parameter of the point of curve c nearest to x: damped Newton steps on
@@ -255,8 +262,9 @@ bool judge(const SurfaceMesh& mesh, const MeshQuality& q0, const MeshQuality& q,
 }
 
 /// Never worse on a valid input: cuts back the moves from `input` to `mesh` (the result) until
-/// no element is invalid, below `ratioFloor` by its Jacobian ratio or below `qualityFloor` by
-/// its quality. Two ways, the one with the higher mean Jacobian ratio kept:
+/// no element is invalid, below `ratioFloor` by its Jacobian ratio, below `qualityFloor` by
+/// its quality or below `cornerFloor` by the quality of its corner triangle (cornerQuality). Two
+/// ways, the one with the higher mean Jacobian ratio kept:
 ///  * every node the same share of its move, 7/8, 6/8, … 1/8 (in (u,v) on its face; a node on
 ///    a CAD edge, or one whose share leaves the face, goes back): the elements keep the shape
 ///    the result gave them, only less of it;
@@ -266,7 +274,8 @@ bool judge(const SurfaceMesh& mesh, const MeshQuality& q0, const MeshQuality& q,
 /// Returns the number of nodes not where the result had them; *q is the quality of the mesh as
 /// it ends.
 std::size_t keepNoWorse(SurfaceMesh& mesh, const detail::MeshPositions& input, double ratioFloor,
-                        double qualityFloor, const PlanarMeasure& measure, MeshQuality* q) {
+                        double qualityFloor, double cornerFloor, const PlanarMeasure& measure,
+                        MeshQuality* q) {
   const std::size_t N = mesh.nodeCount(), E = mesh.elementCount();
   const detail::MeshPositions result = detail::MeshPositions::of(mesh);
   std::vector<Vec2> move(N, Vec2::Zero());
@@ -309,13 +318,16 @@ std::size_t keepNoWorse(SurfaceMesh& mesh, const detail::MeshPositions& input, d
       }
     }
   };
-  auto isBelow = [&](const MeshQuality& mq, const std::vector<double>& ratio, std::size_t e) {
-    return mq.tangled[e] || mq.across[e] || ratio[e] < ratioFloor || mq.quality[e] < qualityFloor;
+  auto isBelow = [&](const MeshQuality& mq, const std::vector<double>& ratio,
+                     const std::vector<double>& corners, std::size_t e) {
+    return mq.tangled[e] || mq.across[e] || ratio[e] < ratioFloor || mq.quality[e] < qualityFloor ||
+           corners[e] < cornerFloor;
   };
   auto anyBelow = [&](const MeshQuality& mq) {
     const std::vector<double> ratio = elementJacobianRatio(mesh);
+    const std::vector<double> corners = cornerQuality(mesh, measure);
     for (std::size_t e = 0; e < E; ++e)
-      if (isBelow(mq, ratio, e)) return true;
+      if (isBelow(mq, ratio, corners, e)) return true;
     return false;
   };
   *q = measureQuality(mesh, measure);
@@ -342,10 +354,11 @@ std::size_t keepNoWorse(SurfaceMesh& mesh, const detail::MeshPositions& input, d
   *q = measureQuality(mesh, measure);
   for (;;) {
     const std::vector<double> ratio = elementJacobianRatio(mesh);
+    const std::vector<double> corners = cornerQuality(mesh, measure);
     std::vector<unsigned char> cut(N, 0);
     bool any = false;
     for (std::size_t e = 0; e < E; ++e) {
-      if (!isBelow(*q, ratio, e)) continue;
+      if (!isBelow(*q, ratio, corners, e)) continue;
       const std::int32_t* nd = mesh.elementNodes(e);
       for (int k = 0; k < mesh.elementSize(e); ++k) {
         const std::size_t i = static_cast<std::size_t>(nd[k]);
@@ -385,6 +398,7 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
   mesh.validate();
   const MeshQuality q0 = measureQuality(mesh, measure);
   const double ratio0 = smallest(elementJacobianRatio(mesh));
+  const double corner0 = smallest(cornerQuality(mesh, measure));
   const std::size_t invalid0 = invalidCount(q0);
   const detail::MeshPositions original = detail::MeshPositions::of(mesh);
   OptimizeOptions inner = opt;
@@ -467,9 +481,11 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
   const double ratio2 = smallest(elementJacobianRatio(mesh));
   // (Rounding aside: an affine element's Jacobian ratio is 1 within 1e-15 or so.)
   constexpr double kRounding = 1e-9;
-  const bool worse = madeInvalid || invalid2 > invalid0 ||
-                     (q0.stats.tangled == 0 && q2.stats.min < q0.stats.min - kRounding) ||
-                     (invalid0 == 0 && ratio2 < ratio0 - kRounding);
+  const bool worse =
+      madeInvalid || invalid2 > invalid0 ||
+      (q0.stats.tangled == 0 && q2.stats.min < q0.stats.min - kRounding) ||
+      (invalid0 == 0 && (ratio2 < ratio0 - kRounding ||
+                         smallest(cornerQuality(mesh, measure)) < corner0 - kRounding));
   // On a valid input, a result worse than it is cut back (keepNoWorse): what it makes invalid,
   // or lowers below the input's smallest Jacobian ratio or quality, takes less of its move or
   // goes back. Only when that leaves the input as it was is the integral mode tried, cut back
@@ -477,8 +493,8 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
   // Jacobian ratio). On an invalid input, the integral mode's result.
   std::size_t backRef = 0;
   if (worse && invalid0 == 0) {
-    backRef =
-        keepNoWorse(mesh, original, ratio0 - kRounding, q0.stats.min - kRounding, measure, &q2);
+    backRef = keepNoWorse(mesh, original, ratio0 - kRounding, q0.stats.min - kRounding,
+                          corner0 - kRounding, measure, &q2);
     invalid2 = invalidCount(q2);
   }
   bool moved = false;
@@ -489,7 +505,8 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
     if (alt.reason == StopReason::Cancelled || invalid0 > 0) return alt;
     MeshQuality qa;
     const std::size_t back =
-        keepNoWorse(mesh, original, ratio0 - kRounding, q0.stats.min - kRounding, measure, &qa);
+        keepNoWorse(mesh, original, ratio0 - kRounding, q0.stats.min - kRounding,
+                    corner0 - kRounding, measure, &qa);
     if (back > 0) {
       alt.after = qa.stats;
       alt.restoredNodes += back;
