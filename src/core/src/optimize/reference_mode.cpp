@@ -21,16 +21,15 @@
 //      ("integral" mode) with the nodes of the elements within one ring around them, every
 //      other node held; within three rings when that makes an element of the input invalid;
 //   4. never worse: when an element valid in the input is invalid in the result, or the result
-//      has more invalid elements than the input, or a lower minimum quality where the input
-//      has no tangled element, or, on a valid input, a lower minimum Jacobian ratio
-//      (elementJacobianRatio) or corner quality: on a valid input the result is cut back
-//      (keepNoWorse: every node the same share of its move, or element by element the moves
-//      of the elements below halved then undone, whichever keeps the higher mean Jacobian
-//      ratio) until no element is invalid or below the input's smallest Jacobian ratio,
-//      quality and corner quality; the integral mode, cut back the same way, only when that
-//      leaves the input as it was. On an invalid input the integral mode's result instead,
-//      whose own guarantees hold; and where elements stay invalid, the integral mode's result
-//      when it leaves fewer.
+//      has a lower minimum quality where the input has no tangled element, or, on a valid
+//      input, a lower minimum Jacobian ratio (elementJacobianRatio) or corner quality, the
+//      result is cut back (keepNoWorse: every node the same share of its move, or element by
+//      element the moves of the elements at fault halved then undone) until none of that
+//      holds; when that leaves the input as it was, or more invalid elements than the input,
+//      the integral mode instead (cut back the same way on a valid input);
+//   5. where elements stay invalid, the integral mode's result when it leaves fewer, with the
+//      straight-sided result put back away from the elements it left invalid when that keeps
+//      as few (mergeAroundInvalid).
 #include "reference_mode.h"
 
 #include "progress_relay.h"
@@ -261,26 +260,74 @@ bool judge(const SurfaceMesh& mesh, const MeshQuality& q0, const MeshQuality& q,
   return false;
 }
 
-/// Never worse on a valid input: cuts back the moves from `input` to `mesh` (the result) until
-/// no element is invalid, below `ratioFloor` by its Jacobian ratio, below `qualityFloor` by
-/// its quality or below `cornerFloor` by the quality of its corner triangle (cornerQuality). Two
-/// ways, the one with the higher mean Jacobian ratio kept:
+/// The integral mode's result (in `mesh`) where `mine`, the reference result of quality
+/// qMine, has invalid elements, widened by `rings` rings of elements; `mine` everywhere else.
+/// The corner parameters of the nodes taken from the integral result are put in the period of
+/// `mine`'s, so each element's parameters stay in one chart.
+void mergeAroundInvalid(SurfaceMesh& mesh, const detail::MeshPositions& mine,
+                        const MeshQuality& qMine, int rings) {
+  const std::size_t N = mesh.nodeCount(), E = mesh.elementCount();
+  std::vector<unsigned char> invalid(E, 0);
+  for (std::size_t e = 0; e < E; ++e) invalid[e] = (qMine.tangled[e] || qMine.across[e]) ? 1 : 0;
+  const std::vector<unsigned char> region = detail::widenByRings(mesh, std::move(invalid), rings);
+  std::vector<unsigned char> theirs(N, 0);
+  for (std::size_t e = 0; e < E; ++e) {
+    if (!region[e]) continue;
+    const std::int32_t* nd = mesh.elementNodes(e);
+    for (int k = 0; k < mesh.elementSize(e); ++k) theirs[static_cast<std::size_t>(nd[k])] = 1;
+  }
+  for (std::size_t i = 0; i < N; ++i)
+    if (!theirs[i]) {
+      mesh.xyz[i] = mine.xyz[i];
+      mesh.uv[i] = mine.uv[i];
+      if (!mesh.nodeT.empty()) mesh.nodeT[i] = mine.nodeT[i];
+    }
+  for (std::size_t e = 0; e < E; ++e) {
+    const std::size_t off = static_cast<std::size_t>(mesh.elemOffset[e]);
+    const Surface& s = *mesh.surfaces[static_cast<std::size_t>(mesh.elemFace[e])];
+    const std::int32_t* nd = mesh.elementNodes(e);
+    for (int k = 0; k < mesh.elementSize(e); ++k) {
+      Vec2& c = mesh.cornerUV[off + k];
+      c = theirs[static_cast<std::size_t>(nd[k])] ? s.unwrapNear(c, mine.cornerUV[off + k])
+                                                  : mine.cornerUV[off + k];
+    }
+  }
+}
+
+/// Never worse: cuts back the moves from `input` to `mesh` (the result) until no element valid
+/// in the input (`wasValid`) is invalid, and none is below `ratioFloor` by its Jacobian ratio,
+/// below `qualityFloor` by its quality or below `cornerFloor` by the quality of its corner
+/// triangle (cornerQuality). Two ways, the one with fewer invalid elements kept, then the one
+/// with the higher mean Jacobian ratio:
 ///  * every node the same share of its move, 7/8, 6/8, … 1/8 (in (u,v) on its face; a node on
-///    a CAD edge, or one whose share leaves the face, goes back): the elements keep the shape
-///    the result gave them, only less of it;
+///    a CAD edge or of an element on another face, or one whose share leaves the face, goes
+///    back): the elements keep the shape the result gave them, only less of it;
 ///  * element by element from the whole result: the nodes of every element below have their
 ///    share halved, four times at most, then go back; and so on until no element is below (a
 ///    local backtracking). An element whose every node is back is the input's, so this ends.
 /// Returns the number of nodes not where the result had them; *q is the quality of the mesh as
 /// it ends.
-std::size_t keepNoWorse(SurfaceMesh& mesh, const detail::MeshPositions& input, double ratioFloor,
+std::size_t keepNoWorse(SurfaceMesh& mesh, const detail::MeshPositions& input,
+                        const std::vector<unsigned char>& wasValid, double ratioFloor,
                         double qualityFloor, double cornerFloor, const PlanarMeasure& measure,
                         MeshQuality* q) {
   const std::size_t N = mesh.nodeCount(), E = mesh.elementCount();
   const detail::MeshPositions result = detail::MeshPositions::of(mesh);
+  // A node takes a share of its move in (u,v) when it is a face node and every element
+  // around it lies on its face (an element on another face holds the node's parameters on
+  // that face); the others go back whole.
+  std::vector<unsigned char> blend(N, 0);
+  for (std::size_t i = 0; i < N; ++i) blend[i] = mesh.nodeKind[i] == NodeKind::Face ? 1 : 0;
+  for (std::size_t e = 0; e < E; ++e) {
+    const std::int32_t* nd = mesh.elementNodes(e);
+    for (int k = 0; k < mesh.elementSize(e); ++k) {
+      const std::size_t i = static_cast<std::size_t>(nd[k]);
+      if (mesh.nodeFace[i] != mesh.elemFace[e]) blend[i] = 0;
+    }
+  }
   std::vector<Vec2> move(N, Vec2::Zero());
   for (std::size_t i = 0; i < N; ++i)
-    if (mesh.nodeKind[i] == NodeKind::Face) {
+    if (blend[i]) {
       const Surface& s = *mesh.surfaces[static_cast<std::size_t>(mesh.nodeFace[i])];
       move[i] = s.unwrapNear(result.uv[i], input.uv[i]) - input.uv[i];
     }
@@ -293,7 +340,7 @@ std::size_t keepNoWorse(SurfaceMesh& mesh, const detail::MeshPositions& input, d
       if (!mesh.nodeT.empty()) mesh.nodeT[i] = result.nodeT[i];
       return;
     }
-    if (share[i] > 0.0 && mesh.nodeKind[i] == NodeKind::Face) {
+    if (share[i] > 0.0 && blend[i]) {
       const Surface& s = *mesh.surfaces[static_cast<std::size_t>(mesh.nodeFace[i])];
       const Vec2 w = s.wrap(input.uv[i] + share[i] * move[i]);
       if (w.allFinite() && s.contains(w.x(), w.y())) {
@@ -320,8 +367,8 @@ std::size_t keepNoWorse(SurfaceMesh& mesh, const detail::MeshPositions& input, d
   };
   auto isBelow = [&](const MeshQuality& mq, const std::vector<double>& ratio,
                      const std::vector<double>& corners, std::size_t e) {
-    return mq.tangled[e] || mq.across[e] || ratio[e] < ratioFloor || mq.quality[e] < qualityFloor ||
-           corners[e] < cornerFloor;
+    return (wasValid[e] && (mq.tangled[e] || mq.across[e])) || ratio[e] < ratioFloor ||
+           mq.quality[e] < qualityFloor || corners[e] < cornerFloor;
   };
   auto anyBelow = [&](const MeshQuality& mq) {
     const std::vector<double> ratio = elementJacobianRatio(mesh);
@@ -374,7 +421,10 @@ std::size_t keepNoWorse(SurfaceMesh& mesh, const detail::MeshPositions& input, d
     cornerParameters();
     *q = measureQuality(mesh, measure);
   }
-  if (!uniform.empty() && meanUniform > mean(elementJacobianRatio(mesh))) {
+  const std::size_t invalidLocal = invalidCount(*q);
+  if (!uniform.empty() &&
+      (invalidCount(qUniform) < invalidLocal || (invalidCount(qUniform) == invalidLocal &&
+                                                 meanUniform > mean(elementJacobianRatio(mesh))))) {
     uniform.copyTo(mesh);
     *q = qUniform;
   }
@@ -492,21 +542,69 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
   // the same way (it keeps the minimum quality and every valid element valid, not the
   // Jacobian ratio). On an invalid input, the integral mode's result.
   std::size_t backRef = 0;
-  if (worse && invalid0 == 0) {
-    backRef = keepNoWorse(mesh, original, ratio0 - kRounding, q0.stats.min - kRounding,
-                          corner0 - kRounding, measure, &q2);
+  if (worse) {
+    std::vector<unsigned char> wasValid(mesh.elementCount(), 0);
+    for (std::size_t e = 0; e < mesh.elementCount(); ++e)
+      wasValid[e] = (q0.tangled[e] || q0.across[e]) ? 0 : 1;
+    constexpr double kNone = -std::numeric_limits<double>::infinity();
+    const bool valid = invalid0 == 0;
+    backRef = keepNoWorse(mesh, original, wasValid, valid ? ratio0 - kRounding : kNone,
+                          q0.stats.tangled == 0 ? q0.stats.min - kRounding : kNone,
+                          valid ? corner0 - kRounding : kNone, measure, &q2);
     invalid2 = invalidCount(q2);
   }
   bool moved = false;
   for (std::size_t i = 0; i < mesh.nodeCount() && !moved; ++i)
     moved = mesh.xyz[i] != original.xyz[i];
-  if (worse && (invalid0 > 0 || !moved)) {
+  // The integral mode's result (in `mesh`, `alt` its result) with the reference result
+  // `mine` (quality qMine) put back away from mine's invalid elements (mergeAroundInvalid,
+  // 1, 2 then 3 rings): kept when no element valid in the input is invalid, the elements
+  // tangled are some of the integral result's, no more are invalid, and the minimum quality
+  // holds where the input has no tangled element. The integral mode curves every element;
+  // this keeps the straight-sided reference wherever it did as well.
+  auto preferMerged = [&](OptimizeResult& alt, const detail::MeshPositions& mine,
+                          const MeshQuality& qMine) {
+    const detail::MeshPositions theirs = detail::MeshPositions::of(mesh);
+    const MeshQuality qI = measureQuality(mesh, measure);
+    const std::size_t invalidI = invalidCount(qI);
+    for (int rings = 1; rings <= 3; ++rings) {
+      mergeAroundInvalid(mesh, mine, qMine, rings);
+      const MeshQuality qm = measureQuality(mesh, measure);
+      std::size_t invalidM = 0;
+      bool ok = !judge(mesh, q0, qm, &invalidM) && invalidM <= invalidI &&
+                (q0.stats.tangled != 0 || qm.stats.min >= q0.stats.min - kRounding);
+      for (std::size_t e = 0; e < mesh.elementCount() && ok; ++e)
+        ok = !qm.tangled[e] || qI.tangled[e];
+      if (ok) {
+        alt.after = qm.stats;
+        alt.movedNodes = 0;
+        for (std::size_t i = 0; i < mesh.nodeCount(); ++i)
+          alt.movedNodes += mesh.xyz[i] != original.xyz[i] ? 1 : 0;
+        auto stillTangled = [&](std::vector<std::int32_t>& v) {
+          v.erase(std::remove_if(
+                      v.begin(), v.end(),
+                      [&](std::int32_t e) { return !qm.tangled[static_cast<std::size_t>(e)]; }),
+                  v.end());
+        };
+        stillTangled(alt.tangledUnmovable);
+        stillTangled(alt.tangledMovable);
+        return;
+      }
+      theirs.copyTo(mesh);
+    }
+  };
+  if (worse && (invalid2 > invalid0 || !moved)) {
+    const detail::MeshPositions mine = detail::MeshPositions::of(mesh);
     OptimizeResult alt = integral();
-    if (alt.reason == StopReason::Cancelled || invalid0 > 0) return alt;
+    if (alt.reason == StopReason::Cancelled) return alt;
+    if (invalid0 > 0) {
+      preferMerged(alt, mine, q2);
+      return alt;
+    }
     MeshQuality qa;
-    const std::size_t back =
-        keepNoWorse(mesh, original, ratio0 - kRounding, q0.stats.min - kRounding,
-                    corner0 - kRounding, measure, &qa);
+    const std::size_t back = keepNoWorse(
+        mesh, original, std::vector<unsigned char>(mesh.elementCount(), 1), ratio0 - kRounding,
+        q0.stats.min - kRounding, corner0 - kRounding, measure, &qa);
     if (back > 0) {
       alt.after = qa.stats;
       alt.restoredNodes += back;
@@ -520,7 +618,10 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
     const detail::MeshPositions mine = detail::MeshPositions::of(mesh);
     OptimizeResult alt = integral();
     if (alt.reason == StopReason::Cancelled) return alt;  // the input, unchanged
-    if (invalidCount(measureQuality(mesh, measure)) < invalid2) return alt;
+    if (invalidCount(measureQuality(mesh, measure)) < invalid2) {
+      preferMerged(alt, mine, q2);
+      return alt;
+    }
     mine.copyTo(mesh);
   }
 
@@ -539,6 +640,20 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
     res.tangledUnmovable = r2.tangledUnmovable;
     res.tangledMovable = r2.tangledMovable;
     res.warnings = r2.warnings;
+  }
+  if (backRef > 0) {
+    // The cut-back changed which elements are tangled: those no longer tangled leave the
+    // lists; those tangled again (as in the input) join the movable ones.
+    std::vector<unsigned char> listed(mesh.elementCount(), 0);
+    for (auto* v : {&res.tangledUnmovable, &res.tangledMovable}) {
+      v->erase(
+          std::remove_if(v->begin(), v->end(),
+                         [&](std::int32_t e) { return !q2.tangled[static_cast<std::size_t>(e)]; }),
+          v->end());
+      for (const std::int32_t e : *v) listed[static_cast<std::size_t>(e)] = 1;
+    }
+    for (std::size_t e = 0; e < mesh.elementCount(); ++e)
+      if (q2.tangled[e] && !listed[e]) res.tangledMovable.push_back(static_cast<std::int32_t>(e));
   }
   res.seconds = seconds();
   return res;

@@ -177,13 +177,14 @@ struct OptimizeOptions {
   ///    linear measure, each high-order node inside its face then goes to its straight-sided
   ///    place, and only the elements that leaves invalid (and high-order nodes sliding along
   ///    CAD edges) are optimized further with the Definition-4 measure. On a plane a
-  ///    straight-sided element stays affine. Never worse: on a valid input, the moves of a
-  ///    result that would make an element invalid or lower the minimum quality, corner
-  ///    quality or Jacobian ratio are cut back (a shorter move for every node, or for the
-  ///    elements below) until none is below the input's; on an input with invalid elements,
-  ///    a result that would make a valid element invalid, leave more invalid elements or
-  ///    lower the minimum quality where no element is tangled gives way to the "integral"
-  ///    result, as does one that leaves more invalid elements than it (reference_mode.cpp).
+  ///    straight-sided element stays affine. Never worse: the moves of a result that would
+  ///    make an element valid in the input invalid, lower the minimum quality where no element
+  ///    is tangled, or on a valid input lower the minimum corner quality or Jacobian ratio are
+  ///    cut back (a shorter move for every node, or for the elements at fault) until none
+  ///    does; when that leaves the input unchanged or more elements invalid than it, the
+  ///    "integral" result instead. Where elements stay invalid, the "integral" result when it
+  ///    leaves fewer, with the straight-sided result kept away from the elements that one
+  ///    left invalid (reference_mode.cpp).
   ///  * "integral": every node by the paper's Definition-4 integral measure (the paper's
   ///    Table 4); it may curve the sides of a straight-sided element to improve the measure.
   /// Linear meshes are the same in both modes.
