@@ -542,7 +542,9 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
   // the same way (it keeps the minimum quality and every valid element valid, not the
   // Jacobian ratio). On an invalid input, the integral mode's result.
   std::size_t backRef = 0;
+  bool retangled = false;
   if (worse) {
+    const std::vector<unsigned char> tangledBefore = q2.tangled;
     std::vector<unsigned char> wasValid(mesh.elementCount(), 0);
     for (std::size_t e = 0; e < mesh.elementCount(); ++e)
       wasValid[e] = (q0.tangled[e] || q0.across[e]) ? 0 : 1;
@@ -552,6 +554,10 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
                           q0.stats.tangled == 0 ? q0.stats.min - kRounding : kNone,
                           valid ? corner0 - kRounding : kNone, measure, &q2);
     invalid2 = invalidCount(q2);
+    // (An element the cut-back tangles again, as in the input, was not weighed by the run:
+    // the integral mode's result instead.)
+    for (std::size_t e = 0; e < mesh.elementCount() && !retangled; ++e)
+      retangled = q2.tangled[e] && !tangledBefore[e];
   }
   bool moved = false;
   for (std::size_t i = 0; i < mesh.nodeCount() && !moved; ++i)
@@ -593,7 +599,7 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
       theirs.copyTo(mesh);
     }
   };
-  if (worse && (invalid2 > invalid0 || !moved)) {
+  if (worse && (invalid2 > invalid0 || !moved || retangled)) {
     const detail::MeshPositions mine = detail::MeshPositions::of(mesh);
     OptimizeResult alt = integral();
     if (alt.reason == StopReason::Cancelled) return alt;
@@ -641,20 +647,12 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
     res.tangledMovable = r2.tangledMovable;
     res.warnings = r2.warnings;
   }
-  if (backRef > 0) {
-    // The cut-back changed which elements are tangled: those no longer tangled leave the
-    // lists; those tangled again (as in the input) join the movable ones.
-    std::vector<unsigned char> listed(mesh.elementCount(), 0);
-    for (auto* v : {&res.tangledUnmovable, &res.tangledMovable}) {
+  if (backRef > 0)  // the elements the cut-back untangled leave the lists (it tangles none)
+    for (auto* v : {&res.tangledUnmovable, &res.tangledMovable})
       v->erase(
           std::remove_if(v->begin(), v->end(),
                          [&](std::int32_t e) { return !q2.tangled[static_cast<std::size_t>(e)]; }),
           v->end());
-      for (const std::int32_t e : *v) listed[static_cast<std::size_t>(e)] = 1;
-    }
-    for (std::size_t e = 0; e < mesh.elementCount(); ++e)
-      if (q2.tangled[e] && !listed[e]) res.tangledMovable.push_back(static_cast<std::int32_t>(e));
-  }
   res.seconds = seconds();
   return res;
 }
