@@ -25,8 +25,9 @@
 //      input, a lower minimum Jacobian ratio (elementJacobianRatio) or corner quality, the
 //      result is cut back (keepNoWorse: every node the same share of its move, or element by
 //      element the moves of the elements at fault halved then undone) until none of that
-//      holds; when that leaves the input as it was, or more invalid elements than the input,
-//      the integral mode instead (cut back the same way on a valid input);
+//      holds; when that leaves the input as it was, more invalid elements than the input,
+//      or an element the run had untangled tangled again, the integral mode instead (cut
+//      back the same way on a valid input);
 //   5. where elements stay invalid, the integral mode's result when it leaves fewer, with the
 //      straight-sided result put back away from the elements it left invalid when that keeps
 //      as few (mergeAroundInvalid).

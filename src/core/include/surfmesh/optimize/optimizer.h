@@ -181,10 +181,10 @@ struct OptimizeOptions {
   ///    make an element valid in the input invalid, lower the minimum quality where no element
   ///    is tangled, or on a valid input lower the minimum corner quality or Jacobian ratio are
   ///    cut back (a shorter move for every node, or for the elements at fault) until none
-  ///    does; when that leaves the input unchanged or more elements invalid than it, the
-  ///    "integral" result instead. Where elements stay invalid, the "integral" result when it
-  ///    leaves fewer, with the straight-sided result kept away from the elements that one
-  ///    left invalid (reference_mode.cpp).
+  ///    does; when that leaves the input unchanged, more elements invalid than it or an
+  ///    element tangled again, the "integral" result instead. Where elements stay invalid,
+  ///    the "integral" result when it leaves fewer, with the straight-sided result kept away
+  ///    from the elements that one left invalid (reference_mode.cpp).
   ///  * "integral": every node by the paper's Definition-4 integral measure (the paper's
   ///    Table 4); it may curve the sides of a straight-sided element to improve the measure.
   /// Linear meshes are the same in both modes.
