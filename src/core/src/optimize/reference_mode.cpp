@@ -261,6 +261,23 @@ bool judge(const SurfaceMesh& mesh, const MeshQuality& q0, const MeshQuality& q,
   return false;
 }
 
+/// The nodes of `mesh` not where `original` has them.
+std::size_t movedCount(const SurfaceMesh& mesh, const detail::MeshPositions& original) {
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < mesh.nodeCount(); ++i) n += mesh.xyz[i] != original.xyz[i] ? 1 : 0;
+  return n;
+}
+
+/// Drops from r's lists of tangled elements those no longer tangled in q (after a cut-back or
+/// a merge that tangles none anew).
+void keepStillTangled(OptimizeResult& r, const MeshQuality& q) {
+  for (auto* v : {&r.tangledUnmovable, &r.tangledMovable})
+    v->erase(
+        std::remove_if(v->begin(), v->end(),
+                       [&](std::int32_t e) { return !q.tangled[static_cast<std::size_t>(e)]; }),
+        v->end());
+}
+
 /// The integral mode's result (in `mesh`) where `mine`, the reference result of quality
 /// qMine, has invalid elements, widened by `rings` rings of elements; `mine` everywhere else.
 /// The corner parameters of the nodes taken from the integral result are put in the period of
@@ -560,9 +577,7 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
     for (std::size_t e = 0; e < mesh.elementCount() && !retangled; ++e)
       retangled = q2.tangled[e] && !tangledBefore[e];
   }
-  bool moved = false;
-  for (std::size_t i = 0; i < mesh.nodeCount() && !moved; ++i)
-    moved = mesh.xyz[i] != original.xyz[i];
+  const bool moved = movedCount(mesh, original) > 0;
   // The integral mode's result (in `mesh`, `alt` its result) with the reference result
   // `mine` (quality qMine) put back away from mine's invalid elements (mergeAroundInvalid,
   // 1, 2 then 3 rings): kept when no element valid in the input is invalid, the elements
@@ -584,17 +599,8 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
         ok = !qm.tangled[e] || qI.tangled[e];
       if (ok) {
         alt.after = qm.stats;
-        alt.movedNodes = 0;
-        for (std::size_t i = 0; i < mesh.nodeCount(); ++i)
-          alt.movedNodes += mesh.xyz[i] != original.xyz[i] ? 1 : 0;
-        auto stillTangled = [&](std::vector<std::int32_t>& v) {
-          v.erase(std::remove_if(
-                      v.begin(), v.end(),
-                      [&](std::int32_t e) { return !qm.tangled[static_cast<std::size_t>(e)]; }),
-                  v.end());
-        };
-        stillTangled(alt.tangledUnmovable);
-        stillTangled(alt.tangledMovable);
+        alt.movedNodes = movedCount(mesh, original);
+        keepStillTangled(alt, qm);
         return;
       }
       theirs.copyTo(mesh);
@@ -615,9 +621,7 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
     if (back > 0) {
       alt.after = qa.stats;
       alt.restoredNodes += back;
-      alt.movedNodes = 0;
-      for (std::size_t i = 0; i < mesh.nodeCount(); ++i)
-        alt.movedNodes += mesh.xyz[i] != original.xyz[i] ? 1 : 0;
+      alt.movedNodes = movedCount(mesh, original);
     }
     return alt;
   }
@@ -637,8 +641,7 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
   res.reason = ran2 ? r2.reason : r1.reason;
   res.initialObjective = r1.initialObjective;
   res.finalObjective = ran2 ? r2.finalObjective : r1.finalObjective;
-  for (std::size_t i = 0; i < mesh.nodeCount(); ++i)
-    res.movedNodes += mesh.xyz[i] != original.xyz[i] ? 1 : 0;
+  res.movedNodes = movedCount(mesh, original);
   res.patchUntanglings = r1.patchUntanglings + (ran2 ? r2.patchUntanglings : 0);
   res.straightenedElements = ran2 ? r2.straightenedElements : 0;
   res.restoredNodes = r1.restoredNodes + (ran2 ? r2.restoredNodes : 0) + backRef;
@@ -648,12 +651,7 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
     res.tangledMovable = r2.tangledMovable;
     res.warnings = r2.warnings;
   }
-  if (backRef > 0)  // the elements the cut-back untangled leave the lists (it tangles none)
-    for (auto* v : {&res.tangledUnmovable, &res.tangledMovable})
-      v->erase(
-          std::remove_if(v->begin(), v->end(),
-                         [&](std::int32_t e) { return !q2.tangled[static_cast<std::size_t>(e)]; }),
-          v->end());
+  if (backRef > 0) keepStillTangled(res, q2);  // (the cut-back tangles none anew)
   res.seconds = seconds();
   return res;
 }
