@@ -192,7 +192,18 @@ TEST(ReferenceMode, CancellingLeavesTheMeshAsItWas) {
   jitterCorners(m, torus, 0.2, 2 * M_PI / 24, 5);
   const std::vector<Vec3> xyz = m.xyz;
   const std::vector<Vec2> uv = m.uv, cuv = m.cornerUV;
-  for (int cancelAt : {1, 2, 3}) {
+  // The whole run's progress calls: the last is the last stage's (the straightening, step 6).
+  int total = 0, lastStage = 0;
+  {
+    SurfaceMesh copy = m;
+    optimizeMesh(copy, OptimizeOptions{}, [&](const OptimizeProgress& p) {
+      ++total;
+      lastStage = p.stage;
+      return true;
+    });
+  }
+  ASSERT_GE(lastStage, 1);  // (stage 0: the corners)
+  for (int cancelAt : {1, 2, 3, total}) {
     int calls = 0;
     const OptimizeResult r = optimizeMesh(
         m, OptimizeOptions{}, [&](const OptimizeProgress&) { return ++calls < cancelAt; });

@@ -283,6 +283,54 @@ class ValidCurvedInputNeverWorse(unittest.TestCase):
                 self.assertGreaterEqual(q1.min(), q0.min() - 1e-9, f"{name} o{order}")
 
 
+class RepairKeepsTheJacobianRatio(unittest.TestCase):
+    """Issue #39 point 6 on Gmsh's raw order-2 and order-3 meshes of the crank arm (volumes
+    removed, size diagonal / 21, `setOrder` without Gmsh's optimization; 23 and 47 elements
+    invalid as Gmsh makes them, by this judge): the default run leaves fewer invalid elements and does not
+    lower the mean Jacobian ratio, by the judge of ValidCurvedInputNeverWorse (Gmsh's basis
+    gradients, det J along the corners' plane normal). The repair of the invalid elements
+    used to leave curved by the integral measure every element it had moved (mean ratio
+    0.91 -> 0.89 at order 2, 0.80 -> 0.69 at order 3, SurfMesh's own judge); the straight-sided
+    reference takes them back (method.md, step 6)."""
+
+    def test_mean_jacobian_ratio_not_lowered_and_fewer_invalid(self):
+        from SurfMesh.app import fileio
+
+        work = os.path.join(T.output_dir(), "repair_ratio")
+        shutil.rmtree(work, ignore_errors=True)
+        os.makedirs(work)
+        gmsh = fileio._gmsh()
+        part = os.path.join(T.data_dir(), "occt_crankarm.brep")
+        for order in (2, 3):
+            stem = os.path.join(work, f"crankarm_o{order}")
+            gmsh.clear()
+            gmsh.model.occ.importShapes(part)
+            gmsh.model.occ.synchronize()
+            gmsh.model.occ.remove(gmsh.model.getEntities(3))
+            gmsh.model.occ.synchronize()
+            box = gmsh.model.getBoundingBox(-1, -1)
+            diag = float(np.linalg.norm(np.subtract(box[3:], box[:3])))
+            gmsh.option.setNumber("Mesh.MeshSizeMax", diag / 21)
+            gmsh.option.setNumber("Mesh.HighOrderOptimize", 0)
+            gmsh.option.setNumber("Mesh.SaveAll", 0)
+            gmsh.model.mesh.generate(2)
+            gmsh.model.mesh.setOrder(order)
+            gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+            gmsh.write(stem + ".brep")
+            gmsh.write(stem + ".msh")
+            r0, _ = ValidCurvedInputNeverWorse.judge(gmsh, stem + ".msh")
+            self.assertGreater((r0 <= 0).sum(), 10, f"order {order}: the input is invalid")
+            code, so, se = run_cli("optimize", stem + ".brep", stem + ".msh",
+                                   "-o", stem + "_opt.msh")
+            self.assertEqual(code, 0, se)
+            r1, _ = ValidCurvedInputNeverWorse.judge(gmsh, stem + "_opt.msh")
+            print(f"\ncrank arm order {order}: {len(r0)} elements; invalid {(r0 <= 0).sum()} -> "
+                  f"{(r1 <= 0).sum()}; Jacobian ratio mean {r0.mean():.3f} -> {r1.mean():.3f}")
+            self.assertEqual(len(r1), len(r0))
+            self.assertLess((r1 <= 0).sum(), (r0 <= 0).sum(), f"order {order}")
+            self.assertGreaterEqual(r1.mean(), r0.mean(), f"order {order}")
+
+
 class GmshSideNodesOffTheirFace(unittest.TestCase):
     """Gmsh curves a second-order element by putting each side node on the face's surface at the
     midpoint of its ends in (u, v), which can fall outside the trimmed face: by the sagitta of a

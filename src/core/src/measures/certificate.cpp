@@ -584,7 +584,7 @@ JacobianCertificate certifyElementJacobian(ElementType type, const Vec3* x, cons
 
 bool markUncertifiedFold(ElementType type, const Vec3* x, const Vec3& n, double delta,
                          ElementEval* r, Vec3* grad, Mat3* hess, double* eta0,
-                         const PlanarMeasure* m, int freeLocal) {
+                         const PlanarMeasure* m, int freeLocal, const Mat2* target) {
   if (r->tangled || !isHighOrderTriangle(type)) return false;
   const int p = elementOrder(type);
   const JacobianCertificate c = decideReference(p, x, n, kCertificateMaxDepth);
@@ -613,9 +613,11 @@ bool markUncertifiedFold(ElementType type, const Vec3* x, const Vec3& n, double 
   const bool derivs = freeLocal >= 0 && freeLocal < nn && grad != nullptr;
   Vec3 gs = Vec3::Zero();
   Mat3 Hs = Mat3::Zero();
-  const ElementEval e =
-      jacobianDistortion(*m, J, equilateralWinv(), n, delta, derivs ? &g[freeLocal] : nullptr,
-                         derivs ? &gs : nullptr, derivs && hess ? &Hs : nullptr);
+  const SizedMeasure sized(*m);  // against the straight-sided triangle: its size too
+  const ElementEval e = jacobianDistortion(target ? static_cast<const PlanarMeasure&>(sized) : *m,
+                                           J, target ? *target : equilateralWinv(), n, delta,
+                                           derivs ? &g[freeLocal] : nullptr, derivs ? &gs : nullptr,
+                                           derivs && hess ? &Hs : nullptr);
   if (!std::isfinite(e.eta)) return true;
   const double w = 1.0 / nn;
   const double eta = r->eta;

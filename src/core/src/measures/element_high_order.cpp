@@ -129,14 +129,17 @@ ElementEval highOrderTriangleDistortion(const PlanarMeasure& m, ElementType type
   return r;
 }
 
-ElementEval highOrderTriangleDistortion(const PlanarMeasure& m, const HighOrderJacobians& pre,
+ElementEval highOrderTriangleDistortion(const PlanarMeasure& base, const HighOrderJacobians& pre,
                                         const Vec3& xFree, const Vec3& n, double delta, Vec3* grad,
-                                        Mat3* hess, double* eta0) {
+                                        Mat3* hess, double* eta0, const Mat2* target) {
   const HighOrderTriangleRule& rule = ruleOf(pre.type);
   const int nn = rule.nodes;
   const int k = pre.freeLocal;
   const bool derivs = k >= 0 && (grad || hess);
-  const Mat2& Winv = equilateralWinv();
+  const Mat2& Winv = target ? *target : equilateralWinv();
+  // Against the straight-sided triangle: its size too.
+  const SizedMeasure sized(base);
+  const PlanarMeasure& m = target ? static_cast<const PlanarMeasure&>(sized) : base;
   constexpr double kInf = std::numeric_limits<double>::infinity();
   // J at a point: the fixed nodes' part plus the free node's term.
   auto jacobian = [&](const Jacobian32& rest, const Eigen::Vector2d* g) {
@@ -205,6 +208,18 @@ ElementEval highOrderTriangleDistortion(const PlanarMeasure& m, const HighOrderJ
     if (hess) *hess = Hsum / r.eta - g * g.transpose() / r.eta;
   }
   return r;
+}
+
+bool straightSidedTarget(const Vec3& x0, const Vec3& x1, const Vec3& x2, const Vec3& n,
+                         Mat2* Winv) {
+  const Vec3 a = x1 - x0, b = x2 - x0;
+  const Vec3 axb = a.cross(b);
+  const double la = a.norm(), area2 = axb.norm();
+  if (!(la > 0.0) || !(area2 > 0.0) || !(axb.dot(n) > 0.0)) return false;
+  Mat2 W;
+  W << la, a.dot(b) / la, 0.0, area2 / la;
+  *Winv = W.inverse();
+  return Winv->allFinite();
 }
 
 }  // namespace surfmesh

@@ -87,6 +87,28 @@ double OddyMeasure::invariantValue(double F, double sigma, double s) const {
   return (F * F - 3.0 * sigma * sigma) / (s * s);
 }
 
+std::string SizedMeasure::description() const {
+  return base_.description() + ", times the size term (sigma + 1/sigma) / 2";
+}
+
+InvariantDerivs SizedMeasure::invariants(double F, double sigma, const RegularizedSigma& rs) const {
+  const InvariantDerivs b = base_.invariants(F, sigma, rs);
+  const double s = rs.value, s1 = rs.d1, s2 = rs.d2;
+  const double g = 0.5 * (s + 1.0 / s), g1 = 0.5 * (1.0 - 1.0 / (s * s)), g2 = 1.0 / (s * s * s);
+  InvariantDerivs d;
+  d.h = b.h * g;
+  d.hF = b.hF * g;
+  d.hs = b.hs * g + b.h * g1 * s1;
+  d.hFF = b.hFF * g;
+  d.hFs = b.hFs * g + b.hF * g1 * s1;
+  d.hss = b.hss * g + 2.0 * b.hs * g1 * s1 + b.h * (g2 * s1 * s1 + g1 * s2);
+  return d;
+}
+
+double SizedMeasure::invariantValue(double F, double sigma, double s) const {
+  return base_.invariantValue(F, sigma, s) * 0.5 * (s + 1.0 / s);
+}
+
 namespace {
 struct Registry {
   std::vector<std::unique_ptr<PlanarMeasure>> measures;

@@ -30,11 +30,16 @@
 //      back the same way on a valid input);
 //   5. where elements stay invalid, the integral mode's result when it leaves fewer, with the
 //      straight-sided result put back away from the elements it left invalid when that keeps
-//      as few (mergeAroundInvalid).
+//      as few (mergeAroundInvalid);
+//   6. straightened: the high-order nodes inside the faces, with the corners, the nodes on CAD
+//      edges and those of invalid elements held, optimized against each element's
+//      straight-sided triangle on its corners, shape and size (straightenCurved), kept face
+//      by face where that raises the mean Jacobian ratio and keeps validity and the minima.
 #include "reference_mode.h"
 
 #include "progress_relay.h"
 #include "straight_sided.h"
+#include "surfmesh/measures/element_measure.h"
 #include "surfmesh/measures/lagrange_triangle.h"
 #include "surfmesh/measures/measure.h"
 #include "surfmesh/mesh/distance_to_face.h"
@@ -225,6 +230,25 @@ void placeStraightSided(SurfaceMesh& mesh, const SurfaceMesh& L) {
                               cuv[k]);
     }
   }
+}
+
+/// Each high-order triangle's straight-sided triangle on its corners where they are now, as
+/// its ideal (OptimizeOptions::highOrderTargets); the equilateral (a zero entry) where that
+/// triangle is degenerate or wound against the element's normal.
+std::vector<Mat2> straightSidedTargets(const SurfaceMesh& mesh) {
+  std::vector<Mat2> targets(mesh.elementCount(), Mat2::Zero());
+  for (std::size_t e = 0; e < mesh.elementCount(); ++e) {
+    if (!isHighOrderTriangle(mesh.elemType[e])) continue;
+    const std::int32_t* nd = mesh.elementNodes(e);
+    const Vec3 n = elementReferenceNormal(mesh, e);
+    if (!(n.squaredNorm() > 0.0)) continue;
+    Mat2 Winv;
+    if (straightSidedTarget(mesh.xyz[static_cast<std::size_t>(nd[0])],
+                            mesh.xyz[static_cast<std::size_t>(nd[1])],
+                            mesh.xyz[static_cast<std::size_t>(nd[2])], n, &Winv))
+      targets[e] = Winv;
+  }
+  return targets;
 }
 
 /// Stage 3's fixedNodes: every node held (1) but those of the elements invalid in q1 (tangled
@@ -453,6 +477,95 @@ std::size_t keepNoWorse(SurfaceMesh& mesh, const detail::MeshPositions& input,
 
 }  // namespace
 
+/// What straightenCurved did: its run's sweeps, how many faces took its result (0: the mesh
+/// is as it was) and the quality of the mesh it leaves.
+struct Straightened {
+  int sweeps = 0;
+  bool cancelled = false;  // (the mesh as it was)
+  std::size_t faces = 0;
+  MeshQuality quality;
+};
+
+/// The high-order nodes inside the faces moved towards the straight-sided triangles on the
+/// elements' corners (straightSidedTargets: the distortion of each high-order triangle against
+/// its straight-sided one, size included), the corners, the nodes on CAD edges and the nodes
+/// of invalid elements held. The integral measure and the untangling curve elements further
+/// than the surface asks; this takes it back where it can. A face takes the result when none
+/// of its elements valid before is invalid after, none is tangled that was not, and its
+/// smallest Jacobian ratio and quality are not lower and its mean Jacobian ratio higher;
+/// the other faces' nodes go back (a node inside a face moves the elements of that face only).
+Straightened straightenCurved(SurfaceMesh& mesh, const OptimizeOptions& inner,
+                              const PlanarMeasure& measure, const ProgressCallback& progress) {
+  Straightened out;
+  const MeshQuality qa = measureQuality(mesh, measure);
+  OptimizeOptions run = inner;
+  run.topology = "none";  // (the faces' results are merged node by node)
+  run.fixedNodes.assign(mesh.nodeCount(), 0);
+  for (std::size_t e = 0; e < mesh.elementCount(); ++e) {
+    const std::int32_t* nd = mesh.elementNodes(e);
+    const bool invalid = qa.tangled[e] || qa.across[e];
+    for (int k = 0; k < mesh.elementSize(e); ++k) {
+      const std::size_t j = static_cast<std::size_t>(nd[k]);
+      if (invalid || k < cornerCount(mesh.elemType[e]) || mesh.nodeKind[j] != NodeKind::Face)
+        run.fixedNodes[j] = 1;
+    }
+  }
+  bool any = false;
+  for (std::size_t i = 0; i < mesh.nodeCount() && !any; ++i) any = !run.fixedNodes[i];
+  if (!any) return out;
+  run.highOrderTargets = straightSidedTargets(mesh);
+  const detail::MeshPositions before = detail::MeshPositions::of(mesh);
+  const std::vector<double> ratioA = elementJacobianRatio(mesh);
+  const OptimizeResult r = optimizeMesh(mesh, run, progress, &qa.stats);
+  out.sweeps = r.sweeps;
+  if (r.reason == StopReason::Cancelled) {
+    before.copyTo(mesh);
+    out.cancelled = true;
+    return out;
+  }
+  const MeshQuality qp = measureQuality(mesh, measure);
+  const std::vector<double> ratioP = elementJacobianRatio(mesh);
+  // Face by face.
+  const std::size_t nf = mesh.surfaces.size();
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  std::vector<double> minRatioA(nf, kInf), minRatioP(nf, kInf), minQA(nf, kInf), minQP(nf, kInf);
+  std::vector<double> sumA(nf, 0.0), sumP(nf, 0.0);
+  std::vector<unsigned char> refuse(nf, 0);
+  for (std::size_t e = 0; e < mesh.elementCount(); ++e) {
+    const std::size_t f = static_cast<std::size_t>(mesh.elemFace[e]);
+    const bool invalidA = qa.tangled[e] || qa.across[e], invalidP = qp.tangled[e] || qp.across[e];
+    if ((invalidP && !invalidA) || (qp.tangled[e] && !qa.tangled[e])) refuse[f] = 1;
+    minRatioA[f] = std::min(minRatioA[f], ratioA[e]);
+    minRatioP[f] = std::min(minRatioP[f], ratioP[e]);
+    minQA[f] = std::min(minQA[f], qa.quality[e]);
+    minQP[f] = std::min(minQP[f], qp.quality[e]);
+    sumA[f] += ratioA[e];
+    sumP[f] += ratioP[e];
+  }
+  // (A face's smallest ratio and quality may drop, not below the mesh's smallest before.)
+  const double lowestRatio = smallest(ratioA), lowestQ = smallest(qa.quality);
+  std::vector<unsigned char> take(nf, 0);
+  for (std::size_t f = 0; f < nf; ++f) {
+    take[f] = !refuse[f] && minRatioP[f] >= std::min(minRatioA[f], lowestRatio) &&
+              minQP[f] >= std::min(minQA[f], lowestQ) && sumP[f] > sumA[f];
+    out.faces += take[f];
+  }
+  // The positions: the run's on the faces that take it, the ones before elsewhere.
+  detail::MeshPositions merged = before;
+  for (std::size_t i = 0; i < mesh.nodeCount(); ++i)
+    if (!run.fixedNodes[i] && take[static_cast<std::size_t>(mesh.nodeFace[i])]) {
+      merged.xyz[i] = mesh.xyz[i];
+      merged.uv[i] = mesh.uv[i];
+    }
+  for (std::size_t e = 0; e < mesh.elementCount(); ++e)
+    if (take[static_cast<std::size_t>(mesh.elemFace[e])])
+      for (std::int64_t k = mesh.elemOffset[e]; k < mesh.elemOffset[e + 1]; ++k)
+        merged.cornerUV[static_cast<std::size_t>(k)] = mesh.cornerUV[static_cast<std::size_t>(k)];
+  merged.copyTo(mesh);
+  out.quality = out.faces > 0 ? measureQuality(mesh, measure) : qa;
+  return out;
+}
+
 bool hasCurvedElements(const SurfaceMesh& mesh) {
   for (ElementType t : mesh.elemType)
     if (t != ElementType::Tri3 && t != ElementType::Quad4) return true;
@@ -606,12 +719,34 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
       theirs.copyTo(mesh);
     }
   };
+  // 6. The high-order nodes of a result moved towards the straight-sided triangles of its
+  // corners, face by face where that keeps every element's validity and raises the face's
+  // mean Jacobian ratio without lowering the minimum ratio or quality (straightenCurved).
+  auto straighten = [&](OptimizeResult& r) {
+    ++stage;
+    const Straightened st = straightenCurved(mesh, inner, measure, staged);
+    done += st.sweeps;
+    r.sweeps = done;
+    r.seconds = seconds();
+    if (st.cancelled) {  // the input, unchanged, as every cancelled run leaves it
+      original.copyTo(mesh);
+      r.after = q0.stats;
+      r.reason = StopReason::Cancelled;
+      r.movedNodes = 0;
+      return;
+    }
+    if (st.faces == 0) return;
+    r.after = st.quality.stats;
+    r.movedNodes = movedCount(mesh, original);
+    keepStillTangled(r, st.quality);
+  };
   if (worse && (invalid2 > invalid0 || !moved || retangled)) {
     const detail::MeshPositions mine = detail::MeshPositions::of(mesh);
     OptimizeResult alt = integral();
     if (alt.reason == StopReason::Cancelled) return alt;
     if (invalid0 > 0) {
       preferMerged(alt, mine, q2);
+      straighten(alt);
       return alt;
     }
     MeshQuality qa;
@@ -623,6 +758,7 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
       alt.restoredNodes += back;
       alt.movedNodes = movedCount(mesh, original);
     }
+    straighten(alt);
     return alt;
   }
   if (invalid2 > 0) {
@@ -631,6 +767,7 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
     if (alt.reason == StopReason::Cancelled) return alt;  // the input, unchanged
     if (invalidCount(measureQuality(mesh, measure)) < invalid2) {
       preferMerged(alt, mine, q2);
+      straighten(alt);
       return alt;
     }
     mine.copyTo(mesh);
@@ -653,6 +790,7 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
   }
   if (backRef > 0) keepStillTangled(res, q2);  // (the cut-back tangles none anew)
   res.seconds = seconds();
+  straighten(res);
   return res;
 }
 

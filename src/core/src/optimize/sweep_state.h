@@ -232,6 +232,16 @@ struct State {
     highOrderJacobians(mesh.elemType[e], xs, local, out);
   }
 
+  /// The ideal element e's Jacobians are measured against (OptimizeOptions::highOrderTargets),
+  /// null for the equilateral.
+  const Mat2* targetOf(std::size_t e) const {
+    if (opt.highOrderTargets.size() != mesh.elementCount() ||
+        !isHighOrderTriangle(mesh.elemType[e]))
+      return nullptr;
+    const Mat2& W = opt.highOrderTargets[e];
+    return W(0, 0) != 0.0 ? &W : nullptr;
+  }
+
   /// Element e with node `local` at x (others at their positions) and reference normal n.
   /// `pre`: for a high-order triangle, highOrderRest(e, local) when the other nodes have not
   /// moved since (a line search), or null.
@@ -253,15 +263,27 @@ struct State {
     const Vec3 nu = n.normalized();
     double eta0 = kInf;  // η with δ = 0, from the same pass over the element
     ElementEval ev;
+    const Mat2* target = targetOf(e);
     if (pre) {
       ev = highOrderTriangleDistortion(measure, *pre, x, nu, delta, grad, hess,
-                                       wantEta0 ? &eta0 : nullptr);
+                                       wantEta0 ? &eta0 : nullptr, target);
       if (!ev.tangled) {  // valid at the samples: the certificate, as elementDistortion's
         Vec3 xs[kMaxElementNodes];
         positions(e, local, x, xs);
         markUncertifiedFold(mesh.elemType[e], xs, nu, delta, &ev, grad, hess,
-                            wantEta0 ? &eta0 : nullptr, &measure, local);
+                            wantEta0 ? &eta0 : nullptr, &measure, local, target);
       }
+    } else if (target) {  // elementDistortion's way, against the element's own ideal
+      Vec3 xs[kMaxElementNodes];
+      positions(e, local, x, xs);
+      const int k = (grad || hess) ? local : -1;
+      HighOrderJacobians own;
+      highOrderJacobians(mesh.elemType[e], xs, k, &own);
+      ev = highOrderTriangleDistortion(measure, own,
+                                       own.freeLocal >= 0 ? xs[own.freeLocal] : Vec3::Zero(), nu,
+                                       delta, grad, hess, wantEta0 ? &eta0 : nullptr, target);
+      markUncertifiedFold(mesh.elemType[e], xs, nu, delta, &ev, grad, hess,
+                          wantEta0 ? &eta0 : nullptr, &measure, k, target);
     } else {
       Vec3 xs[kMaxElementNodes];
       positions(e, local, x, xs);

@@ -154,6 +154,7 @@ OptimizeResult optimizeWithFlips(SurfaceMesh& mesh, const OptimizeOptions& opt,
       rewired.insert(rewired.end(), pass.rewired.begin(), pass.rewired.end());
       // Smoothing around the rewired elements, on the elements it may change.
       OptimizeOptions local = inner;
+      local.highOrderTargets.clear();  // (indexed by the whole mesh's elements)
       std::vector<std::int32_t> nodes, elements;
       SurfaceMesh sub = aroundRewired(mesh, pass.rewired, 2, opt.fixedNodes, &local.fixedNodes,
                                       &nodes, &elements);

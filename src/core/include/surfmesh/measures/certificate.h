@@ -175,10 +175,12 @@ JacobianCertificate certifyElementJacobian(ElementType type, const Vec3* x, cons
 /// and the gradient and Hessian with respect to node `freeLocal` (when asked; both need the
 /// gradient) follow — so that Newton steps open a fold lying between the quadrature points.
 /// Returns whether it marked the element. Nothing is done for another type or an element
-/// already tangled.
+/// already tangled. `target`: the ideal the fold's point is measured against, as
+/// highOrderTriangleDistortion's (equilateral when null).
 bool markUncertifiedFold(ElementType type, const Vec3* x, const Vec3& n, double delta,
                          ElementEval* r, Vec3* grad, Mat3* hess, double* eta0,
-                         const PlanarMeasure* m = nullptr, int freeLocal = -1);
+                         const PlanarMeasure* m = nullptr, int freeLocal = -1,
+                         const Mat2* target = nullptr);
 
 /// Whether the element's D is proven positive everywhere: triangles by the certificate
 /// (Positive; NonPositive and Undecided are invalid), quad4 by its corner triangles (D affine in

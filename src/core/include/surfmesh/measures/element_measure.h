@@ -150,9 +150,24 @@ Jacobian32 highOrderJacobianAtNode(ElementType type, const Vec3* x, int k);
 
 /// highOrderTriangleDistortion with the free node (pre.freeLocal) at xFree and the other nodes
 /// as in `pre`; derivatives with respect to the free node (none when pre.freeLocal < 0).
+/// `target`: W⁻¹ of the element's ideal (its Jacobians measured as S = T J W⁻¹, by the
+/// measure with the size term, SizedMeasure), the equilateral triangle's (by `m` alone) when
+/// null; straightSidedTarget gives the reference mode's.
 ElementEval highOrderTriangleDistortion(const PlanarMeasure& m, const HighOrderJacobians& pre,
                                         const Vec3& xFree, const Vec3& n, double delta, Vec3* grad,
-                                        Mat3* hess, double* eta0 = nullptr);
+                                        Mat3* hess, double* eta0 = nullptr,
+                                        const Mat2* target = nullptr);
+
+/// W⁻¹ of the straight-sided triangle on corners (x0, x1, x2) (the reference triangle's
+/// corners (0,0), (1,0), (0,1) in that order): W is the triangle in its own plane, W = [a b]
+/// in an orthonormal basis of the plane with a = x1 − x0 along its first axis and b = x2 − x0
+/// on the side of positive det W. Measured against it, a high-order triangle with those
+/// corners and its other nodes where the affine map puts them has η = 1 at every point (the
+/// shape and Oddy measures are invariant under scaling and rotation), so curving is what the
+/// surface asks for. With a target the measure also weighs the size (SizedMeasure), so that
+/// det J stays near the straight-sided triangle's. False (and `Winv` untouched) when that
+/// triangle is degenerate or wound against n (any length).
+bool straightSidedTarget(const Vec3& x0, const Vec3& x1, const Vec3& x2, const Vec3& n, Mat2* Winv);
 
 /// Carries a gradient g (3) and Hessian H (3×3) in x to the surface parameters (u,v) through
 /// x = φ(u,v): g_u = Jᵀ g, H_u = Jᵀ H J + Σ_m g_m ∇²φ_m, with J = [φ_u φ_v].

@@ -109,6 +109,25 @@ class OddyMeasure final : public PlanarMeasure {
   double invariantValue(double F, double sigma, double s) const override;
 };
 
+/// A measure with the size of the ideal element added: η' = η · (σ* + 1/σ*)/2, 1 exactly when
+/// S is a rotation (the element is the ideal one, moved). For an ideal of the element's own
+/// size (a high-order triangle against its straight-sided triangle, straightSidedTarget), so
+/// that a curved element's det J stays near its straight-sided one's: the Jacobian ratio a FEM
+/// check reads. Not registered (its ideal must have the element's size).
+class SizedMeasure final : public PlanarMeasure {
+ public:
+  explicit SizedMeasure(const PlanarMeasure& base) : base_(base) {}
+  std::string name() const override { return base_.name() + "+size"; }
+  std::string description() const override;
+  bool hasHessian() const override { return base_.hasHessian(); }
+  bool scaleInvariant() const override { return false; }
+  InvariantDerivs invariants(double F, double sigma, const RegularizedSigma& s) const override;
+  double invariantValue(double F, double sigma, double s) const override;
+
+ private:
+  const PlanarMeasure& base_;
+};
+
 /// Names of every registered measure, in registration order.
 std::vector<std::string> measureNames();
 /// The measure registered under `name`; throws std::invalid_argument listing the known names.

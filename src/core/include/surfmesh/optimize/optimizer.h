@@ -184,7 +184,11 @@ struct OptimizeOptions {
   ///    does; when that leaves the input unchanged, more elements invalid than it or an
   ///    element tangled again, the "integral" result instead. Where elements stay invalid,
   ///    the "integral" result when it leaves fewer, with the straight-sided result kept away
-  ///    from the elements that one left invalid (reference_mode.cpp).
+  ///    from the elements that one left invalid. Last, with the corners, the nodes on CAD
+  ///    edges and those of invalid elements held, the high-order nodes inside the faces are
+  ///    optimized against each element's straight-sided triangle (highOrderTargets), face by
+  ///    face kept where that raises the face's mean Jacobian ratio and keeps every element
+  ///    valid and the minimum ratio and quality (reference_mode.cpp).
   ///  * "integral": every node by the paper's Definition-4 integral measure (the paper's
   ///    Table 4); it may curve the sides of a straight-sided element to improve the measure.
   /// Linear meshes are the same in both modes.
@@ -206,6 +210,11 @@ struct OptimizeOptions {
   /// Empty, or one entry per node: nonzero for the nodes the run must leave where they are
   /// (held like CAD vertices; e.g. the nodes of the elements outside a region to optimize).
   std::vector<unsigned char> fixedNodes;
+  /// Empty, or one entry per element: W⁻¹ of the ideal a high-order triangle's Jacobians are
+  /// measured against (straightSidedTarget), instead of the equilateral triangle's; a zero
+  /// entry (and every other element type) keeps the equilateral. The "reference" mode sets it
+  /// for its repair stage; not offered by the bindings.
+  std::vector<Mat2> highOrderTargets;
 };
 
 enum class StopReason { Converged, MaxSweeps, Cancelled, NothingToDo };
