@@ -489,31 +489,36 @@ struct Straightened {
 /// The high-order nodes inside the faces moved towards the straight-sided triangles on the
 /// elements' corners (straightSidedTargets: the distortion of each high-order triangle against
 /// its straight-sided one, size included), the corners, the nodes on CAD edges and the nodes
-/// of invalid elements held. The integral measure and the untangling curve elements further
-/// than the surface asks; this takes it back where it can. A face takes the result when none
-/// of its elements valid before is invalid after, none is tangled that was not, and its
-/// smallest Jacobian ratio and quality are not lower and its mean Jacobian ratio higher;
-/// the other faces' nodes go back (a node inside a face moves the elements of that face only).
+/// of invalid elements and of elements without such a target (quad8) held. The integral measure and
+/// the untangling curve elements further than the surface asks; this takes it back where it can. A
+/// face takes the result when none of its elements valid before is invalid after, none is tangled
+/// that was not, and its smallest Jacobian ratio and quality are not lower and its mean Jacobian
+/// ratio higher; the other faces' nodes go back (a node inside a face moves the elements of that
+/// face only).
 Straightened straightenCurved(SurfaceMesh& mesh, const OptimizeOptions& inner,
                               const PlanarMeasure& measure, const ProgressCallback& progress) {
   Straightened out;
   const MeshQuality qa = measureQuality(mesh, measure);
   OptimizeOptions run = inner;
   run.topology = "none";  // (the faces' results are merged node by node)
+  run.highOrderTargets = straightSidedTargets(mesh);
+  // Held: corners, nodes not inside a face, and every node of an invalid element or of an
+  // element without a straight-sided target (quad8, or a triangle whose corners are degenerate
+  // or wound against its normal: the measure would be the equilateral's).
   run.fixedNodes.assign(mesh.nodeCount(), 0);
   for (std::size_t e = 0; e < mesh.elementCount(); ++e) {
     const std::int32_t* nd = mesh.elementNodes(e);
-    const bool invalid = qa.tangled[e] || qa.across[e];
+    const bool hold = qa.tangled[e] || qa.across[e] || !isHighOrderTriangle(mesh.elemType[e]) ||
+                      run.highOrderTargets[e](0, 0) == 0.0;
     for (int k = 0; k < mesh.elementSize(e); ++k) {
       const std::size_t j = static_cast<std::size_t>(nd[k]);
-      if (invalid || k < cornerCount(mesh.elemType[e]) || mesh.nodeKind[j] != NodeKind::Face)
+      if (hold || k < cornerCount(mesh.elemType[e]) || mesh.nodeKind[j] != NodeKind::Face)
         run.fixedNodes[j] = 1;
     }
   }
   bool any = false;
   for (std::size_t i = 0; i < mesh.nodeCount() && !any; ++i) any = !run.fixedNodes[i];
   if (!any) return out;
-  run.highOrderTargets = straightSidedTargets(mesh);
   const detail::MeshPositions before = detail::MeshPositions::of(mesh);
   const std::vector<double> ratioA = elementJacobianRatio(mesh);
   const OptimizeResult r = optimizeMesh(mesh, run, progress, &qa.stats);
