@@ -555,19 +555,44 @@ Straightened straightenCurved(SurfaceMesh& mesh, const OptimizeOptions& inner,
               minQP[f] >= std::min(minQA[f], lowestQ) && sumP[f] > sumA[f];
     out.faces += take[f];
   }
-  // The positions: the run's on the faces that take it, the ones before elsewhere.
+  // The positions: the run's for a node whose elements all lie on faces that take it (a node
+  // inside a face is only in elements of that face, as a rule), the ones before elsewhere.
+  std::vector<unsigned char> moved(mesh.nodeCount(), 0);
+  for (std::size_t i = 0; i < mesh.nodeCount(); ++i) moved[i] = !run.fixedNodes[i];
+  for (std::size_t e = 0; e < mesh.elementCount(); ++e)
+    if (!take[static_cast<std::size_t>(mesh.elemFace[e])])
+      for (int k = 0; k < mesh.elementSize(e); ++k)
+        moved[static_cast<std::size_t>(mesh.elementNodes(e)[k])] = 0;
   detail::MeshPositions merged = before;
   for (std::size_t i = 0; i < mesh.nodeCount(); ++i)
-    if (!run.fixedNodes[i] && take[static_cast<std::size_t>(mesh.nodeFace[i])]) {
+    if (moved[i]) {
       merged.xyz[i] = mesh.xyz[i];
       merged.uv[i] = mesh.uv[i];
     }
   for (std::size_t e = 0; e < mesh.elementCount(); ++e)
-    if (take[static_cast<std::size_t>(mesh.elemFace[e])])
-      for (std::int64_t k = mesh.elemOffset[e]; k < mesh.elemOffset[e + 1]; ++k)
-        merged.cornerUV[static_cast<std::size_t>(k)] = mesh.cornerUV[static_cast<std::size_t>(k)];
+    for (std::int64_t k = mesh.elemOffset[e]; k < mesh.elemOffset[e + 1]; ++k) {
+      const std::size_t kk = static_cast<std::size_t>(k);
+      if (moved[static_cast<std::size_t>(mesh.elemNodes[kk])])
+        merged.cornerUV[kk] = mesh.cornerUV[kk];
+    }
   merged.copyTo(mesh);
-  out.quality = out.faces > 0 ? measureQuality(mesh, measure) : qa;
+  if (out.faces == 0) {
+    out.quality = qa;
+    return out;
+  }
+  // What is returned is checked whole: no element valid before invalid or newly tangled, no
+  // smaller ratio or quality than the smallest before; else the mesh as it was.
+  out.quality = measureQuality(mesh, measure);
+  const MeshQuality& qm = out.quality;
+  bool ok = smallest(elementJacobianRatio(mesh)) >= lowestRatio && smallest(qm.quality) >= lowestQ;
+  for (std::size_t e = 0; e < mesh.elementCount() && ok; ++e)
+    ok = !((qm.tangled[e] || qm.across[e]) && !(qa.tangled[e] || qa.across[e])) &&
+         !(qm.tangled[e] && !qa.tangled[e]);
+  if (!ok) {
+    before.copyTo(mesh);
+    out.faces = 0;
+    out.quality = qa;
+  }
   return out;
 }
 
