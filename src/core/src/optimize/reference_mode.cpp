@@ -488,13 +488,13 @@ struct Straightened {
 
 /// The high-order nodes inside the faces moved towards the straight-sided triangles on the
 /// elements' corners (straightSidedTargets: the distortion of each high-order triangle against
-/// its straight-sided one, size included), the corners, the nodes on CAD edges and the nodes
-/// of invalid elements and of elements without such a target (quad8) held. The integral measure and
-/// the untangling curve elements further than the surface asks; this takes it back where it can. A
-/// face takes the result when none of its elements valid before is invalid after, none is tangled
-/// that was not, and its smallest Jacobian ratio and quality are not lower and its mean Jacobian
-/// ratio higher; the other faces' nodes go back (a node inside a face moves the elements of that
-/// face only).
+/// its straight-sided one, size included), with the corners, the nodes on CAD edges and the
+/// nodes of invalid elements and of elements without such a target (quad8) held. The integral
+/// measure and the untangling curve elements further than the surface asks; this takes it back
+/// where it can. A face takes the result when none of its elements valid before is invalid
+/// after, none is tangled that was not, its mean Jacobian ratio rises and its smallest ratio
+/// and quality stay above the mesh's smallest before (or its own, when lower); the other
+/// faces' nodes go back (a node inside a face moves the elements of that face only).
 Straightened straightenCurved(SurfaceMesh& mesh, const OptimizeOptions& inner,
                               const PlanarMeasure& measure, const ProgressCallback& progress) {
   Straightened out;
