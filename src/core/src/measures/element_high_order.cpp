@@ -117,15 +117,16 @@ void highOrderJacobians(ElementType type, const Vec3* x, int freeLocal, HighOrde
 
 ElementEval highOrderTriangleDistortion(const PlanarMeasure& m, ElementType type, const Vec3* x,
                                         const Vec3& n, double delta, int freeLocal, Vec3* grad,
-                                        Mat3* hess, double* eta0) {
+                                        Mat3* hess, double* eta0, const Mat2* target) {
   HighOrderJacobians pre;
   // Without derivatives the Jacobians are summed over every node, in node order.
   const int k = (grad || hess) ? freeLocal : -1;
   highOrderJacobians(type, x, k, &pre);
-  ElementEval r = highOrderTriangleDistortion(
-      m, pre, pre.freeLocal >= 0 ? x[pre.freeLocal] : Vec3::Zero(), n, delta, grad, hess, eta0);
+  ElementEval r =
+      highOrderTriangleDistortion(m, pre, pre.freeLocal >= 0 ? x[pre.freeLocal] : Vec3::Zero(), n,
+                                  delta, grad, hess, eta0, target);
   // Valid at the samples: valid only where det J is proven positive on the whole element.
-  markUncertifiedFold(type, x, n, delta, &r, grad, hess, eta0, &m, k);
+  markUncertifiedFold(type, x, n, delta, &r, grad, hess, eta0, &m, k, target);
   return r;
 }
 

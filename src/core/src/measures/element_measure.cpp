@@ -133,7 +133,7 @@ ElementEval triangleDistortion(const PlanarMeasure& m, const Vec3& x0, const Vec
 
 ElementEval elementDistortion(const PlanarMeasure& m, ElementType type, const Vec3* x,
                               const Vec3& n, double delta, int freeLocal, Vec3* grad, Mat3* hess,
-                              double* eta0) {
+                              double* eta0, const Mat2* target) {
   switch (type) {
     case ElementType::Tri3: {
       if (freeLocal < 0 || (!grad && !hess))
@@ -149,7 +149,7 @@ ElementEval elementDistortion(const PlanarMeasure& m, ElementType type, const Ve
     case ElementType::Quad8:
       return quad8Distortion(m, x, n, delta, freeLocal, grad, hess, eta0);
     default:
-      return highOrderTriangleDistortion(m, type, x, n, delta, freeLocal, grad, hess, eta0);
+      return highOrderTriangleDistortion(m, type, x, n, delta, freeLocal, grad, hess, eta0, target);
   }
 }
 

@@ -584,10 +584,10 @@ Straightened straightenCurved(SurfaceMesh& mesh, const OptimizeOptions& inner,
   // smaller ratio or quality than the smallest before; else the mesh as it was.
   out.quality = measureQuality(mesh, measure);
   const MeshQuality& qm = out.quality;
-  bool ok = smallest(elementJacobianRatio(mesh)) >= lowestRatio && smallest(qm.quality) >= lowestQ;
-  for (std::size_t e = 0; e < mesh.elementCount() && ok; ++e)
-    ok = !((qm.tangled[e] || qm.across[e]) && !(qa.tangled[e] || qa.across[e])) &&
-         !(qm.tangled[e] && !qa.tangled[e]);
+  std::size_t invalidM = 0;
+  bool ok = !judge(mesh, qa, qm, &invalidM) &&
+            smallest(elementJacobianRatio(mesh)) >= lowestRatio && smallest(qm.quality) >= lowestQ;
+  for (std::size_t e = 0; e < mesh.elementCount() && ok; ++e) ok = !qm.tangled[e] || qa.tangled[e];
   if (!ok) {
     before.copyTo(mesh);
     out.faces = 0;

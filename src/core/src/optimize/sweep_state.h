@@ -273,22 +273,11 @@ struct State {
         markUncertifiedFold(mesh.elemType[e], xs, nu, delta, &ev, grad, hess,
                             wantEta0 ? &eta0 : nullptr, &measure, local, target);
       }
-    } else if (target) {  // elementDistortion's way, against the element's own ideal
-      Vec3 xs[kMaxElementNodes];
-      positions(e, local, x, xs);
-      const int k = (grad || hess) ? local : -1;
-      HighOrderJacobians own;
-      highOrderJacobians(mesh.elemType[e], xs, k, &own);
-      ev = highOrderTriangleDistortion(measure, own,
-                                       own.freeLocal >= 0 ? xs[own.freeLocal] : Vec3::Zero(), nu,
-                                       delta, grad, hess, wantEta0 ? &eta0 : nullptr, target);
-      markUncertifiedFold(mesh.elemType[e], xs, nu, delta, &ev, grad, hess,
-                          wantEta0 ? &eta0 : nullptr, &measure, k, target);
     } else {
       Vec3 xs[kMaxElementNodes];
       positions(e, local, x, xs);
       ev = elementDistortion(measure, mesh.elemType[e], xs, nu, delta, local, grad, hess,
-                             wantEta0 ? &eta0 : nullptr);
+                             wantEta0 ? &eta0 : nullptr, target);
     }
     ElemOut r;
     r.eta = ev.eta;

@@ -100,9 +100,12 @@ ElementEval triangleDistortion(const PlanarMeasure& m, const Vec3& x0, const Vec
 ///   Quad8      — the same over the unit square with the square as ideal (quad8Distortion).
 /// `eta0`, when non-null, receives the element's η with δ = 0 (+∞ when tangled), from the same
 /// Jacobians as η (one pass instead of two).
+/// `target`: a high-order triangle's ideal, as highOrderTriangleDistortion's (ignored for the
+/// other types).
 ElementEval elementDistortion(const PlanarMeasure& m, ElementType type, const Vec3* x,
                               const Vec3& n, double delta, int freeLocal = -1, Vec3* grad = nullptr,
-                              Mat3* hess = nullptr, double* eta0 = nullptr);
+                              Mat3* hess = nullptr, double* eta0 = nullptr,
+                              const Mat2* target = nullptr);
 
 /// Quad4 implementation of elementDistortion (see above).
 ElementEval quadDistortion(const PlanarMeasure& m, const Vec3* x, const Vec3& n, double delta,
@@ -122,9 +125,11 @@ void quad8ShapeGradients(double s, double t, Eigen::Vector2d* grad);
 /// The values of the 8 quad8 shape functions at (s, t) ∈ [0, 1]² (N[8]).
 void quad8ShapeValues(double s, double t, double* N);
 /// High-order triangle implementation of elementDistortion (see above).
+/// `target` as in the overload from precomputed Jacobians below.
 ElementEval highOrderTriangleDistortion(const PlanarMeasure& m, ElementType type, const Vec3* x,
                                         const Vec3& n, double delta, int freeLocal, Vec3* grad,
-                                        Mat3* hess, double* eta0 = nullptr);
+                                        Mat3* hess, double* eta0 = nullptr,
+                                        const Mat2* target = nullptr);
 
 /// Most quadrature points of a high-order triangle's rule (Dunavant's degree 10, order 5).
 constexpr int kMaxQuadraturePoints = 25;
