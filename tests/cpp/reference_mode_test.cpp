@@ -16,6 +16,7 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <set>
 
 using namespace surfmesh;
 using namespace surfmesh::testmesh;
@@ -212,6 +213,26 @@ TEST(ReferenceMode, CancellingLeavesTheMeshAsItWas) {
     EXPECT_EQ(m.uv, uv);
     EXPECT_EQ(m.cornerUV, cuv);
   }
+}
+
+TEST(ReferenceMode, AFoldNoNodeCanRepairCostsNoRunAfterTheRepair) {
+  // One quadratic triangle on a unit cylinder, folded at corner 1 where only fixed nodes act
+  // (HighOrderOptimize.FoldBetweenFixedCornersIsHeldWhateverTheCornerNormals): the repair
+  // (step 3) runs on its one free node and leaves it folded. Nothing can change it, so no
+  // integral run around it follows (step 5), and the straightening holds the nodes of invalid
+  // elements: the repair's stage is the only one that reports a sweep.
+  const CylinderSurface cyl(1.0, -2.0, 2.0);
+  const std::vector<Vec2> uv = {{-1.0, 0.0}, {1.0, 0.0}, {0.0, 1.0},
+                                {0.0, 0.9},  {0.5, 0.5}, {-0.5, 0.5}};
+  SurfaceMesh m =
+      makeSingleSurfaceMesh(cyl, uv, ElementType::Tri6, {0, 1, 2, 3, 4, 5}, {0, 1, 2, 3, 4});
+  std::set<int> stages;
+  const OptimizeResult r = optimizeMesh(m, OptimizeOptions{}, [&](const OptimizeProgress& p) {
+    stages.insert(p.stage);
+    return true;
+  });
+  ASSERT_EQ(r.tangledUnmovable, std::vector<std::int32_t>{0});
+  EXPECT_EQ(stages, std::set<int>{1});  // (stage 0, the corners: all fixed, no sweep)
 }
 
 TEST(ReferenceMode, UnknownModeIsRefused) {

@@ -28,7 +28,9 @@
 //      holds; when that leaves the input as it was, more invalid elements than the input,
 //      or an element the run had untangled tangled again, the integral mode instead (cut
 //      back the same way on a valid input);
-//   5. where elements stay invalid, the integral mode's result when it leaves fewer, with the
+//   5. where elements stay invalid (some where a node may move), the integral mode on them and
+//      the elements within three rings around them, from the input's positions there, every
+//      other node held where step 3 left it: its result when it leaves fewer, with the
 //      straight-sided result put back away from the elements it left invalid when that keeps
 //      as few (mergeAroundInvalid);
 //   6. straightened: the high-order nodes inside the faces, with the corners, the nodes on CAD
@@ -274,6 +276,30 @@ std::vector<unsigned char> heldOutside(const SurfaceMesh& mesh, const MeshQualit
     }
   }
   return held;
+}
+
+/// Step 5's start: the nodes that `held` leaves free back at the input's positions (`input`),
+/// with their parameters in every element they are in; the others where they are.
+void freeNodesBack(SurfaceMesh& mesh, const detail::MeshPositions& input,
+                   const std::vector<unsigned char>& held) {
+  for (std::size_t i = 0; i < mesh.nodeCount(); ++i)
+    if (!held[i]) {
+      mesh.xyz[i] = input.xyz[i];
+      mesh.uv[i] = input.uv[i];
+      if (!mesh.nodeT.empty()) mesh.nodeT[i] = input.nodeT[i];
+    }
+  for (std::size_t k = 0; k < mesh.elemNodes.size(); ++k)
+    if (!held[static_cast<std::size_t>(mesh.elemNodes[k])]) mesh.cornerUV[k] = input.cornerUV[k];
+}
+
+/// Whether every element invalid in q is tangled where no node that may move acts (r, the run
+/// that left q, lists them): no run can change those.
+bool allHeld(const MeshQuality& q, const OptimizeResult& r) {
+  std::vector<unsigned char> held(q.tangled.size(), 0);
+  for (std::int32_t e : r.tangledUnmovable) held[static_cast<std::size_t>(e)] = 1;
+  for (std::size_t e = 0; e < q.tangled.size(); ++e)
+    if ((q.tangled[e] || q.across[e]) && !held[e]) return false;
+  return true;
 }
 
 /// Whether an element valid in the input (q0) is invalid in q, and how many are (*invalid).
@@ -628,6 +654,7 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
     OptimizeResult r = optimizeMesh(mesh, inner, staged, &q0.stats);
     if (before) r.before = *before;
     r.sweeps += done;
+    done = r.sweeps;
     r.seconds = seconds();
     return r;
   };
@@ -791,10 +818,31 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
     straighten(alt);
     return alt;
   }
-  if (invalid2 > 0) {
+  // 5. Where elements stay invalid, the integral mode on them and the elements within
+  // kStep5Rings rings around them, from the input's positions there, the rest held where step 3
+  // left it; kept when it leaves fewer. (Not when every element left invalid folds where no
+  // node may move: nothing can change those.)
+  constexpr int kStep5Rings = 3;
+  OptimizeOptions around = inner;
+  bool anyAround = false;
+  if (invalid2 > 0 && ran2 && !allHeld(q2, r2))
+    around.fixedNodes = heldOutside(mesh, q2, kStep5Rings, &anyAround);
+  if (anyAround) {
     const detail::MeshPositions mine = detail::MeshPositions::of(mesh);
-    OptimizeResult alt = integral();
-    if (alt.reason == StopReason::Cancelled) return alt;  // the input, unchanged
+    freeNodesBack(mesh, original, around.fixedNodes);
+    ++stage;
+    OptimizeResult alt = optimizeMesh(mesh, around, staged);
+    alt.before = res.before;
+    alt.sweeps += done;
+    alt.seconds = seconds();
+    alt.movedNodes = movedCount(mesh, original);
+    done = alt.sweeps;
+    if (alt.reason == StopReason::Cancelled) {  // the input, unchanged
+      original.copyTo(mesh);
+      alt.after = q0.stats;
+      alt.movedNodes = 0;
+      return alt;
+    }
     if (invalidCount(measureQuality(mesh, measure)) < invalid2) {
       preferMerged(alt, mine, q2);
       straighten(alt);

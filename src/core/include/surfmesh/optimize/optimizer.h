@@ -183,7 +183,8 @@ struct OptimizeOptions {
   ///    cut back (a shorter move for every node, or for the elements at fault) until none
   ///    does; when that leaves the input unchanged, more elements invalid than it or an
   ///    element tangled again, the "integral" result instead. Where elements stay invalid,
-  ///    the "integral" result when it leaves fewer, with the straight-sided result kept away
+  ///    the "integral" mode again on them and three rings around them from the input's
+  ///    positions there, taken when it leaves fewer, with the straight-sided result kept away
   ///    from the elements that one left invalid. Last, with the corners, the nodes on CAD
   ///    edges and those of invalid elements held, the high-order nodes inside the faces are
   ///    optimized against each element's straight-sided triangle (highOrderTargets), face by
@@ -234,8 +235,9 @@ struct OptimizeProgress {
   double delta = 0.0;
   /// Which run of several this sweep belongs to (0 for a single run): the "reference" mode
   /// for curved elements runs the corners' linear mesh, then the repair, then possibly the
-  /// "integral" mode from the input, each counting tangled elements of its own mesh; sweep
-  /// numbers go on across them.
+  /// "integral" mode around the elements the repair left invalid (or on the whole input when
+  /// the repair made it worse), then the straightening, each counting tangled elements of its
+  /// own mesh; a stage with no node to move reports nothing; sweep numbers go on across them.
   int stage = 0;
 };
 using ProgressCallback = std::function<bool(const OptimizeProgress&)>;
