@@ -71,14 +71,8 @@ MeshQuality measureQuality(const SurfaceMesh& mesh, const PlanarMeasure& m) {
   // Elements [begin, end) with the surfaces `surfaces` (mesh.surfaces or a thread's clones).
   auto range = [&](std::size_t begin, std::size_t end,
                    const std::vector<const Surface*>& surfaces) {
-    for (std::size_t e = begin; e < end; ++e) {
-      const ElementQuality q = elementQuality(mesh, e, m, surfaces);
-      r.tangled[e] = q.tangled ? 1 : 0;
-      r.across[e] = q.across ? 1 : 0;
-      r.distortion[e] = q.distortion;
-      r.quality[e] = q.quality;
-      r.minSigma[e] = q.minSigma;
-    }
+    for (std::size_t e = begin; e < end; ++e)
+      storeElementQuality(r, e, elementQuality(mesh, e, m, surfaces));
   };
   // Elements are independent: big meshes are cut into one contiguous block per hardware
   // thread; the threads after the first evaluate clones of the surfaces (not thread-safe).

@@ -279,18 +279,26 @@ std::vector<unsigned char> heldOutside(const SurfaceMesh& mesh, const MeshQualit
   return held;
 }
 
-/// Step 5's start: the nodes that `held` leaves free back at the input's positions (`input`),
-/// with their parameters in every element they are in; the others where they are.
-void freeNodesBack(SurfaceMesh& mesh, const detail::MeshPositions& input,
-                   const std::vector<unsigned char>& held) {
+/// The nodes i with which[i] == take put where `from` has them, with their parameters in
+/// every element they are in; the others left where they are.
+void takePositions(SurfaceMesh& mesh, const detail::MeshPositions& from,
+                   const std::vector<unsigned char>& which, unsigned char take) {
   for (std::size_t i = 0; i < mesh.nodeCount(); ++i)
-    if (!held[i]) {
-      mesh.xyz[i] = input.xyz[i];
-      mesh.uv[i] = input.uv[i];
-      if (!mesh.nodeT.empty()) mesh.nodeT[i] = input.nodeT[i];
+    if (which[i] == take) {
+      mesh.xyz[i] = from.xyz[i];
+      mesh.uv[i] = from.uv[i];
+      if (!mesh.nodeT.empty()) mesh.nodeT[i] = from.nodeT[i];
     }
   for (std::size_t k = 0; k < mesh.elemNodes.size(); ++k)
-    if (!held[static_cast<std::size_t>(mesh.elemNodes[k])]) mesh.cornerUV[k] = input.cornerUV[k];
+    if (which[static_cast<std::size_t>(mesh.elemNodes[k])] == take)
+      mesh.cornerUV[k] = from.cornerUV[k];
+}
+
+/// Per element: 1 when it is valid in q (neither tangled nor standing across).
+std::vector<unsigned char> validIn(const MeshQuality& q) {
+  std::vector<unsigned char> valid(q.tangled.size(), 0);
+  for (std::size_t e = 0; e < valid.size(); ++e) valid[e] = (q.tangled[e] || q.across[e]) ? 0 : 1;
+  return valid;
 }
 
 /// Whether every element invalid in q is tangled where no node that may move acts (r, the run
@@ -476,17 +484,7 @@ std::size_t keepNoWorse(SurfaceMesh& mesh, const detail::MeshPositions& input,
   std::vector<double> ratio = elementJacobianRatio(mesh);
   std::vector<double> corners = cornersOf();
   // The elements of each node: after a cut only theirs are measured again.
-  std::vector<std::int64_t> first(N + 1, 0);
-  for (std::int32_t i : mesh.elemNodes) ++first[static_cast<std::size_t>(i) + 1];
-  for (std::size_t i = 0; i < N; ++i) first[i + 1] += first[i];
-  std::vector<std::size_t> around(mesh.elemNodes.size());
-  {
-    std::vector<std::int64_t> next(first.begin(), first.end() - 1);
-    for (std::size_t e = 0; e < E; ++e)
-      for (int k = 0; k < mesh.elementSize(e); ++k)
-        around[static_cast<std::size_t>(
-            next[static_cast<std::size_t>(mesh.elementNodes(e)[k])]++)] = e;
-  }
+  const detail::Incidence inc = detail::buildIncidence(mesh);
   bool cutAny = false;
   std::vector<unsigned char> again(E, 0);
   for (;;) {
@@ -507,18 +505,13 @@ std::size_t keepNoWorse(SurfaceMesh& mesh, const detail::MeshPositions& input,
       if (cut[i]) {
         share[i] = share[i] > 0.1 ? 0.5 * share[i] : 0.0;
         place(i);
-        for (std::int64_t p = first[i]; p < first[i + 1]; ++p)
-          again[around[static_cast<std::size_t>(p)]] = 1;
+        for (std::int64_t p = inc.offset[i]; p < inc.offset[i + 1]; ++p)
+          again[static_cast<std::size_t>(inc.elem[static_cast<std::size_t>(p)])] = 1;
       }
     cornerParameters();
     for (std::size_t e = 0; e < E; ++e) {
       if (!again[e]) continue;
-      const ElementQuality eq = elementQuality(mesh, e, measure, mesh.surfaces);
-      q->quality[e] = eq.quality;
-      q->distortion[e] = eq.distortion;
-      q->tangled[e] = eq.tangled ? 1 : 0;
-      q->minSigma[e] = eq.minSigma;
-      q->across[e] = eq.across ? 1 : 0;
+      storeElementQuality(*q, e, elementQuality(mesh, e, measure, mesh.surfaces));
       ratio[e] = jacobianRatioOf(mesh, e);
     }
     if (cornersCount) corners = cornersOf();
@@ -554,7 +547,7 @@ struct Straightened {
 /// measure and the untangling curve elements further than the surface asks; this takes it back
 /// where it can. A face takes the result when none of its elements valid before is invalid
 /// after, none is tangled that was not, its mean Jacobian ratio rises and its smallest ratio
-/// and quality stay above the mesh's smallest before (or its own, when lower); the other
+/// and quality stay above the mesh's smallest before; the other
 /// faces' nodes go back (a node inside a face moves the elements of that face only). Where a
 /// face's mean ratio rose but the rest did not hold, the moves are cut back element by
 /// element first (keepNoWorse).
@@ -592,36 +585,32 @@ Straightened straightenCurved(SurfaceMesh& mesh, const OptimizeOptions& inner,
     return out;
   }
   // Face by face. (A face's smallest ratio and quality may drop, not below the mesh's smallest
-  // before.)
+  // before: a face's own smallest is never lower than that.)
   const std::size_t nf = mesh.surfaces.size();
   const double lowestRatio = smallest(ratioA), lowestQ = smallest(qa.quality);
+  std::vector<double> sumA(nf, 0.0);
+  for (std::size_t e = 0; e < mesh.elementCount(); ++e)
+    sumA[static_cast<std::size_t>(mesh.elemFace[e])] += ratioA[e];
   std::vector<unsigned char> take(nf, 0);
   // Which faces take the mesh as it is; whether a face whose mean ratio rose does not.
   auto decide = [&] {
     const MeshQuality qp = measureQuality(mesh, measure);
     const std::vector<double> ratioP = elementJacobianRatio(mesh);
-    constexpr double kInf = std::numeric_limits<double>::infinity();
-    std::vector<double> minRatioA(nf, kInf), minRatioP(nf, kInf), minQA(nf, kInf), minQP(nf, kInf);
-    std::vector<double> sumA(nf, 0.0), sumP(nf, 0.0);
+    std::vector<double> sumP(nf, 0.0);
     std::vector<unsigned char> refuse(nf, 0);
     for (std::size_t e = 0; e < mesh.elementCount(); ++e) {
       const std::size_t f = static_cast<std::size_t>(mesh.elemFace[e]);
       const bool invalidA = qa.tangled[e] || qa.across[e], invalidP = qp.tangled[e] || qp.across[e];
-      if ((invalidP && !invalidA) || (qp.tangled[e] && !qa.tangled[e])) refuse[f] = 1;
-      minRatioA[f] = std::min(minRatioA[f], ratioA[e]);
-      minRatioP[f] = std::min(minRatioP[f], ratioP[e]);
-      minQA[f] = std::min(minQA[f], qa.quality[e]);
-      minQP[f] = std::min(minQP[f], qp.quality[e]);
-      sumA[f] += ratioA[e];
+      if ((invalidP && !invalidA) || (qp.tangled[e] && !qa.tangled[e]) || ratioP[e] < lowestRatio ||
+          qp.quality[e] < lowestQ)
+        refuse[f] = 1;
       sumP[f] += ratioP[e];
     }
     bool refusedGain = false;
     out.faces = 0;
     for (std::size_t f = 0; f < nf; ++f) {
-      const bool keeps = !refuse[f] && minRatioP[f] >= std::min(minRatioA[f], lowestRatio) &&
-                         minQP[f] >= std::min(minQA[f], lowestQ);
-      take[f] = keeps && sumP[f] > sumA[f];
-      refusedGain = refusedGain || (!keeps && sumP[f] > sumA[f]);
+      take[f] = !refuse[f] && sumP[f] > sumA[f];
+      refusedGain = refusedGain || (refuse[f] && sumP[f] > sumA[f]);
       out.faces += take[f];
     }
     return refusedGain;
@@ -631,11 +620,8 @@ Straightened straightenCurved(SurfaceMesh& mesh, const OptimizeOptions& inner,
   // again. (One element kept a face from taking the result: on Gmsh's raw order-2 propeller,
   // 21 of 76 faces, mean ratio 0.768; cut back, 67 faces take it, 0.787.)
   if (decide()) {
-    std::vector<unsigned char> wasValid(mesh.elementCount(), 0);
-    for (std::size_t e = 0; e < mesh.elementCount(); ++e)
-      wasValid[e] = (qa.tangled[e] || qa.across[e]) ? 0 : 1;
     MeshQuality qc;
-    keepNoWorse(mesh, before, wasValid, lowestRatio, lowestQ,
+    keepNoWorse(mesh, before, validIn(qa), lowestRatio, lowestQ,
                 -std::numeric_limits<double>::infinity(), measure, &qc, false);
     decide();
   }
@@ -647,19 +633,7 @@ Straightened straightenCurved(SurfaceMesh& mesh, const OptimizeOptions& inner,
     if (!take[static_cast<std::size_t>(mesh.elemFace[e])])
       for (int k = 0; k < mesh.elementSize(e); ++k)
         moved[static_cast<std::size_t>(mesh.elementNodes(e)[k])] = 0;
-  detail::MeshPositions merged = before;
-  for (std::size_t i = 0; i < mesh.nodeCount(); ++i)
-    if (moved[i]) {
-      merged.xyz[i] = mesh.xyz[i];
-      merged.uv[i] = mesh.uv[i];
-    }
-  for (std::size_t e = 0; e < mesh.elementCount(); ++e)
-    for (std::int64_t k = mesh.elemOffset[e]; k < mesh.elemOffset[e + 1]; ++k) {
-      const std::size_t kk = static_cast<std::size_t>(k);
-      if (moved[static_cast<std::size_t>(mesh.elemNodes[kk])])
-        merged.cornerUV[kk] = mesh.cornerUV[kk];
-    }
-  merged.copyTo(mesh);
+  takePositions(mesh, before, moved, 0);
   if (out.faces == 0) {
     out.quality = qa;
     return out;
@@ -791,9 +765,7 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
   bool retangled = false;
   if (worse) {
     const std::vector<unsigned char> tangledBefore = q2.tangled;
-    std::vector<unsigned char> wasValid(mesh.elementCount(), 0);
-    for (std::size_t e = 0; e < mesh.elementCount(); ++e)
-      wasValid[e] = (q0.tangled[e] || q0.across[e]) ? 0 : 1;
+    const std::vector<unsigned char> wasValid = validIn(q0);
     constexpr double kNone = -std::numeric_limits<double>::infinity();
     const bool valid = invalid0 == 0;
     backRef = keepNoWorse(mesh, original, wasValid, valid ? ratio0 - kRounding : kNone,
@@ -806,16 +778,15 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
       retangled = q2.tangled[e] && !tangledBefore[e];
   }
   const bool moved = movedCount(mesh, original) > 0;
-  // The integral mode's result (in `mesh`, `alt` its result) with the reference result
-  // `mine` (quality qMine) put back away from mine's invalid elements (mergeAroundInvalid,
+  // The integral mode's result (in `mesh`, `alt` its result, qI its quality) with the reference
+  // result `mine` (quality qMine) put back away from mine's invalid elements (mergeAroundInvalid,
   // 1, 2 then 3 rings): kept when no element valid in the input is invalid, the elements
   // tangled are some of the integral result's, no more are invalid, and the minimum quality
   // holds where the input has no tangled element. The integral mode curves every element;
   // this keeps the straight-sided reference wherever it did as well.
   auto preferMerged = [&](OptimizeResult& alt, const detail::MeshPositions& mine,
-                          const MeshQuality& qMine) {
+                          const MeshQuality& qMine, const MeshQuality& qI) {
     const detail::MeshPositions theirs = detail::MeshPositions::of(mesh);
-    const MeshQuality qI = measureQuality(mesh, measure);
     const std::size_t invalidI = invalidCount(qI);
     for (int rings = 1; rings <= 3; ++rings) {
       mergeAroundInvalid(mesh, mine, qMine, rings);
@@ -860,7 +831,7 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
     OptimizeResult alt = integral();
     if (alt.reason == StopReason::Cancelled) return alt;
     if (invalid0 > 0) {
-      preferMerged(alt, mine, q2);
+      preferMerged(alt, mine, q2, measureQuality(mesh, measure));
       straighten(alt);
       return alt;
     }
@@ -887,7 +858,7 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
     around.fixedNodes = heldOutside(mesh, q2, kStep5Rings, &anyAround);
   if (anyAround) {
     const detail::MeshPositions mine = detail::MeshPositions::of(mesh);
-    freeNodesBack(mesh, original, around.fixedNodes);
+    takePositions(mesh, original, around.fixedNodes, 0);  // (the free nodes: the input's)
     ++stage;
     OptimizeResult alt = optimizeMesh(mesh, around, staged);
     alt.before = res.before;
@@ -901,8 +872,9 @@ OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
       alt.movedNodes = 0;
       return alt;
     }
-    if (invalidCount(measureQuality(mesh, measure)) < invalid2) {
-      preferMerged(alt, mine, q2);
+    const MeshQuality qI = measureQuality(mesh, measure);
+    if (invalidCount(qI) < invalid2) {
+      preferMerged(alt, mine, q2, qI);
       straighten(alt);
       return alt;
     }

@@ -49,6 +49,15 @@ struct ElementQuality {
   bool invalid() const { return tangled || across; }
 };
 
+/// Puts element e's entries `eq` into q (its statistics are not updated).
+inline void storeElementQuality(MeshQuality& q, std::size_t e, const ElementQuality& eq) {
+  q.quality[e] = eq.quality;
+  q.distortion[e] = eq.distortion;
+  q.tangled[e] = eq.tangled ? 1 : 0;
+  q.minSigma[e] = eq.minSigma;
+  q.across[e] = eq.across ? 1 : 0;
+}
+
 /// Quality of element e of `mesh` with measure `m` (δ = 0), as measureQuality gives it, with
 /// the surfaces taken from `surfaces` (mesh.surfaces, or a thread's clones).
 ElementQuality elementQuality(const SurfaceMesh& mesh, std::size_t e, const PlanarMeasure& m,
