@@ -15,6 +15,8 @@
 #include <BRepTools.hxx>
 #include <BRep_Tool.hxx>
 #include <Bnd_Box.hxx>
+#include <GeomAPI_ProjectPointOnSurf.hxx>
+#include <GeomLProp_SLProps.hxx>
 #include <Geom_ConicalSurface.hxx>
 #include <Geom_CylindricalSurface.hxx>
 #include <Geom_SphericalSurface.hxx>
@@ -26,8 +28,11 @@
 #include <gp_Ax3.hxx>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <map>
 #include <memory>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -150,4 +155,98 @@ TEST(CadPeriodic, BridgePutsEveryNodeOfATriangulationOnItsFace) {
     EXPECT_EQ(measureQuality(m, measureByName("shape")).stats.tangled, 0u) << c.name;
   }
   EXPECT_GT(onFace, 1000u);
+}
+
+namespace {
+
+/// OCC's own outward normal of `face` at the foot of p on its surface (GeomLProp's limit
+/// normal where a derivative vanishes), independent of SurfMesh's recovery.
+Vec3 occNormalAt(const TopoDS_Face& face, const Vec3& p) {
+  const Handle(Geom_Surface) s = BRep_Tool::Surface(face);
+  GeomAPI_ProjectPointOnSurf proj(gp_Pnt(p.x(), p.y(), p.z()), s);
+  EXPECT_GT(proj.NbPoints(), 0);
+  double u = 0.0, v = 0.0;
+  proj.LowerDistanceParameters(u, v);
+  GeomLProp_SLProps props(s, u, v, 1, 1e-9);
+  EXPECT_TRUE(props.IsNormalDefined());
+  const gp_Dir n = props.Normal();
+  const double o = face.Orientation() == TopAbs_REVERSED ? -1.0 : 1.0;
+  return o * Vec3(n.X(), n.Y(), n.Z());
+}
+
+}  // namespace
+
+TEST(CadPeriodic, ConeApexOffTheSingularityLeavesValidElementsValid) {
+  // A cone whose apex (surface parameter v = 0) is not where its face's degenerated edge lies:
+  // Gmsh's crank shaft has one at v = −6.2e−11, where φ_u is not zero and φ_u × φ_v points
+  // the other way (the other nappe). Every element at the apex took that normal at its
+  // apex corner and was reported standing across, though valid (3 of the crank shaft's, at
+  // orders 1 to 3). Here: BRepMesh's valid triangulation, and the same with side nodes on the
+  // surface (tria6), judged by OCC's normals away from the apex; the report must agree: 0.
+  const gp_Ax3 ax;
+  Handle(Geom_Surface) cone = new Geom_ConicalSurface(ax, 0.4, 0.0);  // apex at v = 0
+  for (double v0 : {0.0, -6e-11, -1e-9, 2e-9}) {
+    const PeriodicCase c = madeFace("cone_apex", cone, 0.0, 2 * kPi, v0, 6.0);
+    auto shape = makeShape(c);
+    OccMesh om = meshWithBRepMesh(*shape, 0.01 * shape->diagonal(), 0.3);
+    ASSERT_GT(om.input.types.size(), 50u);
+    // tria6: each side's node at the surface's point nearest the side's midpoint.
+    MeshInput quad = om.input;
+    quad.conn.clear();
+    std::map<std::pair<std::int32_t, std::int32_t>, std::int32_t> sideNode;
+    for (std::size_t e = 0; e < om.input.types.size(); ++e) {
+      const std::int32_t* t = om.input.conn.data() + 3 * e;
+      std::int32_t mid[3];
+      for (int k = 0; k < 3; ++k) {
+        const std::int32_t a = t[k], b = t[(k + 1) % 3];
+        auto key = std::minmax(a, b);
+        auto it = sideNode.find(key);
+        if (it == sideNode.end()) {
+          const Vec3 m = 0.5 * (om.input.nodes[static_cast<std::size_t>(a)] +
+                                om.input.nodes[static_cast<std::size_t>(b)]);
+          GeomAPI_ProjectPointOnSurf proj(gp_Pnt(m.x(), m.y(), m.z()), cone);
+          const gp_Pnt f = proj.NearestPoint();
+          quad.nodes.push_back(Vec3(f.X(), f.Y(), f.Z()));
+          it = sideNode.emplace(key, static_cast<std::int32_t>(quad.nodes.size() - 1)).first;
+        }
+        mid[k] = it->second;
+      }
+      quad.types[e] = ElementType::Tri6;
+      quad.conn.insert(quad.conn.end(), {t[0], t[1], t[2], mid[0], mid[1], mid[2]});
+    }
+    for (const MeshInput* in : {&om.input, &quad}) {
+      const bool curved = in == &quad;
+      std::ostringstream what;
+      what << (curved ? "tria6" : "tri3") << ", degenerated edge at v = " << v0;
+      // The independent judge: x_ξ × x_η against OCC's normal, at interior points only (the
+      // apex has no normal of its own).
+      std::size_t judgedInvalid = 0;
+      const int n = 6;
+      for (std::size_t e = 0; e < in->types.size(); ++e) {
+        const std::int32_t* t = in->conn.data() + (curved ? 6 : 3) * e;
+        auto X = [&](int k) { return in->nodes[static_cast<std::size_t>(t[k])]; };
+        bool bad = false;
+        for (int i = 1; i < n && !bad; ++i)
+          for (int j = 1; i + j < n && !bad; ++j) {
+            const double xi = double(i) / n, eta = double(j) / n, l = 1.0 - xi - eta;
+            Vec3 a = X(1) - X(0), b = X(2) - X(0), x = l * X(0) + xi * X(1) + eta * X(2);
+            if (curved) {  // P2 shape functions, Gmsh's node order
+              a = (4 * xi - 1) * X(1) - (4 * l - 1) * X(0) + 4 * (l - xi) * X(3) + 4 * eta * X(4) -
+                  4 * eta * X(5);
+              b = (4 * eta - 1) * X(2) - (4 * l - 1) * X(0) - 4 * xi * X(3) + 4 * xi * X(4) +
+                  4 * (l - eta) * X(5);
+              x = l * (2 * l - 1) * X(0) + xi * (2 * xi - 1) * X(1) + eta * (2 * eta - 1) * X(2) +
+                  4 * l * xi * X(3) + 4 * xi * eta * X(4) + 4 * eta * l * X(5);
+            }
+            bad = a.cross(b).dot(occNormalAt(c.face, x)) <= 0.0;
+          }
+        judgedInvalid += bad;
+      }
+      EXPECT_EQ(judgedInvalid, 0u) << what.str() << ": the test's mesh is not valid";
+      CadMesh cm(shape, *in);
+      const MeshQuality q = measureQuality(cm.mesh(), measureByName("shape"));
+      EXPECT_EQ(q.stats.tangled, 0u) << what.str();
+      EXPECT_EQ(q.stats.across, judgedInvalid) << what.str();
+    }
+  }
 }

@@ -15,6 +15,33 @@ namespace surfmesh::cad_detail {
 
 namespace {
 
+/// A pole's (u,v) moved onto the surface's singular line, where a first derivative vanishes:
+/// a face's degenerated edge may lie a little off it (a cone's apex at v = −6e−11 where the
+/// surface's is at v = 0), and there the normal is the other nappe's, turned over. The
+/// coordinate across the line takes Gauss–Newton steps on ‖φ_u‖² (or ‖φ_v‖²); `uv` itself
+/// when the surface is not nearly singular there or the line is farther than `reach` in space.
+Vec2 ontoSingularity(const Surface& surf, const Vec2& uv, double reach) {
+  SurfaceD2 d = surf.d2(uv.x(), uv.y());
+  const bool uCollapses = d.du.norm() <= d.dv.norm();
+  const double big = uCollapses ? d.dv.norm() : d.du.norm();
+  auto small = [&](const SurfaceD2& s) { return uCollapses ? s.du.norm() : s.dv.norm(); };
+  if (!(big > 0.0) || !(small(d) <= 1e-3 * big)) return uv;
+  Vec2 c = uv;
+  for (int it = 0; it < 4 && small(d) > 0.0; ++it) {
+    const Vec3& a = uCollapses ? d.du : d.dv;  // the vanishing derivative
+    const Vec3& b = d.duv;                     // its derivative across the line
+    const double bb = b.squaredNorm();
+    if (!(bb > 0.0)) break;
+    Vec2 next = c;
+    (uCollapses ? next.y() : next.x()) -= a.dot(b) / bb;
+    const SurfaceD2 dn = surf.d2(next.x(), next.y());
+    if (!(small(dn) < small(d)) || !dn.p.allFinite()) break;
+    c = next;
+    d = dn;
+  }
+  return (d.p - surf.value(uv.x(), uv.y())).norm() <= reach ? c : uv;
+}
+
 /// The corners' (u,v) of element e on its face, and its vote: its winding against the surface
 /// normal.
 void elementCorners(Recovery& r, const BridgeReport& report, std::size_t e, Projector& pr) {
@@ -84,7 +111,8 @@ void elementCorners(Recovery& r, const BridgeReport& report, std::size_t e, Proj
   // Corners on a pole: the free coordinate follows the element's other corners. The first
   // derivatives at the corners are kept (cornerD1[k] is at the current corner[k]).
   for (int k = 0; k < nn; ++k) {
-    const Vec2& c = corner[static_cast<std::size_t>(k)];
+    Vec2& c = corner[static_cast<std::size_t>(k)];
+    if (r.isPole[static_cast<std::size_t>(nd[k])]) c = ontoSingularity(surf, c, 1e-6 * r.diag);
     cornerD1[static_cast<std::size_t>(k)] = surf.d1(c.x(), c.y());
   }
   for (int k = 0; k < nn; ++k) {
