@@ -620,6 +620,81 @@ TEST(JacobianCertificate, TurnedAcrossTheSurfaceInsideIsNotCertified) {
   }
 }
 
+TEST(JacobianCertificate, OnPiecesTheFacesOwnNormalsDecide) {
+  // (1) A plane element, valid against the plane's normal, whose node normals say otherwise
+  // at one corner (a normal turned by 150°, as at a B-spline patch's nearly collapsed corner):
+  // the interpolation of the node normals cannot prove it; on pieces, with the face's own
+  // normal, it is proven at once; with the opposite one it is not.
+  const Element plane = flat(2);
+  std::vector<Vec3> normals(plane.x.size(), plane.n);
+  const Vec3 t = (plane.x[1] - plane.x[0]).normalized();
+  normals[2] = std::cos(2.6) * plane.n + std::sin(2.6) * t;
+  ASSERT_FALSE(triangleJacobianPositiveAgainstNodeNormals(2, plane.x.data(), normals.data()));
+  const FaceNormalAt up = [&](const Eigen::Vector2d&) { return plane.n; };
+  const FaceNormalAt down = [&](const Eigen::Vector2d&) { return Vec3(-plane.n); };
+  EXPECT_TRUE(triangleJacobianPositiveOnPieces(2, plane.x.data(), normals.data(), up));
+  EXPECT_FALSE(triangleJacobianPositiveOnPieces(2, plane.x.data(), normals.data(), down));
+  EXPECT_FALSE(triangleJacobianPositiveOnPieces(2, plane.x.data(), normals.data(), up, 0));
+  // (2) Elements on the cylinder that the node normals cannot prove, among random ones (fixed
+  // seed), decided on pieces with the cylinder's normal at the closest point of x(ξ), each
+  // verdict checked against det J with that normal on a dense grid (positive: positive at
+  // every grid point; refused: not above 2 % of the element's scale somewhere). On the
+  // cylinder, whose normal turns slowly, the interpolation of the node normals is right: all
+  // are refused, as they are turned across the cylinder inside.
+  for (int p : {2, 3}) {
+    std::mt19937 rng(11u + static_cast<unsigned>(p));
+    std::uniform_real_distribution<double> wide(1.0, 3.2), tall(0.2, 0.8);
+    const Lagrange L(p);
+    int proven = 0, refused = 0, tried = 0;
+    for (; tried < 20000 && refused < 20; ++tried) {
+      const CylinderElement ce =
+          onCylinder(p, wide(rng), 0.1 * wide(rng), 0.05, tall(rng), &rng, p == 2 ? 0.3 : 0.125);
+      if (certify(ce.e).sign != JacobianSign::Positive) continue;
+      if (triangleJacobianPositiveAgainstNodeNormals(p, ce.e.x.data(), ce.normals.data())) continue;
+      std::vector<double> N;
+      auto at = [&](double xi, double eta, Vec3* a, Vec3* b) {
+        L.values(xi, eta, &N);
+        Vec3 x = Vec3::Zero();
+        for (std::size_t i = 0; i < N.size(); ++i) x += N[i] * ce.e.x[i];
+        std::vector<Eigen::Vector2d> g;
+        L.derivatives(xi, eta, &g);
+        *a = Vec3::Zero(), *b = Vec3::Zero();
+        for (std::size_t i = 0; i < g.size(); ++i) {
+          *a += g[i].x() * ce.e.x[i];
+          *b += g[i].y() * ce.e.x[i];
+        }
+        return x;
+      };
+      const FaceNormalAt cylinderNormal = [&](const Eigen::Vector2d& xi) {
+        Vec3 a, b;
+        return cylinderNormalNear(at(xi.x(), xi.y(), &a, &b));
+      };
+      const bool positive =
+          triangleJacobianPositiveOnPieces(p, ce.e.x.data(), ce.normals.data(), cylinderNormal);
+      double worst = INFINITY;
+      const int n = 60;
+      for (int j = 0; j <= n; ++j)
+        for (int i = 0; i + j <= n; ++i) {
+          Vec3 a, b;
+          const Vec3 x = at(double(i) / n, double(j) / n, &a, &b);
+          worst = std::min(worst, a.cross(b).normalized().dot(cylinderNormalNear(x)));
+        }
+      if (positive) {
+        EXPECT_GT(worst, 0.0) << "p = " << p;
+        ++proven;
+      } else {
+        EXPECT_LT(worst, 0.02) << "p = " << p;
+        ++refused;
+      }
+    }
+    std::printf(
+        "p = %d: of the elements the node normals cannot prove, %d proven on pieces and "
+        "%d refused, in %d tried\n",
+        p, proven, refused, tried);
+    EXPECT_EQ(refused, 20) << "p = " << p;
+  }
+}
+
 TEST(JacobianCertificate, AgainstNodeNormalsAtAPoleAndWithoutNormals) {
   // A zero normal (a node at a pole) takes the others' direction; no normal at all: D_h ≡ 0.
   const Element s = sphere(2);

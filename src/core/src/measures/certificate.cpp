@@ -670,6 +670,65 @@ bool triangleJacobianPositiveAgainstNodeNormals(int order, const Vec3* x, const 
          JacobianSign::Positive;
 }
 
+namespace {
+
+/// The verdict against node normals on the piece of the element (nodes x) with reference
+/// corners a, b, c (counter-clockwise, as the element's): true when proven positive. When
+/// the search finds a point where D_h ≤ τ, D there against the face's own normal decides at
+/// once: not positive, a fold against the face (false, and no other piece is examined);
+/// positive, the interpolation was at fault, and the piece is split (up to `depth`).
+bool piecePositive(const LagrangeTriangle& L, const Vec3* x, const Vec3* pieceNormals,
+                   const FaceNormalAt& normalAt, const Eigen::Vector2d& a, const Eigen::Vector2d& b,
+                   const Eigen::Vector2d& c, int depth) {
+  const int nn = L.nodeCount();
+  Vec3 xs[kMaxElementNodes], ns[kMaxElementNodes];
+  const bool whole = pieceNormals != nullptr;  // the element itself, with its node normals
+  if (whole) {
+    std::copy(x, x + nn, xs);
+    std::copy(pieceNormals, pieceNormals + nn, ns);
+  } else {
+    double N[kMaxElementNodes];
+    for (int k = 0; k < nn; ++k) {
+      const Eigen::Vector2d& r = L.nodes()[static_cast<std::size_t>(k)];
+      const Eigen::Vector2d xi = a + r.x() * (b - a) + r.y() * (c - a);
+      L.shape(xi, N);
+      Vec3 p = Vec3::Zero();
+      for (int i = 0; i < nn; ++i) p += N[i] * x[i];
+      xs[k] = p;
+      ns[k] = normalAt(xi);
+    }
+  }
+  Vec3 filled[kMaxElementNodes];
+  double normals = 0.0;
+  if (!fillPoleNormals(ns, nn, filled, &normals)) return false;
+  const JacobianCertificate v =
+      decideAgainstNodeNormals(L.order(), xs, filled, normals, kCertificateMaxDepth);
+  if (v.sign == JacobianSign::Positive) return true;
+  if (v.sign == JacobianSign::NonPositive && v.point.allFinite()) {
+    const Eigen::Vector2d xi = a + v.point.x() * (b - a) + v.point.y() * (c - a);
+    Eigen::Vector2d g[kMaxElementNodes];
+    L.gradients(xi, g);
+    Vec3 xa, xb;
+    tangents(x, g, nn, &xa, &xb);
+    if (!(xa.cross(xb).dot(normalAt(xi)) > 0.0)) return false;
+  }
+  if (depth <= 0) return false;
+  const Eigen::Vector2d ab = 0.5 * (a + b), bc = 0.5 * (b + c), ca = 0.5 * (c + a);
+  const Eigen::Vector2d pieces[4][3] = {{a, ab, ca}, {ab, b, bc}, {ca, bc, c}, {ab, bc, ca}};
+  for (const auto& q : pieces)
+    if (!piecePositive(L, x, nullptr, normalAt, q[0], q[1], q[2], depth - 1)) return false;
+  return true;
+}
+
+}  // namespace
+
+bool triangleJacobianPositiveOnPieces(int order, const Vec3* x, const Vec3* nodeNormals,
+                                      const FaceNormalAt& normalAt, int depth) {
+  basis(order);  // (the order's check)
+  return piecePositive(lagrangeTriangle(order), x, nodeNormals, normalAt, Eigen::Vector2d(0.0, 0.0),
+                       Eigen::Vector2d(1.0, 0.0), Eigen::Vector2d(0.0, 1.0), depth);
+}
+
 bool elementCertifiedValid(ElementType type, const Vec3* x, const Vec3& n) {
   if (!isQuad(type)) return triangleJacobianPositive(elementOrder(type), x, n);
   // Quad4 and quad8: their own proofs, inside their distortion (any measure: validity only).

@@ -1,5 +1,8 @@
 #include "surfmesh/measures/element_measure.h"
 
+#include "surfmesh/measures/certificate.h"
+#include "surfmesh/measures/lagrange_triangle.h"
+
 #include <cmath>
 #include <limits>
 
@@ -285,6 +288,21 @@ void elementNodeNormals(const SurfaceMesh& mesh, std::size_t e,
       mesh.faceOrientation.empty() ? 1 : mesh.faceOrientation[static_cast<std::size_t>(f)];
   for (int k = 0; k < mesh.elementSize(e); ++k)
     nodeNormals[k] = Vec3((o * s.normal(uv[k].x(), uv[k].y())).eval());
+}
+
+bool curvedTriangleAlongFace(ElementType type, const Vec3* x, const Vec3* nodeNormals,
+                             const Surface& s, int orientation, const Vec2* uv) {
+  const int order = elementOrder(type);
+  const LagrangeTriangle& L = lagrangeTriangle(order);
+  const int nn = L.nodeCount();
+  const FaceNormalAt normalAt = [&](const Eigen::Vector2d& xi) {
+    double N[kMaxElementNodes];
+    L.shape(xi, N);
+    Vec2 c = Vec2::Zero();
+    for (int i = 0; i < nn; ++i) c += N[i] * uv[i];
+    return Vec3((orientation * s.normal(c.x(), c.y())).eval());
+  };
+  return triangleJacobianPositiveOnPieces(order, x, nodeNormals, normalAt);
 }
 
 CornerSides cornerSides(ElementType type, const Vec3* x, const Vec3* cornerNormals) {

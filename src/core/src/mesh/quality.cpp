@@ -46,10 +46,15 @@ ElementQuality elementQuality(const SurfaceMesh& mesh, std::size_t e, const Plan
   bool across = standsAcross(mesh.elemType[e], x, corners);
   if (!across && !bad && isHighOrderTriangle(mesh.elemType[e])) {
     // Its tangent plane turned across the surface's inside the element (certificate.h).
+    // Where the face's normal turns too fast within the element for the interpolation of
+    // its nodes' normals, the face's own normals on pieces of the element decide.
     Vec3 nodeNormals[kMaxElementNodes];
     elementNodeNormals(mesh, e, surfaces, nodeNormals);
-    across =
-        !triangleJacobianPositiveAgainstNodeNormals(elementOrder(mesh.elemType[e]), x, nodeNormals);
+    const int f = mesh.elemFace[e];
+    const int o =
+        mesh.faceOrientation.empty() ? 1 : mesh.faceOrientation[static_cast<std::size_t>(f)];
+    across = !curvedTriangleAlongFace(mesh.elemType[e], x, nodeNormals,
+                                      *surfaces[static_cast<std::size_t>(f)], o, mesh.elementUV(e));
   }
   ElementQuality q;
   q.tangled = bad;

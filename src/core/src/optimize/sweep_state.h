@@ -224,6 +224,36 @@ struct State {
     return !triangleJacobianPositiveAgainstNodeNormals(elementOrder(mesh.elemType[e]), xs, normals);
   }
 
+  /// turnedAgainst at the current positions (the hold's decision, once per run and per node
+  /// update), where for a high-order triangle the face's own normals on pieces of the element
+  /// decide when the interpolation of `normals` cannot tell (curvedTriangleAlongFace, as the
+  /// quality report): a valid element is held from becoming invalid by the report's test. `uv`:
+  /// its nodes' current (u,v) on its face, `surf` the calling thread's surface.
+  bool turnedAgainstNow(std::size_t e, const Vec3* normals, const Surface& surf,
+                        const Vec2* uv) const {
+    if (!turnedAgainst(e, -1, Vec3::Zero(), normals)) return false;
+    if (!isHighOrderTriangle(mesh.elemType[e])) return true;
+    Vec3 xs[kMaxElementNodes];
+    positions(e, -1, Vec3::Zero(), xs);
+    const std::size_t f = static_cast<std::size_t>(mesh.elemFace[e]);
+    const int o = mesh.faceOrientation.empty() ? 1 : mesh.faceOrientation[f];
+    return !curvedTriangleAlongFace(mesh.elemType[e], xs, normals, surf, o, uv);
+  }
+
+  /// The (u,v) of element e's nodes on its face at the current positions: a Face node of that
+  /// face at its own (u,v) (unwrapped next to its corner entry), the others at their corner
+  /// entries (nodes that do not move, or slide: those are not held).
+  void currentUV(std::size_t e, const Surface& surf, Vec2* out) const {
+    const std::int32_t* nd = mesh.elementNodes(e);
+    const Vec2* c = mesh.elementUV(e);
+    for (int k = 0; k < mesh.elementSize(e); ++k) {
+      const std::size_t j = static_cast<std::size_t>(nd[k]);
+      out[k] = mesh.nodeKind[j] == NodeKind::Face && mesh.nodeFace[j] == mesh.elemFace[e]
+                   ? surf.unwrapNear(uv[j], c[k])
+                   : c[k];
+    }
+  }
+
   /// The Jacobians of high-order triangle e at its nodes and quadrature points without the
   /// term of its node `local` (see HighOrderJacobians), at the current positions.
   void highOrderRest(std::size_t e, int local, HighOrderJacobians* out) const {

@@ -66,6 +66,7 @@
 
 #include <Eigen/Dense>
 
+#include <functional>
 #include <limits>
 
 namespace surfmesh {
@@ -159,6 +160,27 @@ bool triangleJacobianPositive(int order, const Vec3* x, const Vec3& n);
 
 /// The same for certifyTriangleAgainstNodeNormals.
 bool triangleJacobianPositiveAgainstNodeNormals(int order, const Vec3* x, const Vec3* nodeNormals);
+
+/// Split depth of triangleJacobianPositiveOnPieces: at most 4^3 = 64 pieces.
+constexpr int kFaceNormalPieceDepth = 3;
+
+/// The face's unit normal (zero at a pole) at the point of the surface that an element's map
+/// in (u,v) reaches at reference point ξ.
+using FaceNormalAt = std::function<Vec3(const Eigen::Vector2d&)>;
+
+/// Whether D against the face's own normals is positive on the whole triangle, where the
+/// interpolation of its node normals (certifyTriangleAgainstNodeNormals) cannot tell: the face's
+/// normal turns too fast within the element for one interpolation (a blade's tip, a B-spline
+/// patch's nearly collapsed corner). The element is split in four at its reference midpoints,
+/// recursively to `depth`; each piece is a Lagrange triangle of the same order (the element's
+/// map restricted to it: exact), with the face's normals at its own nodes (`normalAt`), and
+/// must be proven positive by the certificate against node normals. The interpolation error
+/// falls as h^(p+1) with the piece's size h. True at once when the whole element is proven
+/// positive against `nodeNormals`; false as soon as the search finds a point where D against
+/// the face's own normal is not positive, or a piece at `depth` is not proven positive.
+bool triangleJacobianPositiveOnPieces(int order, const Vec3* x, const Vec3* nodeNormals,
+                                      const FaceNormalAt& normalAt,
+                                      int depth = kFaceNormalPieceDepth);
 
 /// certifyTriangleJacobian for a triangle type (Tri3, Tri6, Tri10, Tri15, Tri21). Throws
 /// std::invalid_argument for a quadrilateral (see elementCertifiedValid).
