@@ -110,15 +110,31 @@ struct Lagrange {
     for (std::size_t i = 0; i < N.size(); ++i) n += N[i] * nodeNormals[i];
     return det(x, n, xi, eta);
   }
-  /// D(ξ) = (x_ξ × x_η)·n.
-  double det(const std::vector<Vec3>& x, const Vec3& n, double xi, double eta) const {
+  /// x_ξ and x_η at (ξ, η).
+  void tangents(const std::vector<Vec3>& x, double xi, double eta, Vec3* a, Vec3* b) const {
     std::vector<Eigen::Vector2d> g;
     derivatives(xi, eta, &g);
-    Vec3 a = Vec3::Zero(), b = Vec3::Zero();
+    *a = Vec3::Zero(), *b = Vec3::Zero();
     for (std::size_t i = 0; i < g.size(); ++i) {
-      a += g[i].x() * x[i];
-      b += g[i].y() * x[i];
+      *a += g[i].x() * x[i];
+      *b += g[i].y() * x[i];
     }
+  }
+  /// x(ξ), and the unit normal of the element's tangent plane there, x_ξ × x_η normalized.
+  Vec3 point(const std::vector<Vec3>& x, double xi, double eta, Vec3* planeNormal) const {
+    std::vector<double> N;
+    values(xi, eta, &N);
+    Vec3 p = Vec3::Zero();
+    for (std::size_t i = 0; i < N.size(); ++i) p += N[i] * x[i];
+    Vec3 a, b;
+    tangents(x, xi, eta, &a, &b);
+    *planeNormal = a.cross(b).normalized();
+    return p;
+  }
+  /// D(ξ) = (x_ξ × x_η)·n.
+  double det(const std::vector<Vec3>& x, const Vec3& n, double xi, double eta) const {
+    Vec3 a, b;
+    tangents(x, xi, eta, &a, &b);
     return a.cross(b).dot(n);
   }
 };
@@ -591,23 +607,14 @@ TEST(JacobianCertificate, TurnedAcrossTheSurfaceInsideIsNotCertified) {
       ASSERT_EQ(c.sign, JacobianSign::NonPositive);
       // The independent judge: det J against the cylinder's normal at the projection of x(ξ),
       // at the certificate's point or next to it (a 1 % neighbourhood on a fine grid).
-      std::vector<double> N;
       double worst = INFINITY;
       for (int dj = -5; dj <= 5; ++dj)
         for (int di = -5; di <= 5; ++di) {
           const double xi = c.point.x() + di * 0.002, eta = c.point.y() + dj * 0.002;
           if (xi < 0 || eta < 0 || xi + eta > 1) continue;
-          L.values(xi, eta, &N);
-          Vec3 x = Vec3::Zero();
-          for (std::size_t i = 0; i < N.size(); ++i) x += N[i] * ce.e.x[i];
-          std::vector<Eigen::Vector2d> g;
-          L.derivatives(xi, eta, &g);
-          Vec3 a = Vec3::Zero(), b = Vec3::Zero();
-          for (std::size_t i = 0; i < g.size(); ++i) {
-            a += g[i].x() * ce.e.x[i];
-            b += g[i].y() * ce.e.x[i];
-          }
-          worst = std::min(worst, a.cross(b).normalized().dot(cylinderNormalNear(x)));
+          Vec3 plane;
+          const Vec3 x = L.point(ce.e.x, xi, eta, &plane);
+          worst = std::min(worst, plane.dot(cylinderNormalNear(x)));
         }
       EXPECT_LT(worst, 0.02) << "p = " << p;
       ++found;
@@ -651,23 +658,9 @@ TEST(JacobianCertificate, OnPiecesTheFacesOwnNormalsDecide) {
           onCylinder(p, wide(rng), 0.1 * wide(rng), 0.05, tall(rng), &rng, p == 2 ? 0.3 : 0.125);
       if (certify(ce.e).sign != JacobianSign::Positive) continue;
       if (triangleJacobianPositiveAgainstNodeNormals(p, ce.e.x.data(), ce.normals.data())) continue;
-      std::vector<double> N;
-      auto at = [&](double xi, double eta, Vec3* a, Vec3* b) {
-        L.values(xi, eta, &N);
-        Vec3 x = Vec3::Zero();
-        for (std::size_t i = 0; i < N.size(); ++i) x += N[i] * ce.e.x[i];
-        std::vector<Eigen::Vector2d> g;
-        L.derivatives(xi, eta, &g);
-        *a = Vec3::Zero(), *b = Vec3::Zero();
-        for (std::size_t i = 0; i < g.size(); ++i) {
-          *a += g[i].x() * ce.e.x[i];
-          *b += g[i].y() * ce.e.x[i];
-        }
-        return x;
-      };
       const FaceNormalAt cylinderNormal = [&](const Eigen::Vector2d& xi) {
-        Vec3 a, b;
-        return cylinderNormalNear(at(xi.x(), xi.y(), &a, &b));
+        Vec3 plane;
+        return cylinderNormalNear(L.point(ce.e.x, xi.x(), xi.y(), &plane));
       };
       const bool positive =
           triangleJacobianPositiveOnPieces(p, ce.e.x.data(), ce.normals.data(), cylinderNormal);
@@ -675,9 +668,9 @@ TEST(JacobianCertificate, OnPiecesTheFacesOwnNormalsDecide) {
       const int n = 60;
       for (int j = 0; j <= n; ++j)
         for (int i = 0; i + j <= n; ++i) {
-          Vec3 a, b;
-          const Vec3 x = at(double(i) / n, double(j) / n, &a, &b);
-          worst = std::min(worst, a.cross(b).normalized().dot(cylinderNormalNear(x)));
+          Vec3 plane;
+          const Vec3 x = L.point(ce.e.x, double(i) / n, double(j) / n, &plane);
+          worst = std::min(worst, plane.dot(cylinderNormalNear(x)));
         }
       if (positive) {
         EXPECT_GT(worst, 0.0) << "p = " << p;

@@ -673,7 +673,9 @@ bool triangleJacobianPositiveAgainstNodeNormals(int order, const Vec3* x, const 
 namespace {
 
 /// The verdict against node normals on the piece of the element (nodes x) with reference
-/// corners a, b, c (counter-clockwise, as the element's): true when proven positive. When
+/// corners a, b, c (counter-clockwise, as the element's): true when proven positive. With
+/// `pieceNormals`, the piece is the whole element and those are its node normals; without,
+/// the piece's nodes and normals are taken from x and `normalAt`. When
 /// the search finds a point where D_h ≤ τ, D there against the face's own normal decides at
 /// once: not positive, a fold against the face (false, and no other piece is examined);
 /// positive, the interpolation was at fault, and the piece is split (up to `depth`).
@@ -682,11 +684,10 @@ bool piecePositive(const LagrangeTriangle& L, const Vec3* x, const Vec3* pieceNo
                    const Eigen::Vector2d& c, int depth) {
   const int nn = L.nodeCount();
   Vec3 xs[kMaxElementNodes], ns[kMaxElementNodes];
-  const bool whole = pieceNormals != nullptr;  // the element itself, with its node normals
-  if (whole) {
-    std::copy(x, x + nn, xs);
-    std::copy(pieceNormals, pieceNormals + nn, ns);
-  } else {
+  const Vec3 *px = x, *pn = pieceNormals;  // the element itself, with its node normals
+  if (!pieceNormals) {
+    px = xs;
+    pn = ns;
     double N[kMaxElementNodes];
     for (int k = 0; k < nn; ++k) {
       const Eigen::Vector2d& r = L.nodes()[static_cast<std::size_t>(k)];
@@ -700,9 +701,9 @@ bool piecePositive(const LagrangeTriangle& L, const Vec3* x, const Vec3* pieceNo
   }
   Vec3 filled[kMaxElementNodes];
   double normals = 0.0;
-  if (!fillPoleNormals(ns, nn, filled, &normals)) return false;
+  if (!fillPoleNormals(pn, nn, filled, &normals)) return false;
   const JacobianCertificate v =
-      decideAgainstNodeNormals(L.order(), xs, filled, normals, kCertificateMaxDepth);
+      decideAgainstNodeNormals(L.order(), px, filled, normals, kCertificateMaxDepth);
   if (v.sign == JacobianSign::Positive) return true;
   if (v.sign == JacobianSign::NonPositive && v.point.allFinite()) {
     const Eigen::Vector2d xi = a + v.point.x() * (b - a) + v.point.y() * (c - a);

@@ -290,9 +290,9 @@ void elementNodeNormals(const SurfaceMesh& mesh, std::size_t e,
     nodeNormals[k] = Vec3((o * s.normal(uv[k].x(), uv[k].y())).eval());
 }
 
-bool curvedTriangleAlongFace(ElementType type, const Vec3* x, const Vec3* nodeNormals,
-                             const Surface& s, int orientation, const Vec2* uv) {
-  const int order = elementOrder(type);
+bool curvedTriangleAlongFace(const SurfaceMesh& mesh, std::size_t e, const Surface& s,
+                             const Vec3* x, const Vec3* nodeNormals, const Vec2* uv) {
+  const int order = elementOrder(mesh.elemType[e]);
   const LagrangeTriangle& L = lagrangeTriangle(order);
   const int nn = L.nodeCount();
   const FaceNormalAt normalAt = [&](const Eigen::Vector2d& xi) {
@@ -300,7 +300,7 @@ bool curvedTriangleAlongFace(ElementType type, const Vec3* x, const Vec3* nodeNo
     L.shape(xi, N);
     Vec2 c = Vec2::Zero();
     for (int i = 0; i < nn; ++i) c += N[i] * uv[i];
-    return Vec3((orientation * s.normal(c.x(), c.y())).eval());
+    return mesh.referenceNormal(mesh.elemFace[e], c, s);
   };
   return triangleJacobianPositiveOnPieces(order, x, nodeNormals, normalAt);
 }

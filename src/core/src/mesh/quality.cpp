@@ -50,11 +50,9 @@ ElementQuality elementQuality(const SurfaceMesh& mesh, std::size_t e, const Plan
     // its nodes' normals, the face's own normals on pieces of the element decide.
     Vec3 nodeNormals[kMaxElementNodes];
     elementNodeNormals(mesh, e, surfaces, nodeNormals);
-    const int f = mesh.elemFace[e];
-    const int o =
-        mesh.faceOrientation.empty() ? 1 : mesh.faceOrientation[static_cast<std::size_t>(f)];
-    across = !curvedTriangleAlongFace(mesh.elemType[e], x, nodeNormals,
-                                      *surfaces[static_cast<std::size_t>(f)], o, mesh.elementUV(e));
+    across =
+        !curvedTriangleAlongFace(mesh, e, *surfaces[static_cast<std::size_t>(mesh.elemFace[e])], x,
+                                 nodeNormals, mesh.elementUV(e));
   }
   ElementQuality q;
   q.tangled = bad;

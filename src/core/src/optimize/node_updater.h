@@ -284,12 +284,9 @@ class NodeUpdater {
             kept[k] = s_.heldNormal(
                 e, k, *w_.geo.surfaces[static_cast<std::size_t>(s_.mesh.elemFace[e])]);
         for (int k = 0; k < nc; ++k) corners[k] = k == local ? nfree(j) : kept[k];
-        if (!cur) {
-          const Surface& fs = *w_.geo.surfaces[static_cast<std::size_t>(s_.mesh.elemFace[e])];
-          Vec2 uvNow[kMaxElementNodes];
-          s_.currentUV(e, fs, uvNow);
-          w_.holdHere[j] = !s_.turnedAgainstNow(e, corners, fs, uvNow);
-        }
+        if (!cur)
+          w_.holdHere[j] = !s_.turnedAgainstNow(
+              e, corners, *w_.geo.surfaces[static_cast<std::size_t>(s_.mesh.elemFace[e])]);
         guarded = w_.holdHere[j] != 0;
       }
       // A high-order triangle's Jacobians without the free node's term: the same for every

@@ -91,9 +91,7 @@ State::State(const SurfaceMesh& m, const PlanarMeasure& pm, const OptimizeOption
     const Surface& surf = *m.surfaces[static_cast<std::size_t>(m.elemFace[e])];
     for (int k = 0; k < heldNormalCount(e); ++k) corners[k] = heldNormal(e, k, surf);
     const CornerSides sides = cornerSidesAt(e, -1, Vec3::Zero(), corners);
-    Vec2 uvNow[kMaxElementNodes];
-    if (!sliding && sides.along) currentUV(e, surf, uvNow);
-    if (!sliding && sides.along && !turnedAgainstNow(e, corners, surf, uvNow))
+    if (!sliding && sides.along && !turnedAgainstNow(e, corners, surf))
       faceCorners[e] = static_cast<std::uint8_t>(faceCorners[e] | kAcrossGuard);
   }
   if (anyEdge) {

@@ -227,17 +227,15 @@ struct State {
   /// turnedAgainst at the current positions (the hold's decision, once per run and per node
   /// update), where for a high-order triangle the face's own normals on pieces of the element
   /// decide when the interpolation of `normals` cannot tell (curvedTriangleAlongFace, as the
-  /// quality report): a valid element is held from becoming invalid by the report's test. `uv`:
-  /// its nodes' current (u,v) on its face, `surf` the calling thread's surface.
-  bool turnedAgainstNow(std::size_t e, const Vec3* normals, const Surface& surf,
-                        const Vec2* uv) const {
-    if (!turnedAgainst(e, -1, Vec3::Zero(), normals)) return false;
-    if (!isHighOrderTriangle(mesh.elemType[e])) return true;
+  /// quality report): a valid element is held from becoming invalid by the report's test.
+  /// `surf`: the calling thread's copy of the element's surface.
+  bool turnedAgainstNow(std::size_t e, const Vec3* normals, const Surface& surf) const {
+    if (!isHighOrderTriangle(mesh.elemType[e])) return turnedAgainst(e, -1, Vec3::Zero(), normals);
     Vec3 xs[kMaxElementNodes];
     positions(e, -1, Vec3::Zero(), xs);
-    const std::size_t f = static_cast<std::size_t>(mesh.elemFace[e]);
-    const int o = mesh.faceOrientation.empty() ? 1 : mesh.faceOrientation[f];
-    return !curvedTriangleAlongFace(mesh.elemType[e], xs, normals, surf, o, uv);
+    Vec2 uvNow[kMaxElementNodes];
+    currentUV(e, surf, uvNow);
+    return !curvedTriangleAlongFace(mesh, e, surf, xs, normals, uvNow);
   }
 
   /// The (u,v) of element e's nodes on its face at the current positions: a Face node of that

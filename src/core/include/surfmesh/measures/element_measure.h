@@ -195,13 +195,14 @@ Vec3 elementReferenceNormal(const SurfaceMesh& mesh, std::size_t e,
 Vec3 elementReferenceNormal(const SurfaceMesh& mesh, std::size_t e,
                             const std::vector<const Surface*>& surfaces, Vec3* cornerNormals);
 
-/// Whether a high-order triangle of `type` with nodes x has its Jacobian positive against its
+/// Whether high-order triangle e of `mesh`, with nodes x, has its Jacobian positive against its
 /// face's normals over the whole element (certificate.h, triangleJacobianPositiveOnPieces):
 /// nodeNormals are the face's normals at its nodes (elementNodeNormals'), and inside, the
-/// face's normal is `orientation` × s.normal at the element's map in (u,v) from uv[0 … k − 1],
-/// its nodes' (u,v) on s (unwrapped alike). `s` is the calling thread's copy of the surface.
-bool curvedTriangleAlongFace(ElementType type, const Vec3* x, const Vec3* nodeNormals,
-                             const Surface& s, int orientation, const Vec2* uv);
+/// face's normal is mesh.referenceNormal at the element's map in (u,v) from uv[0 … k − 1], its
+/// nodes' (u,v) on its face (unwrapped alike). `s` is the calling thread's copy of the face's
+/// surface.
+bool curvedTriangleAlongFace(const SurfaceMesh& mesh, std::size_t e, const Surface& s,
+                             const Vec3* x, const Vec3* nodeNormals, const Vec2* uv);
 
 /// The face's unit normals (mesh.referenceNormal, zero at a pole) at every node of element e,
 /// at the node's (u,v) in e, written to nodeNormals[0 … elementSize − 1]; surfaces as above.
