@@ -76,16 +76,25 @@ TEST(DeltaPolicy, ThreeSweepsWithoutAMoveAreAFixedPoint) {
   EXPECT_TRUE(p.afterUntanglingSweep(4, 0));
 }
 
-TEST(StopRule, GivesUpAfterSixStallCyclesWithoutANewFewest) {
+TEST(StopRule, GivesUpAfterItsStallCyclesWithoutANewFewest) {
+  // 6 stall periods by default (two cycles of ε), 3 in the "reference" mode's repair runs
+  for (int cycles : {6, 3}) {
+    OptimizeOptions opt;
+    opt.deltaStallSweeps = 2;
+    if (cycles != 6) opt.giveUpStallCycles = cycles;
+    StopRule stop(opt, 7);
+    const int n = 2 * cycles;
+    EXPECT_EQ(stop.giveUpSweeps(), n);
+    EXPECT_FALSE(stop.givesUp(1, 5));  // new fewest at sweep 1
+    for (int sweep = 2; sweep <= n; ++sweep) EXPECT_FALSE(stop.givesUp(sweep, 6)) << sweep;
+    EXPECT_TRUE(stop.givesUp(n + 1, 5));   // n sweeps since the last new fewest
+    EXPECT_FALSE(stop.givesUp(n + 2, 4));  // a new fewest
+    EXPECT_FALSE(stop.givesUp(30, 0));     // nothing tangled: nothing to give up
+  }
   OptimizeOptions opt;
   opt.deltaStallSweeps = 2;
-  StopRule stop(opt, 7);
-  EXPECT_EQ(stop.giveUpSweeps(), 12);
-  EXPECT_FALSE(stop.givesUp(1, 5));  // new fewest at sweep 1
-  for (int sweep = 2; sweep < 13; ++sweep) EXPECT_FALSE(stop.givesUp(sweep, 6)) << sweep;
-  EXPECT_TRUE(stop.givesUp(13, 5));   // 12 sweeps since the last new fewest
-  EXPECT_FALSE(stop.givesUp(14, 4));  // a new fewest
-  EXPECT_FALSE(stop.givesUp(30, 0));  // nothing tangled: nothing to give up
+  opt.giveUpStallCycles = 0;
+  EXPECT_EQ(StopRule(opt, 7).giveUpSweeps(), 2);  // (at least one stall period)
 }
 
 TEST(StopRule, SmoothingConvergesOnSmallDecreaseOrSmallMoves) {

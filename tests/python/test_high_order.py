@@ -745,3 +745,124 @@ class FlatElementLeftOut(unittest.TestCase):
         self.assertEqual(again.stats["tangled"], 0)
         self.assertEqual(again.bridge["skipped_elements"], [1])
         self.assertGreaterEqual(again.stats["min"], before.stats["min"])
+
+
+class FlatSliverAlongACurvedEdge(unittest.TestCase):
+    """Curved slivers along one CAD edge (a half disk's arc, radius 10), as Gmsh leaves them
+    where a mesh meets a fillet: corners on the arc, the element wound against the face.
+      * The flat one: at its corner inside the arc both sides lie along the arc (their side
+        nodes on it), so they meet at a straight angle whatever the third side does: det J is
+        not positive there wherever its free node goes. It is left out as flat, with its free
+        side node at the chord's midpoint (smallest scaled det S −0.012) and pulled into the
+        face (−0.87). Before, neither was, and one with det S within 1e-2 of 0 was: a run
+        that moved such a node (Gmsh's order-3 housing) changed whether the same element was
+        counted.
+      * Where a side at that corner runs through the face, the element is counted (its node
+        there may move): the rule on hand-made node classes.
+    Reference: the geometry (which nodes the arc holds) and the bridge's skipped elements."""
+
+    def setUp(self):
+        import math
+
+        import Part
+
+        V = FreeCAD.Vector
+        self.rad = rad = 10.0
+        arc = Part.ArcOfCircle(Part.Circle(V(0, 0, 0), V(0, 0, 1), rad), 0.0, math.pi)
+        line = Part.LineSegment(V(-rad, 0, 0), V(rad, 0, 0))
+        self.face = Part.Face(Part.Wire([arc.toShape(), line.toShape()]))
+        self.assertTrue(self.face.isValid())
+
+    def at(self, angle, scale=1.0):
+        import math
+
+        return (scale * self.rad * math.cos(angle), scale * self.rad * math.sin(angle), 0.0)
+
+    def mesh(self, sliver):
+        """The sliver (6 nodes) and a valid straight-sided tria6 inside the disk."""
+        a, b, c = (0.0, 2.0, 0.0), (2.0, 2.0, 0.0), (1.0, 4.0, 0.0)
+        mid = [tuple((np.array(p) + np.array(q)) / 2) for p, q in ((a, b), (b, c), (c, a))]
+        tri6 = conversion.ELEMENT_TYPES["tri6"]
+        return conversion.MeshData(
+            kind="arrays", nodes=np.array(list(sliver) + [a, b, c] + mid), types=np.array([tri6, tri6]),
+            offsets=np.array([0, 6, 12]), conn=np.arange(12), node_ids=np.arange(12),
+            element_ids=np.array([1, 2]))
+
+    def flat(self, pull):
+        d = 0.01  # the arc's angle per side (the element's sides 0.1 long)
+        chord_mid = (np.array(self.at(0.0)) + np.array(self.at(2 * d))) / 2
+        free = tuple(chord_mid * (1.0 - pull))
+        # corners at angles 0 (the arc's vertex), 2d, d: wound against the face; the sides
+        # 2d -> d and d -> 0 along the arc, 0 -> 2d through the face
+        return self.mesh([self.at(0.0), self.at(2 * d), self.at(d), free, self.at(1.5 * d),
+                          self.at(0.5 * d)])
+
+    def test_a_sliver_with_a_straight_corner_between_sides_on_the_edge_is_left_out(self):
+        for pull, label in ((0.0, "free side node at its chord's midpoint"),
+                            (0.005, "free side node pulled into the face")):
+            with self.subTest(label):
+                rep = SurfMesh.measure(self.flat(pull), self.face)
+                self.assertEqual(rep.bridge.get("skipped_elements"), [1])
+                self.assertTrue(any("1 flat element(s)" in w for w in rep.bridge["warnings"]))
+                self.assertEqual(rep.stats["tangled"], 0)
+        # (the pulled one is well folded: counted tangled when flat elements are measured)
+        folded = SurfMesh.measure(self.flat(0.005), self.face, collapsed="error")
+        self.assertEqual(folded.stats["tangled"], 1)
+        self.assertLess(float(np.min(folded.min_sigma)), -0.1)
+
+    def test_which_corners_decide_on_hand_made_node_classes(self):
+        """The rule on its own (preparing.flat_boundary_elements with a stand-in for the
+        bridge's classes and measure), on the same tangled tria6 and a tria10 along the arc:
+        flat when the sides at the corner inside the edge are both on it; counted when one
+        of them runs through the face (its node there may move), whatever the element's det S
+        (−0.006: the old rule left both out); a tria6 with a corner between two sides on the
+        edge that meet at a real angle (a corner of a square) is counted too."""
+        from SurfMesh.app import preparing
+
+        d = 0.01
+        p0, p1, p2 = self.at(0.0), self.at(2 * d), self.at(d)
+        chord = np.array(p1) - np.array(p0)
+        tri6 = self.mesh([p0, p1, p2, tuple(np.array(p0) + chord / 2), self.at(1.5 * d),
+                          self.at(0.5 * d)])
+        vertex, edge, face = 0, 1, 2
+
+        class Bridge:  # the bridge's node classes and measure, for the first element only
+            def __init__(self, classes, entities):
+                n = 12
+                self.report = {"node_class": np.array(classes + [face] * (n - len(classes))),
+                               "node_entity": np.array(entities + [0] * (n - len(entities)))}
+
+            def measure(self, name):
+                return {"min_sigma": np.array([-0.006, 0.9]), "tangled": np.array([1, 0])}
+
+        on_arc = [vertex, edge, edge, face, edge, edge]
+        flat, _ = preparing.flat_boundary_elements(tri6, Bridge(on_arc, [0] * 6))
+        self.assertEqual(flat.tolist(), [True, False])
+        # the side from the corner inside the arc to the vertex runs through the face
+        through = [vertex, edge, edge, face, edge, face]
+        flat, _ = preparing.flat_boundary_elements(tri6, Bridge(through, [0] * 6))
+        self.assertEqual(flat.tolist(), [False, False])
+        # two corners on the same vertex: flat whatever the sides
+        flat, _ = preparing.flat_boundary_elements(
+            tri6, Bridge([vertex, vertex, edge, face, face, face], [0, 0, 0, 0, 0, 0]))
+        self.assertEqual(flat.tolist(), [True, False])
+        # a square's corner: sides on the edge meeting at 90°
+        square = self.mesh([(0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.5, 0.0, 0.0),
+                            (0.5, 0.5, 0.0), (0.0, 0.5, 0.0)])
+        flat, _ = preparing.flat_boundary_elements(
+            square, Bridge([vertex, edge, edge, edge, face, edge], [0] * 6))
+        self.assertEqual(flat.tolist(), [False, False])
+        # tria10 (two side nodes per side, Gmsh's order) along the arc: flat
+        tri10 = conversion.ELEMENT_TYPES["tri10"]
+        pts = [p0, p1, p2, tuple(np.array(p0) + chord / 3), tuple(np.array(p0) + 2 * chord / 3),
+               self.at(5 * d / 3), self.at(4 * d / 3), self.at(2 * d / 3), self.at(d / 3),
+               self.at(d, 0.9995)]
+        work = conversion.MeshData(
+            kind="arrays", nodes=np.array(pts + [(0.0, 2.0, 0.0), (2.0, 2.0, 0.0),
+                                                 (1.0, 4.0, 0.0)]),
+            types=np.array([tri10, conversion.ELEMENT_TYPES["tri3"]]),
+            offsets=np.array([0, 10, 13]), conn=np.arange(13), node_ids=np.arange(13),
+            element_ids=np.array([1, 2]))
+        classes = [vertex, edge, edge, face, face, edge, edge, edge, edge, face]
+        flat, _ = preparing.flat_boundary_elements(work, Bridge(classes, [0] * 10))
+        self.assertEqual(flat.tolist(), [True, False])

@@ -329,11 +329,19 @@ def side_nodes_astray(data):
 
 def flat_boundary_elements(work, handle):
     """Bool mask (over ``work``'s elements) of tangled elements that no node movement can
-    repair: (nearly) zero-area ones (scaled det S within 1e-2 of 0) whose corners all lie on
-    CAD edges or vertices, the edge nodes all on one edge (slivers along a CAD edge), and ones
-    with two corners on the same CAD vertex (two mesh nodes within that vertex's tolerance: a
-    collapsed edge, like a repeated node). Returns ``(mask, measured)``: ``measured`` is the
-    handle's "shape" measure this took (``handle.measure("shape")``)."""
+    repair: ones with two corners on the same CAD vertex (two mesh nodes within that vertex's
+    tolerance: a collapsed edge, like a repeated node), and slivers along one CAD edge, whose
+    corners all lie on that edge or its vertices:
+      * linear ones (tri3, quad4) when (nearly) flat, scaled det S within 1e-2 of 0;
+      * curved ones (tri6 ... tri21, quad8) when at a corner both sides that meet there lie on
+        CAD edges or vertices (no node of theirs inside a face) and meet at a straight or
+        zero angle (the sine of the angle between their tangents there within 0.05 of 0, about
+        3°; a cubic side along a curved CAD edge meets its neighbour at 179° there): the
+        element's det J there is that angle's, wherever its other nodes go. (Their scaled det
+        S is left out of it: a run that moves their free side nodes changes it, and the same
+        element would be measured in the input and left out of the result.)
+    Returns ``(mask, measured)``: ``measured`` is the handle's "shape" measure this took
+    (``handle.measure("shape")``)."""
     cls = np.asarray(handle.report["node_class"])
     ent = np.asarray(handle.report["node_entity"])
     q = handle.measure("shape")
@@ -341,16 +349,61 @@ def flat_boundary_elements(work, handle):
     tangled = np.asarray(q["tangled"])
     out = np.zeros(work.element_count, dtype=bool)
     for e in np.nonzero(tangled)[0]:
-        nodes = work.element(e)[:3 if work.types[e] not in conversion.QUAD_CODES else 4]
-        c = cls[nodes]
-        vertices = ent[nodes][c == 0].tolist()
+        code = int(work.types[e])
+        nc = 4 if code in conversion.QUAD_CODES else 3
+        element = work.element(e)
+        c = cls[element[:nc]]
+        vertices = ent[element[:nc]][c == 0].tolist()
         if len(vertices) != len(set(vertices)):
             out[e] = True
-        elif abs(sigma[e]) <= 1e-2 and np.all((c == 0) | (c == 1)):
-            edges = set(ent[nodes][c == 1].tolist())
-            if len(edges) <= 1:
-                out[e] = True
+        elif np.all((c == 0) | (c == 1)) and len(set(ent[element[:nc]][c == 1].tolist())) <= 1:
+            if len(element) == nc:  # tri3, quad4
+                out[e] = abs(sigma[e]) <= 1e-2
+            else:
+                out[e] = _fixed_flat_corner(work.nodes, element, nc, cls)
     return out, q
+
+
+def _fixed_flat_corner(xyz, element, nc, cls):
+    """Whether a curved element (its node list ``element``, corners first, then each side's
+    nodes from its first corner to its second: Gmsh's order) has a corner where both sides
+    lie on CAD edges or vertices (``cls`` ≤ 1 at all their nodes) and meet at an angle whose
+    sine is within _FLAT_SINE of 0. The tangent of a side at a corner depends on that side's
+    nodes alone (the derivative of its Lagrange interpolant)."""
+    per_side = (len(element) - nc) // nc if nc == 4 else _SIDE_NODES[len(element)]
+    weights = _end_derivative(per_side + 1)
+
+    def side(k):  # side k's nodes from corner k to corner k + 1
+        inner = element[nc + k * per_side: nc + (k + 1) * per_side]
+        return np.concatenate(([element[k]], inner, [element[(k + 1) % nc]])).astype(np.int64)
+
+    for k in range(nc):
+        out_side, in_side = side(k), side((k - 1) % nc)[::-1]  # both from corner k
+        if np.any(cls[out_side] > 1) or np.any(cls[in_side] > 1):
+            continue
+        t1 = weights @ xyz[out_side]
+        t2 = weights @ xyz[in_side]
+        n1, n2 = np.linalg.norm(t1), np.linalg.norm(t2)
+        if n1 == 0.0 or n2 == 0.0 or np.linalg.norm(np.cross(t1, t2)) <= _FLAT_SINE * n1 * n2:
+            return True
+    return False
+
+
+# The largest sine of a flat corner's angle (_fixed_flat_corner).
+_FLAT_SINE = 0.05
+# Side nodes per side of a curved triangle, by its node count (tri6 ... tri21).
+_SIDE_NODES = {6: 1, 10: 2, 15: 3, 21: 4}
+
+
+def _end_derivative(p):
+    """The weights of the derivative at t = 0 of the degree-p Lagrange interpolant on the
+    points t = j / p (j = 0 … p): (p + 1,)."""
+    t = np.arange(p + 1) / p
+    w = np.empty(p + 1)
+    for j in range(p + 1):
+        others = np.delete(t, j)
+        w[j] = np.polyval(np.polyder(np.poly(others)), 0.0) / np.prod(t[j] - others)
+    return w
 
 
 # ---- the core's element indices and the user's ids -------------------------------------------

@@ -81,7 +81,7 @@ class StopRule {
  public:
   /// `tangled`: the tangled elements with a movable node at the start of the run.
   StopRule(const OptimizeOptions& opt, std::size_t tangled)
-      : giveUpSweeps_(6 * std::max(1, opt.deltaStallSweeps)),
+      : giveUpSweeps_(std::max(1, opt.giveUpStallCycles) * std::max(1, opt.deltaStallSweeps)),
         relTol_(opt.relTol),
         moveTol_(opt.moveTol),
         fewestTangled_(tangled) {}
@@ -110,9 +110,10 @@ class StopRule {
   }
 
   /// Untangling gives up after this many sweeps without fewer tangled elements than ever
-  /// before: two full cycles of ε, every escape tried with each ε twice. (Over the 198 runs of
-  /// the perturbation grid on three parts, and the test suite, the longest wait for a new best
-  /// before reaching 0 tangled was 17 sweeps.)
+  /// before: giveUpStallCycles × deltaStallSweeps; by default two full cycles of ε, every
+  /// escape tried with each ε twice. (Over the 198 runs of the perturbation grid on three
+  /// parts, and the test suite, the longest wait for a new best before reaching 0 tangled was
+  /// 17 sweeps.)
   int giveUpSweeps() const { return giveUpSweeps_; }
 
  private:

@@ -51,10 +51,10 @@
 // element's normal cannot change, and such a fold counts whatever the surface's normals at its
 // corners say): it is held from the start (while other elements are tangled it still sets δ and
 // takes part in the escapes, so the run is the same until no other element is tangled; then it
-// smooths with δ = 0). Neither do, after 6 × deltaStallSweeps sweeps without fewer tangled elements
-// than ever before (each level of ε tried twice), the elements still tangled: their nodes are held
-// from then on, the rest of the mesh is smoothed with δ = 0, and they are reported in
-// tangledMovable.
+// smooths with δ = 0). Neither do, after giveUpStallCycles × deltaStallSweeps sweeps (6 × 8 by
+// default) without fewer tangled elements than ever before (each level of ε tried twice), the
+// elements still tangled: their nodes are held from then on, the rest of the mesh is smoothed
+// with δ = 0, and they are reported in tangledMovable.
 //
 // Triangles standing across the surface (standsAcross): a linear triangle is measured in its
 // own plane, oriented by the sum of its corner normals, so one whose plane cuts through a thin
@@ -157,6 +157,13 @@ struct OptimizeOptions {
   double deltaEpsilon = 1e-2;
   /// Sweeps without fewer tangled elements before the automatic policy changes ε.
   int deltaStallSweeps = 8;
+  /// Sweeps without fewer tangled elements than ever before after which a run gives up
+  /// untangling (the elements still tangled are held, see above), in units of
+  /// deltaStallSweeps: 6, two full cycles of ε with every escape tried twice at each level.
+  /// The "reference" mode's repair runs use 3 (one cycle): they start from corners the
+  /// linear run already untangled with the full patience, and what they leave tangled is
+  /// mostly what no motion of the free nodes around it repairs. Not offered by the bindings.
+  int giveUpStallCycles = 6;
   /// δ of the fixed policy (dimensionless).
   double delta = 1e-2;
   /// Reject the moves that would lower the mesh's minimum quality. While the mesh is being
