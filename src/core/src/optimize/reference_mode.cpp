@@ -661,8 +661,10 @@ bool hasCurvedElements(const SurfaceMesh& mesh) {
 }
 
 /// The repair runs (steps 3 and 5) give up untangling after one cycle of ε without progress
-/// (OptimizeOptions::giveUpStallCycles), not two: on Gmsh's raw order-3 bottle, propeller and
-/// nist_pmi_1 the second cycle's escapes took most of the run and untangled nothing more.
+/// (OptimizeOptions::giveUpStallCycles), not two: they start from corners the linear run
+/// untangled with the full patience, and on Gmsh's raw order-3 propeller and nist_pmi_1 and
+/// order-2 solid56 the second cycle took a quarter to a half of the sweeps and repaired
+/// nothing (bench/history/2026-12.md).
 constexpr int kRepairStallCycles = 3;
 
 OptimizeResult optimizeReference(SurfaceMesh& mesh, const OptimizeOptions& opt,
