@@ -44,6 +44,9 @@ NODES_PER_TYPE = {"tri3": 3, "quad4": 4, "tri6": 6, "tri10": 10, "tri15": 15, "t
                   "quad8": 8}
 #: The quadrilateral type codes (4 corners; quad8 has a side node after them on each side).
 QUAD_CODES = (ELEMENT_TYPES["quad4"], ELEMENT_TYPES["quad8"])
+#: The curved types' order p by type code: p - 1 side nodes per side, after the corners.
+CURVED_ORDERS = {ELEMENT_TYPES[n]: p for n, p in (("tri6", 2), ("tri10", 3), ("tri15", 4),
+                                                  ("tri21", 5), ("quad8", 2))}
 
 # FEM face elements by node count (SMESH ordering equals Gmsh ordering for these).
 _FEM_FACE_TYPES = {3: "tri3", 6: "tri6", 4: "quad4", 8: "quad8"}
@@ -202,8 +205,7 @@ class MeshData:
         ones. Elsewhere such elements are not touched."""
         left_out = np.asarray(left_out, dtype=bool)
         out = np.zeros(self.element_count, dtype=bool)
-        orders = {ELEMENT_TYPES[n]: p for n, p in (("tri6", 2), ("tri10", 3), ("tri15", 4),
-                                                   ("tri21", 5), ("quad8", 2))}
+        orders = CURVED_ORDERS
         high = np.isin(self.types, list(orders)) & ~left_out
         if not left_out.any() or not high.any():
             return out

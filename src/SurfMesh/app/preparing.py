@@ -306,11 +306,11 @@ def side_nodes_astray(data):
     corners first, then the side nodes of sides 1-2, 2-3, 3-1 (Gmsh's and FreeCAD's)."""
     out = np.zeros(data.element_count, dtype=bool)
     sizes = np.diff(data.offsets)
-    for name, order in (("tri6", 2), ("tri10", 3), ("tri15", 4), ("tri21", 5), ("quad8", 2)):
-        sel = np.nonzero(data.types == conversion.ELEMENT_TYPES[name])[0]
+    for code, order in conversion.CURVED_ORDERS.items():
+        sel = np.nonzero(data.types == code)[0]
         if sel.size == 0:
             continue
-        nc = 4 if name == "quad8" else 3
+        nc = 4 if code in conversion.QUAD_CODES else 3
         k = int(sizes[sel[0]])
         idx = data.offsets[sel][:, None] + np.arange(k)[None, :]
         xyz = data.nodes[data.conn[idx]]  # (n, k, 3)
@@ -352,25 +352,25 @@ def flat_boundary_elements(work, handle):
         code = int(work.types[e])
         nc = 4 if code in conversion.QUAD_CODES else 3
         element = work.element(e)
-        c = cls[element[:nc]]
-        vertices = ent[element[:nc]][c == 0].tolist()
+        c, on = cls[element[:nc]], ent[element[:nc]]
+        vertices = on[c == 0].tolist()
         if len(vertices) != len(set(vertices)):
             out[e] = True
-        elif np.all((c == 0) | (c == 1)) and len(set(ent[element[:nc]][c == 1].tolist())) <= 1:
+        elif np.all((c == 0) | (c == 1)) and len(set(on[c == 1].tolist())) <= 1:
             if len(element) == nc:  # tri3, quad4
                 out[e] = abs(sigma[e]) <= 1e-2
             else:
-                out[e] = _fixed_flat_corner(work.nodes, element, nc, cls)
+                out[e] = _fixed_flat_corner(work.nodes, element, nc,
+                                            conversion.CURVED_ORDERS[code] - 1, cls)
     return out, q
 
 
-def _fixed_flat_corner(xyz, element, nc, cls):
-    """Whether a curved element (its node list ``element``, corners first, then each side's
-    nodes from its first corner to its second: Gmsh's order) has a corner where both sides
-    lie on CAD edges or vertices (``cls`` ≤ 1 at all their nodes) and meet at an angle whose
-    sine is within _FLAT_SINE of 0. The tangent of a side at a corner depends on that side's
+def _fixed_flat_corner(xyz, element, nc, per_side, cls):
+    """Whether a curved element (its node list ``element``, ``nc`` corners first, then each
+    side's ``per_side`` nodes from its first corner to its second: Gmsh's order) has a corner
+    where both sides lie on CAD edges or vertices (``cls`` ≤ 1 at all their nodes) and meet
+    at an angle whose sine is within _FLAT_SINE of 0. The tangent of a side at a corner depends on that side's
     nodes alone (the derivative of its Lagrange interpolant)."""
-    per_side = (len(element) - nc) // nc if nc == 4 else _SIDE_NODES[len(element)]
     weights = _end_derivative(per_side + 1)
 
     def side(k):  # side k's nodes from corner k to corner k + 1
@@ -391,8 +391,6 @@ def _fixed_flat_corner(xyz, element, nc, cls):
 
 # The largest sine of a flat corner's angle (_fixed_flat_corner).
 _FLAT_SINE = 0.05
-# Side nodes per side of a curved triangle, by its node count (tri6 ... tri21).
-_SIDE_NODES = {6: 1, 10: 2, 15: 3, 21: 4}
 
 
 def _end_derivative(p):
