@@ -9,6 +9,7 @@
 #   install + build         1 check (scripts/install.sh: packages, build, workbench copy)
 #   clang-format            1 check (all files together)
 #   C++ tests               1 per GoogleTest TEST() (ctest case), in build/ and in build-asan/
+#                           (the sanitizer run leaves three long ones to build/: ASAN_EXCLUDE)
 #   Python suites           1 per unittest test case (a suite that crashes or does not report
 #                           counts 1 failure)
 #   GUI suites              1 per tests/gui/test_*.py script
@@ -56,10 +57,17 @@ record() {  # record STEP PASSED FAILED [NOTE]
   RESULTS+=("$(printf '%-44s %4d passed %4d failed %s' "$1" "$2" "$3" "${4:-}")")
 }
 
-# ctest_run DIR LABEL: run ctest in DIR, count its cases.
+# The C++ tests the sanitizer build leaves to the main build: each runs 10-15x slower under
+# ASan + UBSan (the order-5 propeller 13 s -> 176 s, the golden record 13 s -> 165 s: most of
+# the sanitizer run's time) and goes through code the other sanitized tests already cover
+# (the curved optimizer, the bridge, the progress reports on smaller meshes).
+ASAN_EXCLUDE='^(HighOrderOptimize\.PaperTable4PropellerBladeOrder5IsSmoothed|Golden\.OptimizerAndBridgeRunsAreBitIdenticalToTheRecord|Optimizer\.TheLastProgressReportDescribesTheMeshTheRunReturns)$'
+
+# ctest_run DIR LABEL LOG [ctest options]: run ctest in DIR, count its cases.
 ctest_run() {
   local dir="$1" label="$2" log="$3" rc out passed failed total disabled
-  ctest --test-dir "$dir" --output-on-failure -j "$JOBS" 2>&1 | tee "$log"
+  shift 3
+  ctest --test-dir "$dir" --output-on-failure -j "$JOBS" "$@" 2>&1 | tee "$log"
   rc=${PIPESTATUS[0]}
   out="$(cat "$log")"
   if [[ "$out" =~ ([0-9]+)\ tests\ failed\ out\ of\ ([0-9]+) ]]; then
@@ -150,7 +158,8 @@ else
     cmake --build "$ASAN_BUILD_DIR" -j "$JOBS" 2>&1 | tee "$LOGS/asan-build.log" || asan_ok=0
   fi
   if [ "$asan_ok" -eq 1 ]; then
-    ctest_run "$ASAN_BUILD_DIR" "C++ tests, ASan + UBSan" "$LOGS/ctest-asan.log"
+    ctest_run "$ASAN_BUILD_DIR" "C++ tests, ASan + UBSan" "$LOGS/ctest-asan.log" \
+      -E "$ASAN_EXCLUDE"
   else
     record "C++ tests, ASan + UBSan" 0 1 "(sanitizer build failed)"
   fi
