@@ -4,6 +4,7 @@
 #include "fd_check.h"
 #include "surfmesh/geometry/analytic_surfaces.h"
 #include "surfmesh/measures/element_measure.h"
+#include "surfmesh/measures/lagrange_triangle.h"
 #include "surfmesh/mesh/quality.h"
 #include "test_meshes.h"
 
@@ -382,6 +383,115 @@ TEST(SurfaceMeasure, ElementsStandingAcrossTheSurfaceAreCounted) {
   EXPECT_TRUE(!s2.along && s2.against);
   EXPECT_TRUE(s3.along && s3.against);
   EXPECT_TRUE(!s4.along && !s4.against);
+}
+
+// A sharp cone whose tip is a pole only to within `gap`: φ(u,v) = ((v + gap) k cos u,
+// (v + gap) k sin u, v), v ∈ [0, 1]. At v = 0, ‖φ_u‖ = gap·k: a CAD face's row of control
+// points that meets in a point only to within the model's tolerance (a vertex of its
+// degenerated edge lies there). The normal on the line v = 0 turns with u, by up to 180°.
+class NearlyPointedCone final : public Surface {
+ public:
+  NearlyPointedCone(double k, double gap) : k_(k), gap_(gap) {}
+  Vec3 value(double u, double v) const override {
+    const double r = (v + gap_) * k_;
+    return {r * std::cos(u), r * std::sin(u), v};
+  }
+  SurfaceD1 d1(double u, double v) const override {
+    const SurfaceD2 d = d2(u, v);
+    return {d.p, d.du, d.dv};
+  }
+  SurfaceD2 d2(double u, double v) const override {
+    const double c = std::cos(u), s = std::sin(u), r = (v + gap_) * k_;
+    SurfaceD2 d;
+    d.p = {r * c, r * s, v};
+    d.du = {-r * s, r * c, 0.0};
+    d.dv = {k_ * c, k_ * s, 1.0};
+    d.duu = {-r * c, -r * s, 0.0};
+    d.duv = {-k_ * s, k_ * c, 0.0};
+    d.dvv = Vec3::Zero();
+    return d;
+  }
+  ParamBounds bounds() const override { return {0.0, 2 * kPi, 0.0, 1.0}; }
+  bool isUPeriodic() const override { return true; }
+  double uPeriod() const override { return 2 * kPi; }
+  std::unique_ptr<Surface> clone() const override {
+    return std::make_unique<NearlyPointedCone>(k_, gap_);
+  }
+  std::string describe() const override { return "nearly pointed cone"; }
+
+ private:
+  double k_, gap_;
+};
+
+// An element with a corner on the tip is judged by its inside, not by the normal on the
+// meridian its tip's (u,v) happens to name (the vertex's parameters on the face: u = 1 here,
+// while the element lies around u = 3.2, 126° away). There the element's plane is wound
+// against that meridian's normal; the face's normals inside the element (by dense sampling
+// below) are all along its Jacobian. Linear, second and third order.
+TEST(SurfaceMeasure, ACornerOnANearlyPointedTipIsJudgedByTheElementsInside) {
+  for (double gap : {0.0, 1e-9}) {
+    const NearlyPointedCone cone(0.2, gap);
+    const SurfaceD1 tip = cone.d1(1.0, 0.0);
+    EXPECT_EQ(cone.normal(1.0, 0.0).norm(), 0.0) << "gap " << gap << ": no normal on the tip";
+    if (gap > 0.0) {
+      EXPECT_GT(tip.du.cross(tip.dv).norm(), 0.0) << "nearly, not exactly, a pole";
+      EXPECT_FALSE(isDegenerate(tip)) << "not a pole to the optimizer";
+    }
+    for (int p = 1; p <= 3; ++p) {
+      // Corners (u,v): (3.4, 1), (3.0, 1) and the tip (1.0, 0); the other nodes at the
+      // straight-sided element's points mapped through the surface along the sides' own
+      // meridians (a side from the tip runs along its far corner's meridian).
+      const LagrangeTriangle& L = lagrangeTriangle(p);
+      const Vec3 a = cone.value(3.4, 1.0), b = cone.value(3.0, 1.0), t = cone.value(1.0, 0.0);
+      std::vector<Vec2> uv;
+      for (const Eigen::Vector2d& r : L.nodes()) {
+        const Vec3 x = (1 - r.x() - r.y()) * a + r.x() * b + r.y() * t;
+        const double v = std::max(0.0, x.z());
+        const double u = r.y() == 1.0 ? 1.0 : std::atan2(x.y(), x.x()) + (x.y() < 0 ? 2 * kPi : 0);
+        uv.emplace_back(u, v);
+      }
+      const ElementType type = p == 1   ? ElementType::Tri3
+                               : p == 2 ? ElementType::Tri6
+                                        : ElementType::Tri10;
+      std::vector<std::int32_t> conn(L.nodeCount());
+      for (int i = 0; i < L.nodeCount(); ++i) conn[static_cast<std::size_t>(i)] = i;
+      const SurfaceMesh m = makeSingleSurfaceMesh(cone, uv, type, conn, conn);
+      // The face's normal inside, densely: along the element's Jacobian everywhere but on the
+      // tip's point itself, and its plane against the normal on the tip's meridian.
+      const Vec3* x = m.xyz.data();
+      double lowest = 1.0;
+      for (int i = 0; i <= 40; ++i)
+        for (int j = 0; i + j <= 40; ++j) {
+          if (j == 40) continue;  // the tip itself: no normal
+          const Eigen::Vector2d xi(i / 40.0, j / 40.0);
+          Eigen::Vector2d g[kMaxElementNodes];
+          double N[kMaxElementNodes];
+          L.gradients(xi, g);
+          L.shape(xi, N);
+          Vec3 xs = Vec3::Zero(), xe = Vec3::Zero(), pt = Vec3::Zero();
+          for (int k = 0; k < L.nodeCount(); ++k) {
+            xs += g[k].x() * x[k];
+            xe += g[k].y() * x[k];
+            pt += N[k] * x[k];
+          }
+          const Vec3 n = cone.normal(std::atan2(pt.y(), pt.x()), pt.z());
+          lowest = std::min(lowest, xs.cross(xe).normalized().dot(n));
+        }
+      EXPECT_GT(lowest, 0.5) << "order " << p << ": valid against the face's own normals";
+      const Vec3 meridian = cone.normal(1.0, 1e-3);  // the tip's (u,v)'s meridian
+      Eigen::Vector2d g[kMaxElementNodes];
+      L.gradients(L.nodes()[2], g);
+      Vec3 xs = Vec3::Zero(), xe = Vec3::Zero();
+      for (int k = 0; k < L.nodeCount(); ++k) {
+        xs += g[k].x() * x[k];
+        xe += g[k].y() * x[k];
+      }
+      EXPECT_LT(xs.cross(xe).dot(meridian), 0.0) << "order " << p;
+      const MeshQuality mq = measureQuality(m, measureByName("shape"));
+      EXPECT_EQ(mq.across[0], 0) << "gap " << gap << ", order " << p;
+      EXPECT_EQ(mq.tangled[0], 0) << "gap " << gap << ", order " << p;
+    }
+  }
 }
 
 TEST(SurfaceMeasure, RestrictedDerivativesOnTorusMatchFiniteDifferences) {

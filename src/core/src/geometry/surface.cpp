@@ -1,5 +1,6 @@
 #include "surfmesh/geometry/surface.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace surfmesh {
@@ -16,9 +17,11 @@ bool Surface::contains(double u, double v) const {
 Vec3 Surface::normal(double u, double v) const { return normalOf(d1(u, v)); }
 
 Vec3 Surface::normalOf(const SurfaceD1& d) const {
-  if (isDegenerate(d)) return Vec3::Zero();
   const Vec3 n = d.du.cross(d.dv);
-  return (normalSign() * n.normalized()).eval();
+  const double len = n.norm();
+  if (!(len > kPoleNormalTol * std::max(d.du.squaredNorm(), d.dv.squaredNorm())))
+    return Vec3::Zero();
+  return (normalSign() * (n / len)).eval();
 }
 
 double wrapInto(double x, double lo, double period) {

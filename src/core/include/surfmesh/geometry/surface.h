@@ -92,7 +92,8 @@ class Surface {
 
   // ---- helpers built on the virtual interface -------------------------------------------
 
-  /// Unit outward normal at (u,v) (normalSign applied); zero vector where φ_u × φ_v = 0.
+  /// Unit outward normal at (u,v) (normalSign applied); zero vector at a pole, where
+  /// ‖φ_u × φ_v‖ ≤ kPoleNormalTol · max(‖φ_u‖, ‖φ_v‖)².
   Vec3 normal(double u, double v) const;
   /// The same from the first derivatives `d` at (u,v): normal(u,v) == normalOf(d1(u,v)).
   Vec3 normalOf(const SurfaceD1& d) const;
@@ -111,6 +112,15 @@ class Surface {
 /// Relative threshold under which ‖φ_u × φ_v‖ is considered degenerate (a pole):
 /// ‖φ_u × φ_v‖ ≤ kDegenerateTol · max(‖φ_u‖, ‖φ_v‖)² (or either derivative vanishes).
 constexpr double kDegenerateTol = 1e-12;
+
+/// Relative threshold under which the surface has no normal (Surface::normal is zero):
+/// ‖φ_u × φ_v‖ ≤ kPoleNormalTol · max(‖φ_u‖, ‖φ_v‖)². Looser than kDegenerateTol: a CAD face's
+/// collapsed row of control points meets in a point only to within the model's tolerance, and
+/// its degenerated edge lies a little off the singular line (a vertex at v = 5e−10), where
+/// φ_u × φ_v is small but not zero. There the normal depends on the meridian the (u,v) happens
+/// to be on (at a cone-like tip, by up to 180°), so it is no normal of the element there. The
+/// optimizer's own test of a pole (isDegenerate) keeps kDegenerateTol.
+constexpr double kPoleNormalTol = 1e-6;
 
 /// True where the parameterization is degenerate (φ_u × φ_v ≈ 0), given φ_u and φ_v. Inline
 /// and in scalar arithmetic: the optimizer asks at every node update and trial, with
