@@ -150,7 +150,10 @@ elif [ "${SURFMESH_SKIP_SANITIZE:-0}" = "1" ] && [ "$CI" != "true" ]; then
 else
   asan_ok=1
   if [ ! -f "$ASAN_BUILD_DIR/CMakeCache.txt" ]; then
+    # -g1: line tables only (a sanitizer's report names files and lines), far less to compile
+    # and link than full debug information.
     cmake -S "$REPO" -B "$ASAN_BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+      -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG" \
       -DSURFMESH_SANITIZE=ON -DSURFMESH_BUILD_BINDINGS=OFF -DSURFMESH_BUILD_BENCH=OFF \
       -DSURFMESH_BUILD_TESTS=ON 2>&1 | tee "$LOGS/asan-configure.log" || asan_ok=0
   fi
