@@ -458,35 +458,34 @@ TEST(SurfaceMeasure, ACornerOnANearlyPointedTipIsJudgedByTheElementsInside) {
       const SurfaceMesh m = makeSingleSurfaceMesh(cone, uv, type, conn, conn);
       // The face's normal inside, densely: along the element's Jacobian everywhere but on the
       // tip's point itself, and its plane against the normal on the tip's meridian.
-      const Vec3* x = m.xyz.data();
+      // x_ξ × x_η and the point x(ξ), from the element's own Lagrange interpolant.
+      auto mapAt = [&](const Eigen::Vector2d& xi, Vec3* point) {
+        Eigen::Vector2d g[kMaxElementNodes];
+        double N[kMaxElementNodes];
+        L.gradients(xi, g);
+        L.shape(xi, N);
+        Vec3 xs = Vec3::Zero(), xe = Vec3::Zero(), pt = Vec3::Zero();
+        for (int k = 0; k < L.nodeCount(); ++k) {
+          xs += g[k].x() * m.xyz[static_cast<std::size_t>(k)];
+          xe += g[k].y() * m.xyz[static_cast<std::size_t>(k)];
+          pt += N[k] * m.xyz[static_cast<std::size_t>(k)];
+        }
+        *point = pt;
+        return Vec3(xs.cross(xe));
+      };
       double lowest = 1.0;
       for (int i = 0; i <= 40; ++i)
         for (int j = 0; i + j <= 40; ++j) {
           if (j == 40) continue;  // the tip itself: no normal
-          const Eigen::Vector2d xi(i / 40.0, j / 40.0);
-          Eigen::Vector2d g[kMaxElementNodes];
-          double N[kMaxElementNodes];
-          L.gradients(xi, g);
-          L.shape(xi, N);
-          Vec3 xs = Vec3::Zero(), xe = Vec3::Zero(), pt = Vec3::Zero();
-          for (int k = 0; k < L.nodeCount(); ++k) {
-            xs += g[k].x() * x[k];
-            xe += g[k].y() * x[k];
-            pt += N[k] * x[k];
-          }
+          Vec3 pt;
+          const Vec3 c = mapAt(Eigen::Vector2d(i / 40.0, j / 40.0), &pt);
           const Vec3 n = cone.normal(std::atan2(pt.y(), pt.x()), pt.z());
-          lowest = std::min(lowest, xs.cross(xe).normalized().dot(n));
+          lowest = std::min(lowest, c.normalized().dot(n));
         }
       EXPECT_GT(lowest, 0.5) << "order " << p << ": valid against the face's own normals";
       const Vec3 meridian = cone.normal(1.0, 1e-3);  // the tip's (u,v)'s meridian
-      Eigen::Vector2d g[kMaxElementNodes];
-      L.gradients(L.nodes()[2], g);
-      Vec3 xs = Vec3::Zero(), xe = Vec3::Zero();
-      for (int k = 0; k < L.nodeCount(); ++k) {
-        xs += g[k].x() * x[k];
-        xe += g[k].y() * x[k];
-      }
-      EXPECT_LT(xs.cross(xe).dot(meridian), 0.0) << "order " << p;
+      Vec3 tipPoint;
+      EXPECT_LT(mapAt(L.nodes()[2], &tipPoint).dot(meridian), 0.0) << "order " << p;
       const MeshQuality mq = measureQuality(m, measureByName("shape"));
       EXPECT_EQ(mq.across[0], 0) << "gap " << gap << ", order " << p;
       EXPECT_EQ(mq.tangled[0], 0) << "gap " << gap << ", order " << p;

@@ -205,8 +205,7 @@ class MeshData:
         ones. Elsewhere such elements are not touched."""
         left_out = np.asarray(left_out, dtype=bool)
         out = np.zeros(self.element_count, dtype=bool)
-        orders = CURVED_ORDERS
-        high = np.isin(self.types, list(orders)) & ~left_out
+        high = np.isin(self.types, list(CURVED_ORDERS)) & ~left_out
         if not left_out.any() or not high.any():
             return out
         # One row per use of a node by an element not left out: (node, a, b, element), with
@@ -221,7 +220,7 @@ class MeshData:
             idx = self.offsets[sel][:, None] + np.arange(k)[None, :]
             c = self.conn[idx]
             code = int(self.types[sel[0]])
-            p = orders.get(code)
+            p = CURVED_ORDERS.get(code)
             nc = 4 if code in QUAD_CODES else 3
             ones = np.ones(sel.size, dtype=np.int64)
             for j in range(nc if p else k):  # the corners (every node of tri3 and quad4)

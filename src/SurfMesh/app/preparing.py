@@ -369,8 +369,8 @@ def _fixed_flat_corner(xyz, element, nc, per_side, cls):
     """Whether a curved element (its node list ``element``, ``nc`` corners first, then each
     side's ``per_side`` nodes from its first corner to its second: Gmsh's order) has a corner
     where both sides lie on CAD edges or vertices (``cls`` ≤ 1 at all their nodes) and meet
-    at an angle whose sine is within _FLAT_SINE of 0. The tangent of a side at a corner depends on that side's
-    nodes alone (the derivative of its Lagrange interpolant)."""
+    at an angle whose sine is within _FLAT_SINE of 0. The tangent of a side at a corner
+    depends on that side's nodes alone (the derivative of its Lagrange interpolant)."""
     weights = _end_derivative(per_side + 1)
 
     def side(k):  # side k's nodes from corner k to corner k + 1
