@@ -218,7 +218,8 @@ MeshClass bind_mesh(py::module_& m) {
           },
           py::arg("divisions") = kJacobianDivisions,
           "Per element: min J / max |J| of the map from its reference element, at its nodes and "
-          "on a grid of `divisions` steps per side (1 straight, <= 0 folded; float64 (E,))");
+          "on a grid of `divisions` steps per side, J = +-|x_xi x x_eta| signed by the face's "
+          "normal (1 straight, <= 0 folded or wound against the face; float64 (E,))");
 
   m.def(
       "single_surface_mesh",

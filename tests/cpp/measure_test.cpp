@@ -5,6 +5,7 @@
 #include "surfmesh/geometry/analytic_surfaces.h"
 #include "surfmesh/measures/element_measure.h"
 #include "surfmesh/measures/lagrange_triangle.h"
+#include "surfmesh/mesh/jacobian_ratio.h"
 #include "surfmesh/mesh/quality.h"
 #include "test_meshes.h"
 
@@ -489,6 +490,7 @@ TEST(SurfaceMeasure, ACornerOnANearlyPointedTipIsJudgedByTheElementsInside) {
       const MeshQuality mq = measureQuality(m, measureByName("shape"));
       EXPECT_EQ(mq.across[0], 0) << "gap " << gap << ", order " << p;
       EXPECT_EQ(mq.tangled[0], 0) << "gap " << gap << ", order " << p;
+      EXPECT_GT(jacobianRatioOf(m, 0), 0.0) << "gap " << gap << ", order " << p;
     }
   }
 }

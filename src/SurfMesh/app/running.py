@@ -56,10 +56,11 @@ def metrics(mesh, shape, names=None, *, tolerance=None, hints="auto", collapsed=
             ``min_angle``, ``max_angle`` (degrees), ``scaled_jacobian``, ``condition``,
             ``shape``, ``equiangle_skew``; for quadrilaterals also ``warpage``, ``taper``,
             ``skew``, ``stretch`` (nan for triangles); ``jacobian_ratio`` (min J / max J over
-            the element, curved sides included: <= 0 folded), ``side_node_offset`` (a
-            high-order element's side nodes off their straight sides, over the side's length;
-            0 for linear elements) and ``distance_to_cad`` (largest distance of the element's
-            interior from its CAD face's surface, sampled densely). See docs/metrics.md.
+            the element, curved sides included, J signed by the face's normal: <= 0 folded
+            or wound against the face), ``side_node_offset`` (a high-order element's side
+            nodes off their straight sides, over the side's length; 0 for linear elements)
+            and ``distance_to_cad`` (largest distance of the element's interior from its CAD
+            face's surface, sampled densely). See docs/metrics.md.
         divisions: grid steps per side of the reference element at which distance_to_cad and
             jacobian_ratio sample an element (default ``SAMPLE_DIVISIONS``, 8).
 

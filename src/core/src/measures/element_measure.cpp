@@ -241,6 +241,21 @@ void chainToCurve(const CurveD2& d, const Vec3& g, const Mat3& H, double* gt, do
   if (Ht) *Ht = d.dt.dot(H * d.dt) + g.dot(d.dtt);
 }
 
+void elementShapeValues(ElementType t, double a, double b, double* N) {
+  if (t == ElementType::Quad4) {
+    N[0] = (1 - a) * (1 - b);
+    N[1] = a * (1 - b);
+    N[2] = a * b;
+    N[3] = (1 - a) * b;
+    return;
+  }
+  if (t == ElementType::Quad8) {
+    quad8ShapeValues(a, b, N);
+    return;
+  }
+  lagrangeTriangle(elementOrder(t)).shape(Eigen::Vector2d(a, b), N);
+}
+
 Vec3 elementReferenceNormal(const SurfaceMesh& mesh, std::size_t e) {
   return elementReferenceNormal(mesh, e, mesh.surfaces);
 }

@@ -72,23 +72,6 @@ double projectDistance(const Surface& s, const Vec3& x, const Vec2& uv) {
   return dist;
 }
 
-/// Shape function values of element type t at the reference point (a, b): a triangle's
-/// (ξ, η) in Gmsh's reference triangle, a quadrilateral's (s, t) ∈ [0,1]².
-void shapeValues(ElementType t, double a, double b, double* N) {
-  if (t == ElementType::Quad4) {
-    N[0] = (1 - a) * (1 - b);
-    N[1] = a * (1 - b);
-    N[2] = a * b;
-    N[3] = (1 - a) * b;
-    return;
-  }
-  if (t == ElementType::Quad8) {
-    quad8ShapeValues(a, b, N);
-    return;
-  }
-  lagrangeTriangle(elementOrder(t)).shape(Eigen::Vector2d(a, b), N);
-}
-
 }  // namespace
 
 std::vector<double> elementDistanceToFace(const SurfaceMesh& mesh, int divisions) {
@@ -108,7 +91,7 @@ std::vector<double> elementDistanceToFace(const SurfaceMesh& mesh, int divisions
     double worst = 0.0;
     for (int i = 0; i <= divisions && !std::isnan(worst); ++i) {
       for (int j = 0; j <= (quad ? divisions : divisions - i); ++j) {
-        shapeValues(t, i / n, j / n, N);
+        elementShapeValues(t, i / n, j / n, N);
         Vec3 x = Vec3::Zero();
         Vec2 uv = Vec2::Zero();
         for (int a = 0; a < k; ++a) {

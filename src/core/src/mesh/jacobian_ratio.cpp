@@ -39,18 +39,41 @@ void shapeGradients(ElementType t, double a, double b, Vec2* grad) {
 
 double jacobianRatioOf(const SurfaceMesh& mesh, std::size_t e, int divisions) {
   Vec2 grad[kMaxElementNodes];
+  double N[kMaxElementNodes];
   Vec3 x[kMaxElementNodes];
+  Vec3 nodeNormal[kMaxElementNodes];
   const ElementType t = mesh.elemType[e];
   const int k = mesh.elementSize(e);
   const std::int32_t* nodes = mesh.elementNodes(e);
   for (int a = 0; a < k; ++a) x[a] = mesh.xyz[static_cast<std::size_t>(nodes[a])];
+  for (int a = 0; a < k; ++a)
+    if (!x[a].allFinite()) return std::numeric_limits<double>::quiet_NaN();
   const bool quad = isQuad(t);
-  Vec3 n = quad ? Vec3((x[1] + x[2] - x[0] - x[3]).cross(x[2] + x[3] - x[0] - x[1]))
-                : Vec3((x[1] - x[0]).cross(x[2] - x[0]));
-  const double len = n.norm();
-  if (!(len > 0.0) || !std::isfinite(len))
-    return std::isfinite(len) ? 0.0 : std::numeric_limits<double>::quiet_NaN();
-  n /= len;
+  const int f = e < mesh.elemFace.size() ? mesh.elemFace[e] : -1;
+  const bool onFace = f >= 0 && static_cast<std::size_t>(f) < mesh.surfaces.size() &&
+                      mesh.surfaces[static_cast<std::size_t>(f)] != nullptr &&
+                      mesh.cornerUV.size() == mesh.elemNodes.size();
+  const Vec2* uv = onFace ? mesh.elementUV(e) : nullptr;
+  if (onFace) {
+    // The face's normals at the nodes; a node at a pole (no normal) takes the direction of
+    // the others' sum, as the certificate against node normals does.
+    Vec3 sum = Vec3::Zero();
+    for (int a = 0; a < k; ++a) {
+      nodeNormal[a] = mesh.referenceNormal(f, uv[a]);
+      if (!nodeNormal[a].allFinite()) return std::numeric_limits<double>::quiet_NaN();
+      sum += nodeNormal[a];
+    }
+    const double len = sum.norm();
+    for (int a = 0; a < k; ++a)
+      if (!(nodeNormal[a].squaredNorm() > 0.0) && len > 0.0) nodeNormal[a] = sum / len;
+  } else {
+    // No face: the element's own corner normal (Gmsh's convention).
+    const Vec3 n = quad ? Vec3((x[1] + x[2] - x[0] - x[3]).cross(x[2] + x[3] - x[0] - x[1]))
+                        : Vec3((x[1] - x[0]).cross(x[2] - x[0]));
+    const double len = n.norm();
+    if (!(len > 0.0)) return 0.0;
+    for (int a = 0; a < k; ++a) nodeNormal[a] = n / len;
+  }
   std::vector<Vec2> points;
   auto add = [&](const Vec2& p) { points.push_back(p); };
   if (quad) {
@@ -64,19 +87,38 @@ double jacobianRatioOf(const SurfaceMesh& mesh, std::size_t e, int divisions) {
   for (int i = 0; i <= divisions; ++i)
     for (int j = 0; j <= (quad ? divisions : divisions - i); ++j)
       add(Vec2(double(i) / divisions, double(j) / divisions));
-  double lo = std::numeric_limits<double>::infinity(), hi = 0.0;
-  for (const Vec2& p : points) {
-    shapeGradients(t, p.x(), p.y(), grad);
-    Vec3 xa = Vec3::Zero(), xb = Vec3::Zero();
-    for (int a = 0; a < k; ++a) {
-      xa += grad[a].x() * x[a];
-      xb += grad[a].y() * x[a];
+  // exact: the face's own normal at the point the element's (u,v) map reaches (the
+  // interpolated node normals where the face has none there).
+  auto ratio = [&](bool exact) {
+    double lo = std::numeric_limits<double>::infinity(), hi = 0.0;
+    for (const Vec2& p : points) {
+      elementShapeValues(t, p.x(), p.y(), N);
+      shapeGradients(t, p.x(), p.y(), grad);
+      Vec3 xa = Vec3::Zero(), xb = Vec3::Zero(), n = Vec3::Zero();
+      Vec2 at = Vec2::Zero();
+      for (int a = 0; a < k; ++a) {
+        xa += grad[a].x() * x[a];
+        xb += grad[a].y() * x[a];
+        n += N[a] * nodeNormal[a];
+        if (exact) at += N[a] * uv[a];
+      }
+      if (exact) {
+        const Vec3 nf = mesh.referenceNormal(f, at);
+        if (nf.squaredNorm() > 0.0) n = nf;
+      }
+      if (!(n.squaredNorm() > 0.0)) continue;  // no direction here (normals cancelling)
+      const Vec3 c = xa.cross(xb);
+      const double side = n.dot(c);
+      const double J = side > 0.0 ? c.norm() : side < 0.0 ? -c.norm() : 0.0;
+      lo = std::min(lo, J);
+      hi = std::max(hi, std::abs(J));
     }
-    const double J = n.dot(xa.cross(xb));
-    lo = std::min(lo, J);
-    hi = std::max(hi, std::abs(J));
-  }
-  return hi > 0.0 ? lo / hi : 0.0;
+    return hi > 0.0 && lo < std::numeric_limits<double>::infinity() ? lo / hi : 0.0;
+  };
+  const double r = ratio(false);
+  // Where the interpolated normals see J <= 0, the face's own normals decide (as the
+  // certificate's pieces do): the normal may turn faster than the interpolation follows.
+  return r <= 0.0 && onFace ? ratio(true) : r;
 }
 
 std::vector<double> elementJacobianRatio(const SurfaceMesh& mesh, int divisions) {

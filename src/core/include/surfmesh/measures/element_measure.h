@@ -124,6 +124,10 @@ Jacobian32 quad8JacobianAtNode(const Vec3* x, int k);
 void quad8ShapeGradients(double s, double t, Eigen::Vector2d* grad);
 /// The values of the 8 quad8 shape functions at (s, t) ∈ [0, 1]² (N[8]).
 void quad8ShapeValues(double s, double t, double* N);
+/// The shape functions' values N[nodeCount(t)] of element type t at the reference point
+/// (a, b): a triangle's (ξ, η) in Gmsh's reference triangle (Lagrange of its order), a
+/// quadrilateral's (s, t) ∈ [0, 1]² (bilinear for quad4, serendipity for quad8).
+void elementShapeValues(ElementType t, double a, double b, double* N);
 /// High-order triangle implementation of elementDistortion (see above).
 /// `target` as in the overload from precomputed Jacobians below.
 ElementEval highOrderTriangleDistortion(const PlanarMeasure& m, ElementType type, const Vec3* x,
