@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Run every SurfMesh check: install + build (scripts/install.sh), clang-format, the C++ tests,
-# the C++ tests again under ASan + UBSan, the headless Python suites (freecadcmd -t) and the
-# GUI suites (freecad under xvfb-run).
+# the C++ tests again under ASan + UBSan (built and run in the background, beside the Python
+# and GUI suites), the headless Python suites (freecadcmd -t) and the GUI suites (freecad
+# under xvfb-run).
 #
 #   scripts/test.sh
 #
@@ -63,12 +64,9 @@ record() {  # record STEP PASSED FAILED [NOTE]
 # (the curved optimizer, the bridge, the progress reports on smaller meshes).
 ASAN_EXCLUDE='^(HighOrderOptimize\.PaperTable4PropellerBladeOrder5IsSmoothed|Golden\.OptimizerAndBridgeRunsAreBitIdenticalToTheRecord|Optimizer\.TheLastProgressReportDescribesTheMeshTheRunReturns)$'
 
-# ctest_run DIR LABEL LOG [ctest options]: run ctest in DIR, count its cases.
-ctest_run() {
-  local dir="$1" label="$2" log="$3" rc out passed failed total disabled
-  shift 3
-  ctest --test-dir "$dir" --output-on-failure -j "$JOBS" "$@" 2>&1 | tee "$log"
-  rc=${PIPESTATUS[0]}
+# ctest_count LABEL LOG RC: counts the cases of a ctest run from its log and exit status.
+ctest_count() {
+  local label="$1" log="$2" rc="$3" out passed failed total disabled
   out="$(cat "$log")"
   if [[ "$out" =~ ([0-9]+)\ tests\ failed\ out\ of\ ([0-9]+) ]]; then
     failed="${BASH_REMATCH[1]}"
@@ -84,6 +82,15 @@ ctest_run() {
   else
     record "$label" 0 1 "(ctest exit $rc)"
   fi
+}
+
+# ctest_run DIR LABEL LOG [ctest options]: run ctest in DIR, count its cases.
+ctest_run() {
+  local dir="$1" label="$2" log="$3" rc
+  shift 3
+  ctest --test-dir "$dir" --output-on-failure -j "$JOBS" "$@" 2>&1 | tee "$log"
+  rc=${PIPESTATUS[0]}
+  ctest_count "$label" "$log" "$rc"
 }
 
 mkdir -p "$BUILD_DIR"
@@ -148,24 +155,31 @@ elif [ "${SURFMESH_SKIP_SANITIZE:-0}" = "1" ] && [ "$CI" != "true" ]; then
   echo "skipped (SURFMESH_SKIP_SANITIZE=1)"
   RESULTS+=("$(printf '%-44s %s' "C++ tests, ASan + UBSan" "skipped (SURFMESH_SKIP_SANITIZE=1)")")
 else
-  asan_ok=1
-  if [ ! -f "$ASAN_BUILD_DIR/CMakeCache.txt" ]; then
-    # -g1: line tables only (a sanitizer's report names files and lines), far less to compile
-    # and link than full debug information.
-    cmake -S "$REPO" -B "$ASAN_BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-      -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG" \
-      -DSURFMESH_SANITIZE=ON -DSURFMESH_BUILD_BINDINGS=OFF -DSURFMESH_BUILD_BENCH=OFF \
-      -DSURFMESH_BUILD_TESTS=ON 2>&1 | tee "$LOGS/asan-configure.log" || asan_ok=0
-  fi
-  if [ "$asan_ok" -eq 1 ]; then
-    cmake --build "$ASAN_BUILD_DIR" -j "$JOBS" 2>&1 | tee "$LOGS/asan-build.log" || asan_ok=0
-  fi
-  if [ "$asan_ok" -eq 1 ]; then
-    ctest_run "$ASAN_BUILD_DIR" "C++ tests, ASan + UBSan" "$LOGS/ctest-asan.log" \
-      -E "$ASAN_EXCLUDE"
-  else
-    record "C++ tests, ASan + UBSan" 0 1 "(sanitizer build failed)"
-  fi
+  # The sanitizer build and its tests run in the background, beside the Python and GUI suites
+  # (single-threaded: a core would stand idle); their result is counted before the summary.
+  asan_job() {
+    local ok=1
+    if [ ! -f "$ASAN_BUILD_DIR/CMakeCache.txt" ]; then
+      # -g1: line tables only (a sanitizer's report names files and lines), far less to
+      # compile and link than full debug information.
+      cmake -S "$REPO" -B "$ASAN_BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+        -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG" \
+        -DSURFMESH_SANITIZE=ON -DSURFMESH_BUILD_BINDINGS=OFF -DSURFMESH_BUILD_BENCH=OFF \
+        -DSURFMESH_BUILD_TESTS=ON >"$LOGS/asan-configure.log" 2>&1 || ok=0
+    fi
+    if [ "$ok" -eq 1 ]; then
+      cmake --build "$ASAN_BUILD_DIR" -j "$JOBS" >"$LOGS/asan-build.log" 2>&1 || ok=0
+    fi
+    if [ "$ok" -eq 1 ]; then
+      ctest --test-dir "$ASAN_BUILD_DIR" --output-on-failure -j "$JOBS" -E "$ASAN_EXCLUDE" \
+        >"$LOGS/ctest-asan.log" 2>&1
+      echo "$?" >"$LOGS/asan.rc"
+    fi
+  }
+  asan_job </dev/null &
+  ASAN_PID=$!
+  echo "running in the background (pid $ASAN_PID) beside the Python and GUI suites; logs:"
+  echo "  $LOGS/asan-configure.log, asan-build.log, ctest-asan.log"
 fi
 
 # ---- environment of the Python and GUI suites ---------------------------------------------
@@ -263,6 +277,21 @@ else
     record "peer suite (bench/peers.sh quick)" 1 0
   else
     record "peer suite (bench/peers.sh quick)" 0 1 "(exit $rc, see $LOGS/peers-quick.log)"
+  fi
+fi
+
+# ---- c'. the sanitizer run, waited for -------------------------------------------------------
+if [ -n "${ASAN_PID:-}" ]; then
+  say "C++ tests under ASan + UBSan ($ASAN_BUILD_DIR), run in the background"
+  wait "$ASAN_PID"
+  if [ -f "$LOGS/asan.rc" ]; then
+    # the run's failures (ctest's own list) and its last lines; the whole log is kept
+    sed -n '/tests failed out of/,$p' "$LOGS/ctest-asan.log"
+    grep -E '\*\*\*(Failed|Exception|Timeout)' "$LOGS/ctest-asan.log" || true
+    ctest_count "C++ tests, ASan + UBSan" "$LOGS/ctest-asan.log" "$(cat "$LOGS/asan.rc")"
+  else
+    tail -40 "$LOGS/asan-configure.log" "$LOGS/asan-build.log" 2>/dev/null
+    record "C++ tests, ASan + UBSan" 0 1 "(sanitizer build failed)"
   fi
 fi
 
