@@ -334,13 +334,16 @@ class RepairKeepsTheJacobianRatio(unittest.TestCase):
 class JacobianRatioSignedByTheFace(unittest.TestCase):
     """The Jacobian ratio (docs/metrics.md) on SurfMesh's result for Gmsh's raw order-2 mesh of
     the propeller (volumes removed, diagonal / 21): J = ±|x_ξ × x_η| signed by the face's
-    normal. Checked here against FreeCAD's normal of the element's face at each sample point
-    (Surface.parameter of the point, then Surface.normal, reversed with the face), with the
-    tri6 map built here from monomials, on the elements whose ratio along the corners' plane
-    normal (Gmsh's convention) is ≤ 0 and the 40 lowest. The blade tips have valid elements
-    whose corners' plane is far from the face (with Gmsh 4.8.4's mesh, 29: the ratio used to be
-    −1 on them while the report said 0 invalid). Every element with a ratio ≤ 0 must be one the
-    report counts invalid."""
+    normal. Checked here on every element with FreeCAD's surfaces: the face's normal at the
+    (u, v) that the element's map reaches (the nodes' parameters from Surface.parameter,
+    unwrapped across periods, interpolated by the tri6 shape functions built here from
+    monomials), each face's sign the winding most of its elements have in the mesh. The blade
+    tips have valid elements whose corners' plane is far from the face (with Gmsh 4.8.4's mesh,
+    29: the ratio used to be −1 on them while the report said 0 invalid). SurfMesh takes a
+    valid element's sign from the face's normals at its nodes interpolated (a shell element's
+    director field, the certificate's first test): where J comes within 5 % of its largest value
+    to 0, that and the face's own normal may differ in sign (2 elements of Gmsh 4.13's mesh,
+    at a blade's tip). Every element with a ratio ≤ 0 must be one the report counts invalid."""
 
     REF = np.array([(0, 0), (1, 0), (0, 1), (0.5, 0), (0.5, 0.5), (0, 0.5)])
 
@@ -381,7 +384,7 @@ class JacobianRatioSignedByTheFace(unittest.TestCase):
         shape = Part.read(stem + ".brep")
         data, handle, _ = preparing.prepare_measured(fileio.read_mesh(stem + "_opt.msh").data,
                                                      shape, "fixed", None, "auto", "skip")
-        work_data = data.subset(data.kept) if getattr(data, "kept", None) is not None else data
+        mesh = data.subset(data.kept) if getattr(data, "kept", None) is not None else data
         ratio = np.asarray(handle.jacobian_ratio(8))
         judged = handle.measure("shape")
         invalid = np.asarray(judged["tangled"], dtype=bool) | np.asarray(judged["across"], bool)
@@ -391,43 +394,46 @@ class JacobianRatioSignedByTheFace(unittest.TestCase):
                                                for j in range(9 - i)]
         basis = [tuple(b @ vinv for b in self.mono(*p)) for p in grid]
 
-        def jacobians(e, normal_at):
-            X = work_data.nodes[work_data.element(int(e))]
-            out = []
+        def parameters(surface, X):
+            uv = np.array([surface.parameter(FreeCAD.Vector(*x)) for x in X])
+            for k, period in ((0, surface.isUPeriodic() and surface.UPeriod()),
+                              (1, surface.isVPeriodic() and surface.VPeriod())):
+                if period:
+                    uv[:, k] -= period * np.round((uv[:, k] - uv[0, k]) / period)
+            return uv
+
+        winding = {}
+        for e in range(len(ratio)):
+            X = mesh.nodes[mesh.element(int(e))]
+            surface = shape.Faces[int(faces[e])].Surface
+            n0 = np.array(surface.normal(*surface.parameter(FreeCAD.Vector(*X[0]))))
+            side = np.cross(X[1] - X[0], X[2] - X[0]) @ n0
+            winding[int(faces[e])] = winding.get(int(faces[e]), 0) + np.sign(side)
+        disagree, borderline = [], 0
+        for e in range(len(ratio)):
+            X = mesh.nodes[mesh.element(int(e))]
+            surface = shape.Faces[int(faces[e])].Surface
+            sign = 1.0 if winding[int(faces[e])] >= 0 else -1.0
+            uv = parameters(surface, X)
+            J = []
             for w, a, b in basis:
                 c = np.cross(a @ X, b @ X)
-                n = normal_at(w @ X, X)
-                if n is not None:
-                    s = c @ n
-                    out.append(np.linalg.norm(c) * np.sign(s) if s != 0 else 0.0)
-            return np.array(out)
-
-        corner = np.array([
-            (lambda J: J.min() / np.abs(J).max())(jacobians(
-                e, lambda x, X: np.cross(X[1] - X[0], X[2] - X[0]) / np.linalg.norm(
-                    np.cross(X[1] - X[0], X[2] - X[0])))) for e in range(len(ratio))])
-        # (The corner-plane value above is ±|J| signed along the corners' normal: its sign is
-        # that of Gmsh's minJ/maxJ.)
-        checked = sorted(set(np.nonzero(corner <= 0)[0]) | set(np.argsort(ratio)[:40]))
-        disagree = []
-        for e in checked:
-            face = shape.Faces[int(faces[e])]
-            sign = -1.0 if face.Orientation == "Reversed" else 1.0
-
-            def normal_at(x, X, face=face, sign=sign):
-                u, v = face.Surface.parameter(FreeCAD.Vector(*x))
-                return sign * np.array(face.Surface.normal(u, v))
-
-            J = jacobians(e, normal_at)
-            r = J.min() / np.abs(J).max()
-            if (r > 0) != (ratio[e] > 0) or abs(r - ratio[e]) > 1e-6:
-                disagree.append((int(e), float(r), float(ratio[e])))
+                s = c @ (sign * np.array(surface.normal(*(w @ uv))))
+                J.append(np.linalg.norm(c) * np.sign(s))
+            r = min(J) / max(abs(v) for v in J)
+            if abs(r - ratio[e]) > 1e-6:
+                if max(abs(r), abs(ratio[e])) <= 0.05:
+                    borderline += 1
+                else:
+                    disagree.append((int(e), round(float(r), 4), round(float(ratio[e]), 4)))
+        corner = sum(1 for e in range(len(ratio)) if min(
+            np.cross(a @ X, b @ X) @ np.cross(X[1] - X[0], X[2] - X[0])
+            for X in [mesh.nodes[mesh.element(int(e))]] for _, a, b in basis) <= 0)
         print(f"\npropeller order 2, SurfMesh's result: {len(ratio)} elements, {invalid.sum()} "
-              f"invalid; ratio <= 0 along the corners' normal {(corner <= 0).sum()}, against the "
-              f"face {(ratio <= 0).sum()}; {len(checked)} checked against FreeCAD's normals")
+              f"invalid; ratio <= 0 along the corners' normal {corner}, against the face "
+              f"{(ratio <= 0).sum()}; against FreeCAD's normals: {borderline} borderline")
         self.assertEqual(disagree, [])
-        if not ((corner <= 0) & (ratio > 0)).any():  # (another Gmsh's mesh may have none)
-            print("note: no valid element here that the corners' plane sees folded")
+        self.assertLessEqual(borderline, 5)
         self.assertTrue(np.all(invalid[ratio <= 0]), "a ratio <= 0 only on invalid elements")
 
 
