@@ -258,23 +258,6 @@ CoefficientBound fieldCoefficients(int order, const Vec3* x, const Vec3* nodeNor
   return r;
 }
 
-/// The node normals the certificate against them takes: a node at a pole (zero normal) takes
-/// the direction of the others' sum. *sumNorm: the length of that sum; false when a normal is
-/// not finite.
-bool fillPoleNormals(const Vec3* in, int nn, Vec3* out, double* sumNorm) {
-  bool finite = true;
-  Vec3 sum = Vec3::Zero();
-  for (int i = 0; i < nn; ++i) {
-    finite = finite && in[i].allFinite();
-    sum += in[i];
-  }
-  const double normals = sum.norm();
-  for (int i = 0; i < nn; ++i)
-    out[i] = in[i].squaredNorm() > 0.0 || normals == 0.0 ? in[i] : Vec3(sum / normals);
-  *sumNorm = normals;
-  return finite;
-}
-
 /// Σ_i N_i n_i from the shape function values at one point.
 inline Vec3 interpolate(const Vec3* n, const double* N, int nn) {
   Vec3 r = Vec3::Zero();
@@ -502,6 +485,20 @@ JacobianCertificate decideAgainstNodeNormals(int order, const Vec3* x, const Vec
 }
 
 }  // namespace
+
+bool fillPoleNormals(const Vec3* in, int nn, Vec3* out, double* sumNorm) {
+  bool finite = true;
+  Vec3 sum = Vec3::Zero();
+  for (int i = 0; i < nn; ++i) {
+    finite = finite && in[i].allFinite();
+    sum += in[i];
+  }
+  const double normals = sum.norm();
+  for (int i = 0; i < nn; ++i)
+    out[i] = in[i].squaredNorm() > 0.0 || normals == 0.0 ? in[i] : Vec3(sum / normals);
+  *sumNorm = normals;
+  return finite;
+}
 
 const char* jacobianSignName(JacobianSign s) {
   switch (s) {

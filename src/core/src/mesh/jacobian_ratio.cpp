@@ -1,6 +1,7 @@
 // SurfMesh — the Jacobian ratio of curved (and straight) elements.
 #include "surfmesh/mesh/jacobian_ratio.h"
 
+#include "surfmesh/measures/certificate.h"
 #include "surfmesh/measures/element_measure.h"
 #include "surfmesh/measures/lagrange_triangle.h"
 
@@ -55,17 +56,12 @@ double jacobianRatioOf(const SurfaceMesh& mesh, std::size_t e, int divisions) {
                       mesh.cornerUV.size() == mesh.elemNodes.size();
   const Vec2* uv = onFace ? mesh.elementUV(e) : nullptr;
   if (onFace) {
-    // The face's normals at the nodes; a node at a pole (no normal) takes the direction of
-    // the others' sum, as the certificate against node normals does.
-    Vec3 sum = Vec3::Zero();
-    for (int a = 0; a < k; ++a) {
-      nodeNormal[a] = mesh.referenceNormal(f, uv[a]);
-      if (!nodeNormal[a].allFinite()) return std::numeric_limits<double>::quiet_NaN();
-      sum += nodeNormal[a];
-    }
-    const double len = sum.norm();
-    for (int a = 0; a < k; ++a)
-      if (!(nodeNormal[a].squaredNorm() > 0.0) && len > 0.0) nodeNormal[a] = sum / len;
+    // The face's normals at the nodes, a pole's replaced as the certificate does.
+    Vec3 atNodes[kMaxElementNodes];
+    elementNodeNormals(mesh, e, mesh.surfaces, atNodes);
+    double sumNorm = 0.0;
+    if (!fillPoleNormals(atNodes, k, nodeNormal, &sumNorm))
+      return std::numeric_limits<double>::quiet_NaN();
   } else {
     // No face: the element's own corner normal (Gmsh's convention).
     const Vec3 n = quad ? Vec3((x[1] + x[2] - x[0] - x[3]).cross(x[2] + x[3] - x[0] - x[1]))

@@ -161,6 +161,11 @@ bool triangleJacobianPositive(int order, const Vec3* x, const Vec3& n);
 /// The same for certifyTriangleAgainstNodeNormals.
 bool triangleJacobianPositiveAgainstNodeNormals(int order, const Vec3* x, const Vec3* nodeNormals);
 
+/// The node normals the certificate against them takes (out[0 … nn − 1]): a node at a pole
+/// (zero normal) takes the direction of the others' sum. *sumNorm: the length of that sum;
+/// false when a normal is not finite.
+bool fillPoleNormals(const Vec3* in, int nn, Vec3* out, double* sumNorm);
+
 /// Split depth of triangleJacobianPositiveOnPieces: at most 4^3 = 64 pieces.
 constexpr int kFaceNormalPieceDepth = 3;
 
