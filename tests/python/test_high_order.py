@@ -333,17 +333,19 @@ class RepairKeepsTheJacobianRatio(unittest.TestCase):
 
 class JacobianRatioSignedByTheFace(unittest.TestCase):
     """The Jacobian ratio (docs/metrics.md) on SurfMesh's result for Gmsh's raw order-2 mesh of
-    the propeller (volumes removed, diagonal / 21): J = ±|x_ξ × x_η| signed by the face's
-    normal. Checked here on every element with FreeCAD's surfaces: the face's normal at the
-    (u, v) that the element's map reaches (the nodes' parameters from Surface.parameter,
-    unwrapped across periods, interpolated by the tri6 shape functions built here from
-    monomials), each face's sign the winding most of its elements have in the mesh. The blade
-    tips have valid elements whose corners' plane is far from the face (with Gmsh 4.8.4's mesh,
-    29: the ratio used to be −1 on them while the report said 0 invalid). SurfMesh takes a
-    valid element's sign from the face's normals at its nodes interpolated (a shell element's
-    director field, the certificate's first test): where J comes within 5 % of its largest value
-    to 0, that and the face's own normal may differ in sign (2 elements of Gmsh 4.13's mesh,
-    at a blade's tip). Every element with a ratio ≤ 0 must be one the report counts invalid."""
+    the propeller (volumes removed, diagonal / 21): J = ±|x_ξ × x_η|, signed by the face's
+    normals at the element's nodes interpolated (a shell element's director field, the
+    certificate's first test) and, where those find J ≤ 0 somewhere, by the face's own normal
+    at the (u, v) that the element's map reaches. Computed again here on every element with
+    FreeCAD's surfaces: the nodes' parameters from Surface.parameter, unwrapped across
+    periods, the tri6 shape functions built here from monomials, each face's sign the winding
+    most of its elements have in the mesh. The blade tips have valid elements whose corners'
+    plane is far from the face (with Gmsh 4.8.4's mesh, 29: the ratio used to be −1 on them
+    while the report said 0 invalid). Every element with a ratio ≤ 0 must be one the report
+    counts invalid. Elements that stand steeply on the face across a blade's tip can be
+    positive by the interpolated normals and not by the face's own (Gmsh 4.13's mesh at
+    diagonal / 18: ratio 0.27 against −0.64, the element's plane 70° off the face at its
+    nodes): counted and printed, the definition's choice (docs/metrics.md)."""
 
     REF = np.array([(0, 0), (1, 0), (0, 1), (0.5, 0), (0.5, 0.5), (0, 0.5)])
 
@@ -409,31 +411,39 @@ class JacobianRatioSignedByTheFace(unittest.TestCase):
             n0 = np.array(surface.normal(*surface.parameter(FreeCAD.Vector(*X[0]))))
             side = np.cross(X[1] - X[0], X[2] - X[0]) @ n0
             winding[int(faces[e])] = winding.get(int(faces[e]), 0) + np.sign(side)
-        disagree, borderline, corner = [], 0, 0
+        disagree, ambiguous, corner, exact_differs = [], 0, 0, 0
         for e in range(len(ratio)):
             X = mesh.nodes[mesh.element(int(e))]
             surface = shape.Faces[int(faces[e])].Surface
             sign = 1.0 if winding[int(faces[e])] >= 0 else -1.0
             uv = parameters(surface, X)
+            at_nodes = sign * np.array([surface.normal(*p) for p in uv])
             plane = np.cross(X[1] - X[0], X[2] - X[0])
-            J, along_plane = [], []
+            J_nodes, J_face, along_plane, near_zero = [], [], [], False
             for w, a, b in basis:
                 c = np.cross(a @ X, b @ X)
-                s = c @ (sign * np.array(surface.normal(*(w @ uv))))
-                J.append(np.linalg.norm(c) * np.sign(s))
+                for n, J in ((w @ at_nodes, J_nodes),
+                             (sign * np.array(surface.normal(*(w @ uv))), J_face)):
+                    s = c @ n
+                    near_zero |= abs(s) <= 1e-9 * np.linalg.norm(c) * np.linalg.norm(n)
+                    J.append(np.linalg.norm(c) * np.sign(s))
                 along_plane.append(c @ plane)
             corner += min(along_plane) <= 0
-            r = min(J) / max(abs(v) for v in J)
+            r_nodes = min(J_nodes) / max(abs(v) for v in J_nodes)
+            r_face = min(J_face) / max(abs(v) for v in J_face)
+            r = r_nodes if r_nodes > 0 else r_face
+            exact_differs += abs(r - r_face) > 1e-6
             if abs(r - ratio[e]) > 1e-6:
-                if max(abs(r), abs(ratio[e])) <= 0.05:
-                    borderline += 1
+                if near_zero:  # a sample where the element's plane holds the normal
+                    ambiguous += 1
                 else:
                     disagree.append((int(e), round(float(r), 4), round(float(ratio[e]), 4)))
         print(f"\npropeller order 2, SurfMesh's result: {len(ratio)} elements, {invalid.sum()} "
               f"invalid; ratio <= 0 along the corners' normal {corner}, against the face "
-              f"{(ratio <= 0).sum()}; against FreeCAD's normals: {borderline} borderline")
+              f"{(ratio <= 0).sum()}; {exact_differs} positive by the interpolated normals and "
+              f"not by the face's own; {ambiguous} with a sample where J is 0 to 1e-9")
         self.assertEqual(disagree, [])
-        self.assertLessEqual(borderline, 5)
+        self.assertLessEqual(ambiguous, 2)
         self.assertTrue(np.all(invalid[ratio <= 0]), "a ratio <= 0 only on invalid elements")
 
 
