@@ -71,22 +71,34 @@ OptimizeResult continueRun(SurfaceMesh& mesh, const OptimizeResult& first, MeshP
   return res;
 }
 
-/// optimizeOnce holding linear triangles from standing across their surface (acrossArea). Where
-/// that leaves tangled elements a node may move, a second run without the hold starts from its
-/// result: untangling comes first (e.g. an element folded where the surface turns too fast to
-/// untangle it otherwise). A cancelled second run leaves the mesh as it was before the first.
+/// optimizeOnce holding linear triangles from standing across their surface (acrossArea), those
+/// with a node sliding along a CAD edge too where valid. Where that leaves tangled elements a
+/// node may move, a run that lets the valid elements with a sliding node lean across follows
+/// from its result (with sliding nodes: their holds are not recorded), and where that leaves
+/// some, a run without the hold: untangling comes first (e.g. an element folded where the
+/// surface turns too fast to untangle it otherwise). Each run's last check still puts back the
+/// nodes of any element valid at its start that it left invalid. A cancelled run leaves the
+/// mesh as it was before the first.
 OptimizeResult optimizeHolding(SurfaceMesh& mesh, const OptimizeOptions& opt,
                                const ProgressCallback& progress, const QualityStats* before) {
-  MeshPositions input;  // kept (no copy: the arrays the first run replaced) for a second run
+  MeshPositions input;  // kept (no copy: the arrays the first run replaced) for a later run
   int offset = 0;
   const ProgressCallback shifted = detail::renumbered(progress, offset);
-  OptimizeResult held = optimizeOnce(mesh, opt, shifted, before, true, &input);
-  if (held.reason == StopReason::Cancelled || held.tangledMovable.empty() || !held.heldAcross)
-    return held;
-  offset = held.sweeps;
-  OptimizeResult res = continueRun(
-      mesh, held, input, [&] { return optimizeOnce(mesh, opt, shifted, &held.after, false); });
-  res.seconds += held.seconds;
+  const bool sliding =
+      std::find(mesh.nodeKind.begin(), mesh.nodeKind.end(), NodeKind::Edge) != mesh.nodeKind.end();
+  OptimizeResult res = optimizeOnce(mesh, opt, shifted, before, detail::HoldAcross::All, &input);
+  double seconds = res.seconds;
+  for (const detail::HoldAcross next :
+       {detail::HoldAcross::ExceptSliding, detail::HoldAcross::None}) {
+    if (res.reason == StopReason::Cancelled || res.tangledMovable.empty()) break;
+    if (next == detail::HoldAcross::ExceptSliding ? !sliding : !res.heldAcross) continue;
+    offset = res.sweeps;
+    const OptimizeResult first = res;
+    res = continueRun(mesh, first, input,
+                      [&] { return optimizeOnce(mesh, opt, shifted, &first.after, next); });
+    seconds += res.seconds;
+  }
+  res.seconds = seconds;
   return res;
 }
 

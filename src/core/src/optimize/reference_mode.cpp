@@ -61,12 +61,6 @@ namespace {
 
 ElementType linearOf(ElementType t) { return isQuad(t) ? ElementType::Quad4 : ElementType::Tri3; }
 
-std::size_t invalidCount(const MeshQuality& q) {
-  std::size_t n = 0;
-  for (std::size_t e = 0; e < q.tangled.size(); ++e) n += (q.tangled[e] || q.across[e]) ? 1 : 0;
-  return n;
-}
-
 double smallest(const std::vector<double>& v) {
   double m = std::numeric_limits<double>::infinity();
   for (double x : v) m = std::min(m, x);

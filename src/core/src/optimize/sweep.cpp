@@ -54,9 +54,10 @@ void checkOptions(const OptimizeOptions& opt) {
 /// whole-mesh evaluations; run() sweeps and writes the result back.
 class SweepRun {
  public:
-  /// `tangled0`: measureQuality's tangled flags of the input (keepValidElements).
+  /// `invalid0`: the input's invalid elements, tangled or standing across (measureQuality;
+  /// keepValidElements).
   SweepRun(SurfaceMesh& mesh, const OptimizeOptions& opt, const ProgressCallback& progress,
-           const PlanarMeasure& measure, bool holdAcross, std::vector<unsigned char> tangled0)
+           const PlanarMeasure& measure, HoldAcross holdAcross, std::vector<unsigned char> invalid0)
       : mesh_(mesh),
         opt_(opt),
         progress_(progress),
@@ -70,7 +71,7 @@ class SweepRun {
         chunkF_((E_ + kChunk - 1) / kChunk),
         frozen_(frozenElements(mesh)),
         held_(E_, 0),
-        tangled0_(std::move(tangled0)) {
+        invalid0_(std::move(invalid0)) {
     for (int k = 0; k < nthreads_; ++k) workers_.push_back(std::make_unique<Worker>(s_));
     for (const auto& c : colors_) movable_ += c.size();
   }
@@ -124,7 +125,7 @@ class SweepRun {
   std::vector<unsigned char> frozen_;
   std::vector<unsigned char> held_;      // frozen by foldHeld (holdFolds)
   std::vector<unsigned char> noEscape_;  // what the escapes leave alone (holdFolds)
-  std::vector<unsigned char> tangled0_;  // the input's invalid elements (measureQuality)
+  std::vector<unsigned char> invalid0_;  // the input's invalid elements (measureQuality)
   // The last sweep's largest relative move and number of nodes moved.
   double maxMove_ = 0.0;
   std::size_t moved_ = 0;
@@ -495,20 +496,21 @@ void SweepRun::writeBack(OptimizeResult* res, MeshPositions* previous) {
   bool cancelled = false, revertAll = false;
   try {
     MeshQuality q = measureQuality(mesh_, measure_);
-    // Never worse, element by element: the nodes of the elements valid in the input that
-    // the run left invalid go back. On a valid input that is always kept; on a tangled one,
-    // unless it leaves more tangled elements than the run did (untangling may trade a valid
-    // element for tangled ones the run could not repair otherwise).
-    const std::size_t tangledRun = q.stats.tangled;
+    // Never worse, element by element: the nodes of the elements valid in the input (neither
+    // tangled nor standing across) that the run left invalid go back. On a valid input that
+    // is always kept; on an invalid one, unless it leaves more invalid elements than the run
+    // did (untangling may trade a valid element for invalid ones the run could not repair
+    // otherwise).
+    const std::size_t invalidRun = invalidCount(q);
     PutBack undo;
     const std::size_t restored = keepValidElements(mesh_, InputPositions{xyz, uv, t, cornerUV},
-                                                   tangled0_, measure_, &q, &undo);
-    const bool validInput = std::find(tangled0_.begin(), tangled0_.end(), 1) == tangled0_.end();
+                                                   invalid0_, measure_, &q, &undo);
+    const bool validInput = std::find(invalid0_.begin(), invalid0_.end(), 1) == invalid0_.end();
     if (restored > 0 && validInput && opt_.monotone && q.stats.min < res->before.min) {
       // (The elements around the nodes put back are valid but poorer than the input's worst:
       // the input, never worse.)
       revertAll = true;
-    } else if (restored > 0 && q.stats.tangled <= tangledRun) {
+    } else if (restored > 0 && invalidCount(q) <= invalidRun) {
       res->restoredNodes = restored;
       res->movedNodes -= restored;
     } else if (restored > 0) {
@@ -557,19 +559,21 @@ void SweepRun::writeBack(OptimizeResult* res, MeshPositions* previous) {
 
 OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
                             const ProgressCallback& progress, const QualityStats* before,
-                            bool holdAcross, MeshPositions* previous) {
+                            HoldAcross holdAcross, MeshPositions* previous) {
   const auto t0 = std::chrono::steady_clock::now();
   checkOptions(opt);
   const PlanarMeasure& measure = measureByName(opt.measure);
   mesh.validate();
   OptimizeResult res;
-  std::vector<unsigned char> tangled0;  // the input's invalid elements (keepValidElements)
+  std::vector<unsigned char> invalid0;  // the input's invalid elements (keepValidElements)
   {
     MeshQuality q0 = measureQuality(mesh, measure);  // (the rest freed before the run)
     res.before = before ? *before : q0.stats;
-    tangled0 = std::move(q0.tangled);
+    invalid0 = std::move(q0.tangled);
+    for (std::size_t e = 0; e < invalid0.size() && e < q0.across.size(); ++e)
+      invalid0[e] = invalid0[e] || q0.across[e];
   }
-  return SweepRun(mesh, opt, progress, measure, holdAcross, std::move(tangled0))
+  return SweepRun(mesh, opt, progress, measure, holdAcross, std::move(invalid0))
       .run(std::move(res), previous, t0);
 }
 

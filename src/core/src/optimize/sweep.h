@@ -3,6 +3,7 @@
 #pragma once
 
 #include "surfmesh/optimize/optimizer.h"
+#include "sweep_support.h"
 
 #include <utility>
 #include <vector>
@@ -38,12 +39,12 @@ struct MeshPositions {
 };
 /// One run. `before`, when given, is the quality the caller already measured on this mesh
 /// (the sliding phase starts from the held phase's result): it is not measured again.
-/// `holdAcross`: hold linear triangles from standing across their surface (acrossArea).
+/// `holdAcross`: which linear triangles are held from standing across their surface.
 /// `previous`, when given, receives the positions the mesh had before a completed run (the
 /// arrays the run replaced: no copy).
 OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
                             const ProgressCallback& progress, const QualityStats* before,
-                            bool holdAcross, MeshPositions* previous = nullptr);
+                            HoldAcross holdAcross, MeshPositions* previous = nullptr);
 
 }  // namespace detail
 }  // namespace surfmesh

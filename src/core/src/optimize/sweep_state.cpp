@@ -4,7 +4,7 @@ namespace surfmesh {
 namespace detail {
 
 State::State(const SurfaceMesh& m, const PlanarMeasure& pm, const OptimizeOptions& o,
-             bool holdAcross)
+             HoldAcross holdAcross)
     : mesh(m), measure(pm), opt(o), inc(buildIncidence(m)), xyz(m.xyz), uv(m.uv), t(m.nodeT) {
   const std::size_t N = m.nodeCount(), E = m.elementCount();
   for (std::size_t e = 0; e < E; ++e)
@@ -45,7 +45,8 @@ State::State(const SurfaceMesh& m, const PlanarMeasure& pm, const OptimizeOption
   }
   // Linear triangles not standing across their surface at the start are held so
   // (kAcrossGuard, acrossArea).
-  for (std::size_t e = 0; holdAcross && e < E; ++e) {
+  const bool hold = holdAcross != HoldAcross::None;
+  for (std::size_t e = 0; hold && e < E; ++e) {
     if (m.elemType[e] != ElementType::Tri3) continue;
     const std::int32_t* nd = m.elementNodes(e);
     Vec3 corners[3];
@@ -61,17 +62,17 @@ State::State(const SurfaceMesh& m, const PlanarMeasure& pm, const OptimizeOption
     // Valid, not standing across and not leaning; or tangled (wound against every corner)
     // with a corner free on the face: untangling must not turn it over the top of the
     // surface into standing across. Not held: a tangled one whose corners all lie on CAD
-    // edges, and any with a node sliding along a CAD edge — where the surface turns by more
-    // than a right angle between two edges (BRepMesh's coarse blade edges), standing across
-    // can be the only valid state there is, and sliding nodes reach it through their
-    // elements.
+    // edges, and a tangled one with a node sliding along a CAD edge — where the surface turns
+    // by more than a right angle between two edges (BRepMesh's coarse blade edges), standing
+    // across can be the only valid state there is, and sliding nodes reach it through their
+    // elements; with ExceptSliding, a valid one with a sliding node neither (the run that
+    // follows a held one that left tangled elements a node may move: optimizeHolding).
     bool sliding = false;
     for (int k = 0; k < 3; ++k)
       sliding = sliding || m.nodeKind[static_cast<std::size_t>(nd[k])] == NodeKind::Edge;
-    const bool guard =
-        !sliding &&
-        (along ? !against && acrossArea(c, cn, corners, &which, &slope) == cn && which < 0
-               : against && (faceCorners[e] & 0x7u) != 0);
+    const bool guard = along ? (!sliding || holdAcross == HoldAcross::All) && !against &&
+                                   acrossArea(c, cn, corners, &which, &slope) == cn && which < 0
+                             : !sliding && against && (faceCorners[e] & 0x7u) != 0;
     if (cn > 0.0 && guard)
       faceCorners[e] = static_cast<std::uint8_t>(faceCorners[e] | kAcrossGuard);
   }
@@ -81,7 +82,7 @@ State::State(const SurfaceMesh& m, const PlanarMeasure& pm, const OptimizeOption
   // it, while the measure, which orients the element by the sum of its corner normals, can
   // still find it valid and well shaped) counts as tangling it. Not held: those with a
   // sliding node.
-  for (std::size_t e = 0; holdAcross && e < E; ++e) {
+  for (std::size_t e = 0; hold && e < E; ++e) {
     if (!heldCurved(m.elemType[e])) continue;
     const std::int32_t* nd = m.elementNodes(e);
     bool sliding = false;

@@ -123,7 +123,8 @@ struct State {
   std::int32_t clock = 0;            // advanced once per color
   std::int32_t validFrom = 1;        // a node last visited before this clock is revisited
 
-  State(const SurfaceMesh& m, const PlanarMeasure& pm, const OptimizeOptions& o, bool holdAcross);
+  State(const SurfaceMesh& m, const PlanarMeasure& pm, const OptimizeOptions& o,
+        HoldAcross holdAcross);
 
   std::int64_t begin(std::size_t i) const { return inc.offset[i]; }
   std::int64_t end(std::size_t i) const { return inc.offset[i + 1]; }

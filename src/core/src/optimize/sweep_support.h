@@ -37,13 +37,30 @@ std::vector<unsigned char> widenByRings(const SurfaceMesh& mesh, std::vector<uns
 /// Greedy coloring on a given incidence (see colorMovableNodes).
 std::vector<std::vector<std::int32_t>> colorNodes(const SurfaceMesh& mesh, const Incidence& inc);
 
-/// Per-thread geometry: clones of the surfaces and curves (OCC adaptors are not shared).
+/// Which linear triangles a run holds from standing across their surface (acrossArea): none;
+/// those with no node sliding along a CAD edge; all (a valid one with a sliding node too).
+enum class HoldAcross { None, ExceptSliding, All };
+
+/// Per-thread geometry: clones of the surfaces and curves (OCC adaptors are not shared), of
+/// those the mesh uses only (its elements' faces, its nodes' faces and edges; the others
+/// null): a run on a few elements of a part with hundreds of faces (the flip rounds' and the
+/// repairs' local runs) clones a few.
 struct ThreadGeometry {
   std::vector<std::unique_ptr<Surface>> surfaces;
   std::vector<std::unique_ptr<Curve>> curves;
   explicit ThreadGeometry(const SurfaceMesh& m) {
-    for (const Surface* s : m.surfaces) surfaces.push_back(s ? s->clone() : nullptr);
-    for (const Curve* c : m.curves) curves.push_back(c ? c->clone() : nullptr);
+    std::vector<unsigned char> face(m.surfaces.size(), 0), edge(m.curves.size(), 0);
+    auto mark = [](std::vector<unsigned char>& used, std::int32_t k) {
+      if (k >= 0 && static_cast<std::size_t>(k) < used.size())
+        used[static_cast<std::size_t>(k)] = 1;
+    };
+    for (std::int32_t f : m.elemFace) mark(face, f);
+    for (std::int32_t f : m.nodeFace) mark(face, f);
+    for (std::int32_t c : m.nodeEdge) mark(edge, c);
+    for (std::size_t f = 0; f < m.surfaces.size(); ++f)
+      surfaces.push_back(face[f] && m.surfaces[f] ? m.surfaces[f]->clone() : nullptr);
+    for (std::size_t c = 0; c < m.curves.size(); ++c)
+      curves.push_back(edge[c] && m.curves[c] ? m.curves[c]->clone() : nullptr);
   }
 };
 

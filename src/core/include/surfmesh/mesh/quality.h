@@ -49,6 +49,14 @@ struct ElementQuality {
   bool invalid() const { return tangled || across; }
 };
 
+/// The number of invalid elements of q (tangled or standing across: ElementQuality::invalid).
+inline std::size_t invalidCount(const MeshQuality& q) {
+  std::size_t n = 0;
+  for (std::size_t e = 0; e < q.tangled.size(); ++e)
+    n += (q.tangled[e] || (e < q.across.size() && q.across[e])) ? 1 : 0;
+  return n;
+}
+
 /// Puts element e's entries `eq` into q (its statistics are not updated).
 inline void storeElementQuality(MeshQuality& q, std::size_t e, const ElementQuality& eq) {
   q.quality[e] = eq.quality;
