@@ -28,7 +28,7 @@ std::size_t keepValidElements(SurfaceMesh& mesh, const InputPositions& input,
     // The nodes of the elements valid in the input and invalid now, not yet put back.
     std::vector<std::size_t> now;
     for (std::size_t e = 0; e < E; ++e) {
-      if (invalid0[e] || !(q->tangled[e] || q->across[e])) continue;
+      if (invalid0[e] || !q->invalid(e)) continue;
       if (back.empty()) back.assign(N, 0);
       const std::int32_t* nd = mesh.elementNodes(e);
       for (int k = 0; k < mesh.elementSize(e); ++k) {

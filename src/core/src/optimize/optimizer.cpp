@@ -40,6 +40,12 @@ namespace {
 using detail::MeshPositions;
 using detail::optimizeOnce;
 
+/// Whether some node of `mesh` slides along a CAD edge (NodeKind::Edge) in this run.
+bool hasSlidingNodes(const SurfaceMesh& mesh) {
+  return std::find(mesh.nodeKind.begin(), mesh.nodeKind.end(), NodeKind::Edge) !=
+         mesh.nodeKind.end();
+}
+
 /// A run that continues the completed run `first` on the same mesh: `run` (whose sweeps the
 /// progress callback numbers after first's). An exception or a cancellation puts `input` (the
 /// positions before `first`) back; the result covers both runs, its seconds those of `run`.
@@ -84,8 +90,7 @@ OptimizeResult optimizeHolding(SurfaceMesh& mesh, const OptimizeOptions& opt,
   MeshPositions input;  // kept (no copy: the arrays the first run replaced) for a later run
   int offset = 0;
   const ProgressCallback shifted = detail::renumbered(progress, offset);
-  const bool sliding =
-      std::find(mesh.nodeKind.begin(), mesh.nodeKind.end(), NodeKind::Edge) != mesh.nodeKind.end();
+  const bool sliding = hasSlidingNodes(mesh);
   OptimizeResult res = optimizeOnce(mesh, opt, shifted, before, detail::HoldAcross::All, &input);
   double seconds = res.seconds;
   for (const detail::HoldAcross next :
@@ -123,8 +128,7 @@ OptimizeResult withNodesFixed(SurfaceMesh& mesh, Pred fixed, Run run) {
 /// The run with sliding (NodeKind::Edge) nodes in two phases (see optimizeMesh), or one run.
 OptimizeResult optimizeBoundary(SurfaceMesh& mesh, const OptimizeOptions& opt,
                                 const ProgressCallback& progress, const QualityStats* before) {
-  const bool sliding =
-      std::find(mesh.nodeKind.begin(), mesh.nodeKind.end(), NodeKind::Edge) != mesh.nodeKind.end();
+  const bool sliding = hasSlidingNodes(mesh);
   if (!sliding || opt.maxSweeps == 0) return optimizeHolding(mesh, opt, progress, before);
   // Sliding edge nodes: first the run with them held (the fixed boundary), then the run that
   // lets them slide from there. The second run never increases the number of tangled elements

@@ -569,9 +569,8 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
   {
     MeshQuality q0 = measureQuality(mesh, measure);  // (the rest freed before the run)
     res.before = before ? *before : q0.stats;
-    invalid0 = std::move(q0.tangled);
-    for (std::size_t e = 0; e < invalid0.size() && e < q0.across.size(); ++e)
-      invalid0[e] = invalid0[e] || q0.across[e];
+    invalid0.resize(q0.tangled.size());
+    for (std::size_t e = 0; e < invalid0.size(); ++e) invalid0[e] = q0.invalid(e) ? 1 : 0;
   }
   return SweepRun(mesh, opt, progress, measure, holdAcross, std::move(invalid0))
       .run(std::move(res), previous, t0);

@@ -32,6 +32,8 @@ struct MeshQuality {
   std::vector<unsigned char> across;   ///< per element, 1 when standing across its surface
                                        ///< (as QualityStats::across)
   QualityStats stats;
+  /// Element e tangled or standing across: invalid for a solver (as ElementQuality::invalid).
+  bool invalid(std::size_t e) const { return tangled[e] || (e < across.size() && across[e]); }
 };
 
 /// Statistics of a list of qualities (tangled = number of entries flagged in `tangled`).
@@ -52,8 +54,7 @@ struct ElementQuality {
 /// The number of invalid elements of q (tangled or standing across: ElementQuality::invalid).
 inline std::size_t invalidCount(const MeshQuality& q) {
   std::size_t n = 0;
-  for (std::size_t e = 0; e < q.tangled.size(); ++e)
-    n += (q.tangled[e] || (e < q.across.size() && q.across[e])) ? 1 : 0;
+  for (std::size_t e = 0; e < q.tangled.size(); ++e) n += q.invalid(e) ? 1 : 0;
   return n;
 }
 
