@@ -1,5 +1,6 @@
 // Never worse, element by element (keep_valid.h): an element valid in a run's input ends
-// valid, by putting back the nodes of the elements a run left invalid, and nothing else.
+// valid, and one untangled in it ends untangled, by putting back the nodes of the elements a
+// run made worse, and nothing else.
 #include "../../src/core/src/optimize/keep_valid.h"
 
 #include "../../src/core/src/optimize/sweep.h"
@@ -36,6 +37,23 @@ std::set<std::size_t> neighbours(const SurfaceMesh& m, std::size_t i) {
   return out;
 }
 
+/// MeshQuality::grade of every element of q (keepValidElements' grade0).
+std::vector<unsigned char> grades(const MeshQuality& q) {
+  std::vector<unsigned char> g(q.tangled.size());
+  for (std::size_t e = 0; e < g.size(); ++e) g[e] = q.grade(e);
+  return g;
+}
+
+/// A face node of m and the run that pushes it three cells across its neighbours in (u,v):
+/// its elements fold.
+std::size_t foldAFaceNode(SurfaceMesh& m, int nu, int nv) {
+  std::size_t a = 0;
+  while (m.nodeKind[a] != NodeKind::Face) ++a;
+  m.uv[a] += Vec2(3 * 2 * kPi / nu, 0.4 * 2 * kPi / nv);
+  syncFaceNodes(m);
+  return a;
+}
+
 }  // namespace
 
 TEST(KeepValid, PutsBackTheNodesOfElementsMadeInvalidAndNothingElse) {
@@ -69,7 +87,7 @@ TEST(KeepValid, PutsBackTheNodesOfElementsMadeInvalidAndNothingElse) {
   MeshQuality q = measureQuality(m, shape);
   detail::PutBack undo;
   const std::size_t restored = detail::keepValidElements(
-      m, {input.xyz, input.uv, input.nodeT, input.cornerUV}, q0.tangled, shape, &q, &undo);
+      m, {input.xyz, input.uv, input.nodeT, input.cornerUV}, grades(q0), shape, &q, &undo);
   EXPECT_EQ(restored, 1u);  // node a only: the other nodes of its elements never moved
   EXPECT_EQ(q.stats.tangled, 0u);
   EXPECT_EQ(measureQuality(m, shape).stats.tangled, 0u);  // *q is the mesh's
@@ -97,9 +115,41 @@ TEST(KeepValid, ElementsTangledInTheInputMayStayTangled) {
   ASSERT_GE(q0.stats.tangled, 6u);
   MeshQuality q = q0;
   EXPECT_EQ(detail::keepValidElements(m, {input.xyz, input.uv, input.nodeT, input.cornerUV},
-                                      q0.tangled, shape, &q),
+                                      grades(q0), shape, &q),
             0u);
   EXPECT_EQ(q.stats.tangled, q0.stats.tangled);
+}
+
+TEST(KeepValid, AnElementStandingAcrossThatARunTanglesGoesBack) {
+  // By the grade (valid, standing across, tangled): an element standing across in the input
+  // (its quality positive) that the run tangles is worse, and its nodes go back; one tangled
+  // in the input may stay tangled. (The input's grades are given: no element of a torus grid
+  // stands across.)
+  const TorusSurface torus(10, 4);
+  const GridMesh g = periodicGridMesh(16, 10, 0, 2 * kPi, 0, 2 * kPi, true);
+  const PlanarMeasure& shape = measureByName("shape");
+  for (const unsigned char given : {1, 2}) {
+    SurfaceMesh m = makeSingleSurfaceMesh(torus, g.uv, ElementType::Tri3, g.conn, g.fixed);
+    const detail::MeshPositions input = detail::MeshPositions::of(m);
+    const std::size_t a = foldAFaceNode(m, 16, 10);
+    MeshQuality q = measureQuality(m, shape);
+    ASSERT_GT(q.stats.tangled, 0u);
+    std::vector<unsigned char> grade0(m.elementCount(), 0);
+    for (std::size_t e = 0; e < m.elementCount(); ++e)
+      if (q.tangled[e]) grade0[e] = given;  // the folded ones: across (1) or tangled (2) before
+    const std::size_t tangledRun = q.stats.tangled;
+    const std::size_t restored = detail::keepValidElements(
+        m, {input.xyz, input.uv, input.nodeT, input.cornerUV}, grade0, shape, &q);
+    if (given == 1) {
+      EXPECT_EQ(restored, 1u);
+      EXPECT_EQ(q.stats.tangled, 0u);
+      EXPECT_EQ(m.xyz[a], input.xyz[a]);
+    } else {
+      EXPECT_EQ(restored, 0u);
+      EXPECT_EQ(q.stats.tangled, tangledRun);
+      EXPECT_NE(m.xyz[a], input.xyz[a]);
+    }
+  }
 }
 
 TEST(KeepValid, NoRunMakesAnElementOfAValidInputInvalid) {

@@ -388,7 +388,8 @@ class SlideNeverMakesAValidElementInvalid(unittest.TestCase):
     its plane is wound along the normal at all three corners, tangled when against all three,
     standing across otherwise. Sliding nodes used to carry valid triangles across thin fillets
     (Gmsh 4.8.4: the crank arm 0 → 3 invalid, the housing 3 → 15), and the run's last check
-    put back only the nodes of triangles it had tangled, not of those it had stood across."""
+    put back only the nodes of triangles it had tangled, not of those it had stood across.
+    The report's invalid counts, before and after, are those of this check."""
 
     @staticmethod
     def states(shape, path, winding=None):
@@ -474,6 +475,9 @@ class SlideNeverMakesAValidElementInvalid(unittest.TestCase):
                   f"{report['moved_nodes']} nodes moved")
             self.assertEqual(made, [], name)
             self.assertGreater(report["moved_nodes"], 0)
+            # and the report counts the invalid triangles this check counts, input and result
+            self.assertEqual(sum(s != "valid" for s in before), report["before"]["invalid"], name)
+            self.assertEqual(sum(s != "valid" for s in after), report["after"]["invalid"], name)
 
 
 if __name__ == "__main__":

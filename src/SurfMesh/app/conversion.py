@@ -72,6 +72,9 @@ class MeshData:
     # Set by api.prepare when flat elements were left out (bool per element): optimize holds
     # their nodes, so that no run folds them.
     flat: Optional[np.ndarray] = None
+    # Set by api.prepare for a run with edge flips, which keeps the flat elements that it
+    # would otherwise leave out (bool per element): its report leaves out those still flat.
+    flat_kept: Optional[np.ndarray] = None
     # Set by api.prepare when coincident nodes were glued: glued[i] is the node that node i
     # moves with (i itself for most nodes); ``conn`` then names only those nodes.
     glued: Optional[np.ndarray] = None

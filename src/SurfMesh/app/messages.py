@@ -299,6 +299,13 @@ def tangled_unmovable(ids, place, boundary, held, topology="none"):
     )
 
 
+def flat_left_out(ids):
+    """The result's warning on the flat elements a run with edge flips kept and left flat."""
+    return (f"{len(ids)} flat element(s) on one CAD edge or with two nodes on one CAD vertex are "
+            f"left out of the result's figures, as measuring it leaves them out: elements "
+            f"{id_list(ids)}")
+
+
 def needles(ids, place):
     """The result's warning on the needles left by a run with edge flips."""
     return (

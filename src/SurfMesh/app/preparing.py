@@ -142,6 +142,7 @@ def prepare_measured(mesh, shape, boundary, tolerance, hints, collapsed, duplica
         data, glue = glue_coincident(data)
     data.kept = None
     data.flat = None
+    data.flat_kept = None
     bad, reasons = _degenerate_elements(data, collapsed)
     work = data
     if bad.any():
@@ -249,7 +250,10 @@ def _leave_out_flat(data, work, handle, bad, build, keep_flat=False):
     # "invalid" elements along some edges): no node can leave the edge, so no optimizer can
     # make them valid. They are left out like collapsed elements.
     flat, shape_measure = flat_boundary_elements(work, handle)
-    if keep_flat:  # edge flips may repair them
+    if keep_flat:  # edge flips may repair them; the run's report leaves out those still flat
+        if flat.any():
+            data.flat_kept = np.zeros(data.element_count, dtype=bool)
+            data.flat_kept[np.nonzero(~bad)[0][flat]] = True
         flat[:] = False
     # Elements wound against their face's mesh next to the elements left out (a mesher's
     # degenerate spot): tangled wherever their nodes are. Elsewhere (an STL with flipped
@@ -325,6 +329,20 @@ def side_nodes_astray(data):
                 d2 = np.einsum("ij,ij->i", x - foot, x - foot)
                 out[sel] |= d2 > _SIDE_NODE_REACH**2 * length2
     return out
+
+
+def still_flat(data, handle, nodes):
+    """Bool mask (over ``data``'s elements) of the elements of ``data.flat_kept`` that are
+    flat by :func:`flat_boundary_elements` with the node positions ``nodes`` and ``data``'s
+    node lists (a run's result, edge flips included): what measuring that result leaves out."""
+    out = np.zeros(data.element_count, dtype=bool)
+    if data.flat_kept is None:
+        return out
+    idx = np.arange(data.element_count) if data.kept is None else np.nonzero(data.kept)[0]
+    work = data if data.kept is None else data.subset(data.kept)
+    flat, _ = flat_boundary_elements(dataclasses.replace(work, nodes=nodes), handle)
+    out[idx[flat]] = True
+    return out & data.flat_kept
 
 
 def flat_boundary_elements(work, handle):

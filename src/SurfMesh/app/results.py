@@ -138,6 +138,31 @@ class OptimizeResult:
         }
 
 
+def left_out(report: QualityReport, mask) -> QualityReport:
+    """``report`` with the elements of ``mask`` left out as well (skipped: quality 0, not
+    tangled, not across, no face), its statistics those of the elements still measured."""
+    mask = np.asarray(mask, dtype=bool) & ~report.skipped
+    if not mask.any():
+        return report
+    skipped = report.skipped | mask
+    quality = np.where(mask, 0.0, report.quality)
+    tangled, across = report.tangled & ~mask, report.across & ~mask
+    q = quality[~skipped]
+    stats = dict(report.stats)
+    stats.update(elements=int(q.size), skipped=int(skipped.sum()),
+                 tangled=int(np.count_nonzero(tangled)), across=int(np.count_nonzero(across)),
+                 invalid=int(np.count_nonzero(tangled | across)))
+    if q.size:
+        mean = float(q.sum()) / q.size
+        stats.update(min=float(q.min()), max=float(q.max()), mean=mean,
+                     std=float(np.sqrt(((q - mean) ** 2).sum() / q.size)))
+    return dataclasses.replace(
+        report, quality=quality, tangled=tangled, across=across, stats=stats, skipped=skipped,
+        distortion=np.where(mask, np.inf, report.distortion),
+        min_sigma=np.where(mask, 0.0, report.min_sigma),
+        element_faces=np.where(mask, -1, report.element_faces))
+
+
 def quality_report(data, handle, name, bridge=None, measured=None) -> QualityReport:
     """The :class:`QualityReport` of measure ``name`` on ``handle`` (the core's mesh of
     ``data``), of every element of the input (the elements left out: quality 0, not tangled);

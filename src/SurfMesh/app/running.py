@@ -161,6 +161,10 @@ def optimize(
     t1 = time.perf_counter()
     stats = {k: before.stats[k]
              for k in ("min", "max", "mean", "std", "tangled", "elements", "across")}
+    # A run with edge flips keeps the flat elements measure leaves out (a flip may repair
+    # them); its report leaves them out as measure does, before and, those still flat, after.
+    if data.flat_kept is not None:
+        before = results.left_out(before, data.flat_kept)
     # when the run last reached fewer tangled elements; a new stage (the runs of the curved
     # elements' "reference" mode, each counting its own mesh's) starts the count again
     fewest = {"tangled": None, "sweep": 0, "stage": 0}
@@ -193,6 +197,14 @@ def optimize(
         rewired_nodes = [[int(data.node_ids[n]) for n in nodes] for nodes in lists]
     _progress.phase("measuring the result")
     after = results.quality_report(data, handle, measure, bridge)
+    flat = None
+    if data.flat_kept is not None:
+        flat = preparing.still_flat(data, handle, new_nodes)
+        after = results.left_out(after, flat)
+        for key in ("tangled_unmovable", "tangled_movable"):  # (core indices)
+            core = [int(e) for e in r.get(key, [])]
+            r[key] = [e for e, i in zip(core, preparing.input_element_indices(data, core))
+                      if not flat[i]]
     new_mesh = conversion.rebuild(data, new_nodes) if data.kind in ("mesh", "fem") else None
     # The distances of the moved nodes, on the positions returned (a Mesh.Mesh's float32 ones).
     returned = new_nodes if data.kind != "mesh" else conversion.read_mesh(new_mesh).nodes
@@ -205,6 +217,8 @@ def optimize(
     movable = preparing.user_element_ids(data, r.get("tangled_movable", []))
     warnings = _run_warnings(data, handle, new_nodes, r, boundary, fixed is not None,
                              int(r["sweeps"]) - fewest["sweep"], before, after)
+    if flat is not None and flat.any():
+        warnings.append(messages.flat_left_out([int(i) for i in data.element_ids[flat]]))
     return results.OptimizeResult(
         mesh=new_mesh,
         nodes=new_nodes,

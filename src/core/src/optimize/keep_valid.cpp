@@ -19,16 +19,16 @@ void PutBack::undo(SurfaceMesh& mesh) const {
 }
 
 std::size_t keepValidElements(SurfaceMesh& mesh, const InputPositions& input,
-                              const std::vector<unsigned char>& invalid0,
+                              const std::vector<unsigned char>& grade0,
                               const PlanarMeasure& measure, MeshQuality* q, PutBack* undo) {
   const std::size_t N = mesh.nodeCount(), E = mesh.elementCount();
   std::vector<unsigned char> back;  // put back already (allocated on the first)
   std::size_t restored = 0;
   for (;;) {
-    // The nodes of the elements valid in the input and invalid now, not yet put back.
+    // The nodes of the elements worse now than in the input, not yet put back.
     std::vector<std::size_t> now;
     for (std::size_t e = 0; e < E; ++e) {
-      if (invalid0[e] || !q->invalid(e)) continue;
+      if (q->grade(e) <= grade0[e]) continue;
       if (back.empty()) back.assign(N, 0);
       const std::int32_t* nd = mesh.elementNodes(e);
       for (int k = 0; k < mesh.elementSize(e); ++k) {

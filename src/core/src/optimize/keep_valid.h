@@ -1,5 +1,5 @@
-// Never worse, element by element: no element valid in a run's input is invalid in its result
-// (keep_valid.cpp).
+// Never worse, element by element: no element valid in a run's input is invalid in its result,
+// none untangled in it is tangled (keep_valid.cpp).
 #pragma once
 
 #include "surfmesh/measures/measure.h"
@@ -32,16 +32,17 @@ struct PutBack {
 };
 
 /// Puts back where they were in `input` (positions, parameters and the elements' corner (u,v))
-/// the nodes of every element that was valid in the input (`invalid0[e]` 0: by measureQuality,
-/// the report's definition: neither tangled nor standing across, the certificate for curved
-/// elements) and is invalid in `mesh` (tangled or standing across),
-/// then those of the elements that makes invalid, and so on: an element whose every node is
-/// back is the input's, so every element valid in the input ends valid. `mesh` must have the
+/// the nodes of every element that `mesh` has made worse than the input by
+/// MeshQuality::grade (`grade0[e]`, by measureQuality: the report's definition, the certificate
+/// for curved elements): valid in the input and invalid (tangled or standing across) now, or
+/// standing across but untangled in the input and tangled now; then those of the elements
+/// that makes worse, and so on: an element whose every node is back is the input's, so every
+/// element valid in the input ends valid and none ends tangled that was not. `mesh` must have the
 /// input's elements (node lists); `q` is its quality on entry, and on return the quality of the
 /// mesh as it ends. Returns the number of nodes put back that had moved; `undo` (when given)
 /// receives what undoes it.
 std::size_t keepValidElements(SurfaceMesh& mesh, const InputPositions& input,
-                              const std::vector<unsigned char>& invalid0,
+                              const std::vector<unsigned char>& grade0,
                               const PlanarMeasure& measure, MeshQuality* q,
                               PutBack* undo = nullptr);
 

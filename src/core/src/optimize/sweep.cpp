@@ -54,10 +54,10 @@ void checkOptions(const OptimizeOptions& opt) {
 /// whole-mesh evaluations; run() sweeps and writes the result back.
 class SweepRun {
  public:
-  /// `invalid0`: the input's invalid elements, tangled or standing across (measureQuality;
-  /// keepValidElements).
+  /// `grade0`: how invalid each element of the input is (MeshQuality::grade: valid, standing
+  /// across, tangled; keepValidElements).
   SweepRun(SurfaceMesh& mesh, const OptimizeOptions& opt, const ProgressCallback& progress,
-           const PlanarMeasure& measure, HoldAcross holdAcross, std::vector<unsigned char> invalid0)
+           const PlanarMeasure& measure, HoldAcross holdAcross, std::vector<unsigned char> grade0)
       : mesh_(mesh),
         opt_(opt),
         progress_(progress),
@@ -71,7 +71,7 @@ class SweepRun {
         chunkF_((E_ + kChunk - 1) / kChunk),
         frozen_(frozenElements(mesh)),
         held_(E_, 0),
-        invalid0_(std::move(invalid0)) {
+        grade0_(std::move(grade0)) {
     for (int k = 0; k < nthreads_; ++k) workers_.push_back(std::make_unique<Worker>(s_));
     for (const auto& c : colors_) movable_ += c.size();
   }
@@ -125,7 +125,7 @@ class SweepRun {
   std::vector<unsigned char> frozen_;
   std::vector<unsigned char> held_;      // frozen by foldHeld (holdFolds)
   std::vector<unsigned char> noEscape_;  // what the escapes leave alone (holdFolds)
-  std::vector<unsigned char> invalid0_;  // the input's invalid elements (measureQuality)
+  std::vector<unsigned char> grade0_;    // the input's MeshQuality::grade per element
   // The last sweep's largest relative move and number of nodes moved.
   double maxMove_ = 0.0;
   std::size_t moved_ = 0;
@@ -497,15 +497,17 @@ void SweepRun::writeBack(OptimizeResult* res, MeshPositions* previous) {
   try {
     MeshQuality q = measureQuality(mesh_, measure_);
     // Never worse, element by element: the nodes of the elements valid in the input (neither
-    // tangled nor standing across) that the run left invalid go back. On a valid input that
+    // tangled nor standing across) that the run left invalid go back, and those of the
+    // elements standing across in the input that it left tangled. On a valid input that
     // is always kept; on an invalid one, unless it leaves more invalid elements than the run
     // did (untangling may trade a valid element for invalid ones the run could not repair
     // otherwise).
     const std::size_t invalidRun = invalidCount(q);
     PutBack undo;
     const std::size_t restored = keepValidElements(mesh_, InputPositions{xyz, uv, t, cornerUV},
-                                                   invalid0_, measure_, &q, &undo);
-    const bool validInput = std::find(invalid0_.begin(), invalid0_.end(), 1) == invalid0_.end();
+                                                   grade0_, measure_, &q, &undo);
+    const bool validInput = std::find_if(grade0_.begin(), grade0_.end(),
+                                         [](unsigned char g) { return g != 0; }) == grade0_.end();
     if (restored > 0 && validInput && opt_.monotone && q.stats.min < res->before.min) {
       // (The elements around the nodes put back are valid but poorer than the input's worst:
       // the input, never worse.)
@@ -565,14 +567,14 @@ OptimizeResult optimizeOnce(SurfaceMesh& mesh, const OptimizeOptions& opt,
   const PlanarMeasure& measure = measureByName(opt.measure);
   mesh.validate();
   OptimizeResult res;
-  std::vector<unsigned char> invalid0;  // the input's invalid elements (keepValidElements)
+  std::vector<unsigned char> grade0;  // how invalid each input element is (keepValidElements)
   {
     MeshQuality q0 = measureQuality(mesh, measure);  // (the rest freed before the run)
     res.before = before ? *before : q0.stats;
-    invalid0.resize(q0.tangled.size());
-    for (std::size_t e = 0; e < invalid0.size(); ++e) invalid0[e] = q0.invalid(e) ? 1 : 0;
+    grade0.resize(q0.tangled.size());
+    for (std::size_t e = 0; e < grade0.size(); ++e) grade0[e] = q0.grade(e);
   }
-  return SweepRun(mesh, opt, progress, measure, holdAcross, std::move(invalid0))
+  return SweepRun(mesh, opt, progress, measure, holdAcross, std::move(grade0))
       .run(std::move(res), previous, t0);
 }
 

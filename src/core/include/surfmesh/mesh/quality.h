@@ -34,6 +34,12 @@ struct MeshQuality {
   QualityStats stats;
   /// Element e tangled or standing across: invalid for a solver (as ElementQuality::invalid).
   bool invalid(std::size_t e) const { return tangled[e] || (e < across.size() && across[e]); }
+  /// How invalid element e is: 0 valid, 1 standing across but not tangled (its measured
+  /// quality positive), 2 tangled (quality 0). keepValidElements puts back what a run made
+  /// worse by this grade.
+  unsigned char grade(std::size_t e) const {
+    return tangled[e] ? 2 : (e < across.size() && across[e]) ? 1 : 0;
+  }
 };
 
 /// Statistics of a list of qualities (tangled = number of entries flagged in `tangled`).
