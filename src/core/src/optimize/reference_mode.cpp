@@ -254,8 +254,7 @@ std::vector<Mat2> straightSidedTargets(const SurfaceMesh& mesh) {
 std::vector<unsigned char> heldOutside(const SurfaceMesh& mesh, const MeshQuality& q1, int rings,
                                        bool* any) {
   std::vector<unsigned char> invalid(mesh.elementCount(), 0);
-  for (std::size_t e = 0; e < mesh.elementCount(); ++e)
-    invalid[e] = (q1.tangled[e] || q1.across[e]) ? 1 : 0;
+  for (std::size_t e = 0; e < mesh.elementCount(); ++e) invalid[e] = q1.invalid(e) ? 1 : 0;
   const std::vector<unsigned char> region = detail::widenByRings(mesh, std::move(invalid), rings);
   std::vector<unsigned char> held(mesh.nodeCount(), 1);
   *any = false;
@@ -291,7 +290,7 @@ void takePositions(SurfaceMesh& mesh, const detail::MeshPositions& from,
 /// Per element: 1 when it is valid in q (neither tangled nor standing across).
 std::vector<unsigned char> validIn(const MeshQuality& q) {
   std::vector<unsigned char> valid(q.tangled.size(), 0);
-  for (std::size_t e = 0; e < valid.size(); ++e) valid[e] = (q.tangled[e] || q.across[e]) ? 0 : 1;
+  for (std::size_t e = 0; e < valid.size(); ++e) valid[e] = q.invalid(e) ? 0 : 1;
   return valid;
 }
 
@@ -301,7 +300,7 @@ bool allHeld(const MeshQuality& q, const OptimizeResult& r) {
   std::vector<unsigned char> held(q.tangled.size(), 0);
   for (std::int32_t e : r.tangledUnmovable) held[static_cast<std::size_t>(e)] = 1;
   for (std::size_t e = 0; e < q.tangled.size(); ++e)
-    if ((q.tangled[e] || q.across[e]) && !held[e]) return false;
+    if (q.invalid(e) && !held[e]) return false;
   return true;
 }
 
@@ -310,7 +309,7 @@ bool judge(const SurfaceMesh& mesh, const MeshQuality& q0, const MeshQuality& q,
            std::size_t* invalid) {
   *invalid = invalidCount(q);
   for (std::size_t e = 0; e < mesh.elementCount(); ++e)
-    if ((q.tangled[e] || q.across[e]) && !(q0.tangled[e] || q0.across[e])) return true;
+    if (q.invalid(e) && !q0.invalid(e)) return true;
   return false;
 }
 
@@ -339,7 +338,7 @@ void mergeAroundInvalid(SurfaceMesh& mesh, const detail::MeshPositions& mine,
                         const MeshQuality& qMine, int rings) {
   const std::size_t N = mesh.nodeCount(), E = mesh.elementCount();
   std::vector<unsigned char> invalid(E, 0);
-  for (std::size_t e = 0; e < E; ++e) invalid[e] = (qMine.tangled[e] || qMine.across[e]) ? 1 : 0;
+  for (std::size_t e = 0; e < E; ++e) invalid[e] = qMine.invalid(e) ? 1 : 0;
   const std::vector<unsigned char> region = detail::widenByRings(mesh, std::move(invalid), rings);
   std::vector<unsigned char> theirs(N, 0);
   for (std::size_t e = 0; e < E; ++e) {
@@ -443,7 +442,7 @@ std::size_t keepNoWorse(SurfaceMesh& mesh, const detail::MeshPositions& input,
   };
   auto isBelow = [&](const MeshQuality& mq, const std::vector<double>& ratio,
                      const std::vector<double>& corners, std::size_t e) {
-    return (wasValid[e] && (mq.tangled[e] || mq.across[e])) || ratio[e] < ratioFloor ||
+    return (wasValid[e] && mq.invalid(e)) || ratio[e] < ratioFloor ||
            mq.quality[e] < qualityFloor || corners[e] < cornerFloor;
   };
   auto anyBelow = [&](const MeshQuality& mq) {
@@ -558,7 +557,7 @@ Straightened straightenCurved(SurfaceMesh& mesh, const OptimizeOptions& inner,
   run.fixedNodes.assign(mesh.nodeCount(), 0);
   for (std::size_t e = 0; e < mesh.elementCount(); ++e) {
     const std::int32_t* nd = mesh.elementNodes(e);
-    const bool hold = qa.tangled[e] || qa.across[e] || !isHighOrderTriangle(mesh.elemType[e]) ||
+    const bool hold = qa.invalid(e) || !isHighOrderTriangle(mesh.elemType[e]) ||
                       run.highOrderTargets[e](0, 0) == 0.0;
     for (int k = 0; k < mesh.elementSize(e); ++k) {
       const std::size_t j = static_cast<std::size_t>(nd[k]);
@@ -594,7 +593,7 @@ Straightened straightenCurved(SurfaceMesh& mesh, const OptimizeOptions& inner,
     std::vector<unsigned char> refuse(nf, 0);
     for (std::size_t e = 0; e < mesh.elementCount(); ++e) {
       const std::size_t f = static_cast<std::size_t>(mesh.elemFace[e]);
-      const bool invalidA = qa.tangled[e] || qa.across[e], invalidP = qp.tangled[e] || qp.across[e];
+      const bool invalidA = qa.invalid(e), invalidP = qp.invalid(e);
       if ((invalidP && !invalidA) || (qp.tangled[e] && !qa.tangled[e]) || ratioP[e] < lowestRatio ||
           qp.quality[e] < lowestQ)
         refuse[f] = 1;
