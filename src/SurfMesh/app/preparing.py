@@ -338,10 +338,9 @@ def still_flat(data, handle, nodes):
     out = np.zeros(data.element_count, dtype=bool)
     if data.flat_kept is None:
         return out
-    idx = np.arange(data.element_count) if data.kept is None else np.nonzero(data.kept)[0]
     work = data if data.kept is None else data.subset(data.kept)
     flat, _ = flat_boundary_elements(dataclasses.replace(work, nodes=nodes), handle)
-    out[idx[flat]] = True
+    out[input_element_indices(data, np.nonzero(flat)[0])] = True
     return out & data.flat_kept
 
 
