@@ -162,8 +162,9 @@ MeshClass bind_mesh(py::module_& m) {
           },
           py::arg("points"), py::arg("faces"),
           "(to_face, to_shape): per point (float64 (K, 3)), its distance to the trimmed face "
-          "faces[k] (int64 (K,), shape face ids; -1: nan), the face's boundary included, and to "
-          "the whole shape (faces, free edges, lone vertices)")
+          "faces[k] (int64 (K,), shape face ids; -1: nan) with its boundary edges' 3D curves, "
+          "and to the whole shape (faces, edges, lone vertices), as FreeCAD's distToShape "
+          "measures them")
       .def_property_readonly(
           "keeps_node_search",
           [](const MeshHandle& h) {

@@ -274,6 +274,48 @@ class ResultFigures(unittest.TestCase):
         with self.assertRaises(ValueError):
             handle.distances_to_shape(pts, np.full(len(pts), len(shape.Faces)))
 
+    def test_a_node_on_a_toleranced_edge_is_on_its_faces(self):
+        # The bottle's edges between its body and its neck lie up to 0.0027 off the faces'
+        # surfaces (tolerances 0.0057 and 0.016). A node sliding on such an edge is on the
+        # CAD, as FreeCAD's distToShape says: the report measured the surface alone (6.4e-3
+        # for a node of Gmsh's order-2 mesh slid along one). Off the edge, the distance grows.
+        import MeshPart
+        import Part
+
+        from SurfMesh.app import api
+
+        shape = Part.read(os.path.join(T.data_dir(), "occt_bottle.brep"))
+        tri = MeshPart.meshFromShape(Shape=shape, LinearDeflection=0.5)
+        data, handle = api.prepare(tri, shape)
+        checked = 0
+        for e in shape.Edges:
+            if e.Tolerance < 1e-3:
+                continue
+            faces = [k for k, f in enumerate(shape.Faces) if any(e.isSame(x) for x in f.Edges)]
+            ts = np.linspace(e.FirstParameter, e.LastParameter, 9)
+            pts = np.array([tuple(e.valueAt(t)) for t in ts])
+            for f in faces:
+                surface_gap = max(
+                    (shape.Faces[f].Surface.value(*shape.Faces[f].Surface.parameter(
+                        FreeCAD.Vector(*p))) - FreeCAD.Vector(*p)).Length for p in pts)
+                to_face, to_shape = handle.distances_to_shape(pts, np.full(len(pts), f))
+                for k, p in enumerate(pts):
+                    v = Part.Vertex(FreeCAD.Vector(*p))
+                    self.assertLess(shape.Faces[f].distToShape(v)[0], 1e-9)  # FreeCAD's word
+                    self.assertLess(to_face[k], 1e-9, f"edge point {k} on face {f}")
+                    self.assertLess(to_shape[k], 1e-9)
+                checked += surface_gap > 1e-3  # the surface alone would say otherwise
+            # a point moved off the edge, away from the part, is as far as FreeCAD says
+            c = e.valueAt(0.5 * (e.FirstParameter + e.LastParameter))
+            out = c + (c - shape.BoundBox.Center).normalize() * 0.5
+            to_face, to_shape = handle.distances_to_shape(np.array([tuple(out)]),
+                                                          np.array([faces[0]]))
+            v = Part.Vertex(out)
+            self.assertAlmostEqual(to_face[0], shape.Faces[faces[0]].distToShape(v)[0], delta=1e-9)
+            self.assertAlmostEqual(to_shape[0], shape.distToShape(v)[0], delta=1e-9)
+            self.assertGreater(to_shape[0], 0.1)
+        self.assertGreaterEqual(checked, 2)
+
 
 # ---- quad8 (issue 41, point 1) ------------------------------------------------------------------
 

@@ -65,6 +65,44 @@ class TestMeasure(ApiCase):
         np.testing.assert_allclose(r1.quality, ref_q, atol=1e-9)
         self.assertEqual(r1.stats["tangled"], 0)
 
+    def test_an_element_between_two_faces_goes_on_the_face_along_its_plane(self):
+        # Gmsh's curvature-sized mesh of the bottle, around an element whose corners all lie
+        # on the CAD edge between a thread face and the neck's cylinder (two on one of its
+        # vertices): its plane lies along the cylinder, its centroid is nearer the thread face.
+        # Put on the nearer face it stood across it: tangled (no hints), or left out as a flat
+        # element (FEM hints). Each face's winding is taken from its other elements, by
+        # FreeCAD's normals, independently of SurfMesh.
+        import Mesh
+        import Part
+
+        shape = Part.read(os.path.join(T.data_dir(), "occt_bottle.brep"))
+        with open(os.path.join(T.data_dir(), "occt_bottle_neck_edge_fan.txt")) as f:
+            n, e = map(int, f.readline().split())
+            xyz = np.array([[float(x) for x in f.readline().split()] for _ in range(n)])
+            tris = np.array([[int(x) for x in f.readline().split()] for _ in range(e)])
+        seed = 185
+        mesh = Mesh.Mesh([[FreeCAD.Vector(*xyz[i]) for i in t] for t in tris])
+        self.assertEqual((mesh.CountPoints, mesh.CountFacets), (n, e))
+        for hints in ("none", "tolerance"):
+            rep = SurfMesh.measure(mesh, shape, hints=hints)
+            self.assertEqual((rep.stats["invalid"], rep.stats["skipped"]), (0, 0), hints)
+            data = SurfMesh.app.conversion.read_mesh(mesh)
+            t = data.conn.reshape(-1, 3)
+            faces = rep.element_faces
+            x = data.nodes[t[seed]]
+            g = np.cross(x[1] - x[0], x[2] - x[0])
+            face = shape.Faces[int(faces[seed])]
+            u, v = face.Surface.parameter(FreeCAD.Vector(*x.mean(axis=0)))
+            nrm = face.normalAt(u, v)
+            self.assertGreater(abs(np.dot(g, (nrm.x, nrm.y, nrm.z))) / np.linalg.norm(g), 0.9)
+            # valid against its face's normal as the face's other elements are wound
+            on = np.nonzero(faces == faces[seed])[0]
+            _, tangled = T.reference_tri_quality(data.nodes, t[on], face)
+            k = int(np.nonzero(on == seed)[0][0])
+            majority = tangled.sum() * 2 > len(on)
+            self.assertEqual(bool(tangled[k]), bool(majority), hints)
+            self.assertGreaterEqual(len(on), 4)
+
     def test_oddy_is_lower_than_shape(self):
         # Oddy is more restrictive than shape (paper Table 2): q_oddy ≤ q_shape elementwise.
         tor, mesh = T.torus_fem(self.doc, tangled=False)

@@ -299,12 +299,12 @@ void CadMesh::distancesToShape(const std::vector<Vec3>& points,
   ProjectorPool projectors(threads, S, faceBoxes, edgeBoxes, faceSlack);
   toFace->assign(points.size(), kNaN);
   toShape->assign(points.size(), kNaN);
+  // Below this a node is on the shape (what OCC's projections reach: 1e-14 to 1e-13 of the
+  // diagonal); above it the edges' 3D curves are measured too.
+  const double onShape = 1e-12 * S.diagonal();
   parallelFor(points.size(), projectors, [&](std::size_t k, Projector& pr) {
     if (!points[k].allFinite()) return;
-    if (faces[k] >= 0) (*toFace)[k] = pr.faceDistance(faces[k], points[k], kInf).dist;
-    NodeClass kind;
-    int id = -1;
-    (*toShape)[k] = pr.wholeShapeDistance(points[k], &kind, &id);
+    pr.resultDistances(faces[k], points[k], onShape, &(*toFace)[k], &(*toShape)[k]);
   });
 }
 

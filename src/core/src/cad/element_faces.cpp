@@ -94,22 +94,46 @@ void chooseElementFace(Recovery& r, const std::vector<std::vector<int>>& nodeFac
   }
   // Several faces qualify (small elements at an edge, faces tangent to each other, thin
   // walls): the face nearest to the element's nodes and to its centroid, until the mesh's
-  // winding says otherwise (settleDoubtfulFaces).
+  // winding says otherwise (settleDoubtfulFaces). But where the element's plane stands across
+  // that face's normal (|cos| < 0.5 at the centroid's projection) and lies along another
+  // candidate's (|cos| ≥ 0.9), it goes on that one: an element with its corners on the CAD edge
+  // between two faces at an angle (and on its vertices) can have its centroid nearer the face
+  // it stands across, where it would be tangled (Gmsh's curvature-sized mesh of the bottle, as
+  // meshed and after sliding). A flat element (no plane) keeps the nearest face.
   doubtfulFaces[e] = common;
   Vec3 c = Vec3::Zero();
   for (int k = 0; k < nn; ++k) c += input.nodes[static_cast<std::size_t>(nd[k])];
   c /= nn;
-  double best = kInf;
+  auto X = [&](int k) { return input.nodes[static_cast<std::size_t>(nd[k])]; };
+  const Vec3 g =
+      nc == 4 ? Vec3((X(2) - X(0)).cross(X(3) - X(1))) : Vec3((X(1) - X(0)).cross(X(2) - X(0)));
+  double side2 = 0.0;
+  for (int k = 0; k < nc; ++k) side2 = std::max(side2, (X((k + 1) % nc) - X(k)).squaredNorm());
+  const bool hasPlane = g.allFinite() && g.norm() > 1e-8 * side2;
+  double best = kInf, bestAlong = kInf, bestCos = kNaN;
+  int along = -1;
   for (int f : common) {
-    double d = pr.faceDistance(f, c, kInf).dist;
+    const FaceHit hc = pr.faceDistance(f, c, kInf);
+    double d = hc.dist;
     for (int k = 0; k < nn; ++k)
       for (const FaceHit& h : hits[static_cast<std::size_t>(nd[k])])
         if (h.face == f) d += h.dist;
+    double cosAbs = kNaN;
+    if (hasPlane && hc.hasUV) {
+      const Vec3 n = pr.surfaceCopy(f).normal(hc.uv.x(), hc.uv.y());
+      if (n.allFinite() && n.norm() > 0.0) cosAbs = std::abs(g.dot(n)) / (g.norm() * n.norm());
+    }
     if (d < best) {
       best = d;
+      bestCos = cosAbs;
       elemFace[e] = f;
     }
+    if (cosAbs >= 0.9 && d < bestAlong) {
+      bestAlong = d;
+      along = f;
+    }
   }
+  if (bestCos < 0.5 && along >= 0) elemFace[e] = along;
   if (elemFace[e] < 0) elemFace[e] = common[0];
 }
 

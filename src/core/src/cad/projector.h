@@ -267,6 +267,16 @@ class Projector {
   /// (`kind`: Face, Edge or Vertex, `id` its 0-based id).
   double wholeShapeDistance(const Vec3& p, NodeClass* kind, int* id);
 
+  /// Distances of a result's node as FreeCAD's distToShape measures them (the report's
+  /// max_distance_to_face / _shape): to face f with its boundary edges' 3D curves, and to the
+  /// whole shape with every edge's 3D curve. An edge's 3D curve is the B-rep's reference for
+  /// the edge and may lie as far as the edge's tolerance off the faces' surfaces (the
+  /// bottle's edges: 0.016): a node sliding on it is on the face. The edges are measured only
+  /// where the face or shape distance exceeds `onShape` (below it the answer is known to be
+  /// on the shape). `toFace` is NaN when f < 0; when it is at most `onShape`, `toShape` is
+  /// taken equal to it (an upper bound) without searching the whole shape.
+  void resultDistances(int f, const Vec3& p, double onShape, double* toFace, double* toShape);
+
   /// Where p lies on the whole shape: the CAD vertex within its tolerance (at least `close`),
   /// else the CAD edge (face-bound or free) within its tolerance, else the nearest face or
   /// free edge or lone vertex (wholeShapeDistance). Returns the distance to that entity.
@@ -291,6 +301,7 @@ class Projector {
   const std::vector<double>& faceSlack_;
   std::vector<FaceTools> tools_;
   std::vector<unsigned char> seen_;
+  std::vector<int> allEdges_;  // 0 .. edgeCount − 1 (resultDistances)
   std::vector<std::pair<double, int>> order_;
   std::vector<int> used_;
   double maxSlack_ = 0.0;

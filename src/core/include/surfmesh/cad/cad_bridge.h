@@ -238,11 +238,12 @@ class CadMesh {
   /// Frees the kept node search (when no second recovery will need it).
   void releaseNodeSearch() { nodeSearch_.reset(); }
   /// Independent of the mesh: for each point, its distance to the trimmed face `faces[k]`
-  /// (the surface inside the face's trimming loops, else the nearest of its boundary edges;
-  /// NaN for faces[k] = −1) and to the whole shape (faces, free edges, lone vertices), with
-  /// the recovery's projection tools and threads. For figures of a result measured on the
-  /// positions it returns. Throws std::invalid_argument on a face id out of range or sizes that
-  /// differ.
+  /// (the surface inside the face's trimming loops, or the 3D curve of one of its boundary
+  /// edges if nearer: a node on a toleranced edge is on the face, as FreeCAD's distToShape
+  /// says; NaN for faces[k] = −1) and to the whole shape (its faces, edges and lone
+  /// vertices), with the recovery's projection tools and threads. For figures of a result measured
+  /// on the positions it returns. Throws std::invalid_argument on a face id out of range or sizes
+  /// that differ.
   void distancesToShape(const std::vector<Vec3>& points, const std::vector<std::int32_t>& faces,
                         std::vector<double>* toFace, std::vector<double>* toShape) const;
 
