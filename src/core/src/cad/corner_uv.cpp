@@ -140,9 +140,7 @@ void elementCorners(Recovery& r, const BridgeReport& report, std::size_t e, Proj
 
   // ---- 5. orientation (votes): the element's winding against the surface normal ----
   const int nc = cornerCount(input.types[e]);
-  auto X = [&](int k) { return input.nodes[static_cast<std::size_t>(nd[k])]; };
-  const Vec3 g =
-      nc == 4 ? Vec3((X(2) - X(0)).cross(X(3) - X(1))) : Vec3((X(1) - X(0)).cross(X(2) - X(0)));
+  const Vec3 g = cornerPlaneNormal(input, nd, nc);
   Vec3 nsum = Vec3::Zero();
   for (int k = 0; k < nc; ++k) nsum += surf.normalOf(cornerD1[static_cast<std::size_t>(k)]);
   const double sd = g.dot(nsum);

@@ -105,8 +105,7 @@ void chooseElementFace(Recovery& r, const std::vector<std::vector<int>>& nodeFac
   for (int k = 0; k < nn; ++k) c += input.nodes[static_cast<std::size_t>(nd[k])];
   c /= nn;
   auto X = [&](int k) { return input.nodes[static_cast<std::size_t>(nd[k])]; };
-  const Vec3 g =
-      nc == 4 ? Vec3((X(2) - X(0)).cross(X(3) - X(1))) : Vec3((X(1) - X(0)).cross(X(2) - X(0)));
+  const Vec3 g = cornerPlaneNormal(input, nd, nc);
   double side2 = 0.0;
   for (int k = 0; k < nc; ++k) side2 = std::max(side2, (X((k + 1) % nc) - X(k)).squaredNorm());
   const bool hasPlane = g.allFinite() && g.norm() > 1e-8 * side2;

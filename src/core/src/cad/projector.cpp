@@ -455,37 +455,32 @@ double Projector::wholeShapeDistance(const Vec3& p, NodeClass* kind, int* id) {
 
 void Projector::resultDistances(int f, const Vec3& p, double onShape, double* toFace,
                                 double* toShape) {
-  // The nearest edge's 3D curve among `edges` (box-pruned at `best`), at most `best`.
-  auto throughEdges = [&](const auto& edges, double best) {
-    if (!(best > onShape)) return best;
-    for (int e : edges) {
-      if (s_.isDegeneratedEdge(e)) continue;
-      if (boxDistance(edgeBoxes_[static_cast<std::size_t>(e)], p) >= best) continue;
-      double t = 0.0;
-      best = std::min(best, edgeDistance(e, p, &t));
-    }
-    return best;
+  // `best`, or edge e's 3D curve if nearer (box-pruned).
+  auto viaEdge = [&](int e, double best) {
+    if (s_.isDegeneratedEdge(e) || boxDistance(edgeBoxes_[static_cast<std::size_t>(e)], p) >= best)
+      return best;
+    double t = 0.0;
+    return std::min(best, edgeDistance(e, p, &t));
   };
   *toFace = kNaN;
   if (f >= 0) {
-    *toFace = throughEdges(s_.faceEdges(f), faceDistance(f, p, kInf).dist);
+    double d = faceDistance(f, p, kInf).dist;
+    if (d > onShape)
+      for (int e : s_.faceEdges(f)) d = viaEdge(e, d);
+    *toFace = d;
     // On its face, the point is on the shape: no global search (it cost more than a run's
     // sweeps on small parts). The distance given is the face's, an upper bound.
-    if (*toFace <= onShape) {
-      *toShape = *toFace;
+    if (d <= onShape) {
+      *toShape = d;
       return;
     }
   }
   NodeClass kind;
   int id = -1;
-  const double whole = wholeShapeDistance(p, &kind, &id);
-  if (!(whole > onShape)) {
-    *toShape = whole;
-    return;
-  }
-  allEdges_.resize(static_cast<std::size_t>(s_.edgeCount()));
-  for (int e = 0; e < s_.edgeCount(); ++e) allEdges_[static_cast<std::size_t>(e)] = e;
-  *toShape = throughEdges(allEdges_, whole);
+  double whole = wholeShapeDistance(p, &kind, &id);
+  if (whole > onShape)
+    for (int e = 0; e < s_.edgeCount(); ++e) whole = viaEdge(e, whole);
+  *toShape = whole;
 }
 
 double Projector::locate(const Vec3& p, double close, NodeClass* kind, int* id, double* t) {

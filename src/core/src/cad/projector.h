@@ -301,7 +301,6 @@ class Projector {
   const std::vector<double>& faceSlack_;
   std::vector<FaceTools> tools_;
   std::vector<unsigned char> seen_;
-  std::vector<int> allEdges_;  // 0 .. edgeCount − 1 (resultDistances)
   std::vector<std::pair<double, int>> order_;
   std::vector<int> used_;
   double maxSlack_ = 0.0;

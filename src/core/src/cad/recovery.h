@@ -86,6 +86,14 @@ inline ElementEdges elementEdges(ElementType t) {
   return r;
 }
 
+/// The normal of an element's corner plane, along its winding, as long as twice its area (a
+/// triangle's) or its diagonals' cross product (a quadrilateral's): `nd` its node ids, `nc` its
+/// corners.
+inline Vec3 cornerPlaneNormal(const MeshInput& input, const std::int32_t* nd, int nc) {
+  auto X = [&](int k) { return input.nodes[static_cast<std::size_t>(nd[k])]; };
+  return nc == 4 ? Vec3((X(2) - X(0)).cross(X(3) - X(1))) : Vec3((X(1) - X(0)).cross(X(2) - X(0)));
+}
+
 /// A warning `code` on `count` nodes, naming the first of them ({node}) by `first`.
 inline Diagnostic nodesNote(const char* code, std::size_t count, std::size_t first,
                             std::string format) {
