@@ -229,6 +229,11 @@ void Projector::localProjection(FaceTools& ft, const gp_Pnt& P, double slack, gp
   };
   bool ok = ft.hasLast && tryStart(ft.last);
   if (!ok) {
+    // Off the surface from the previous foot point: what that start found depends on the
+    // query before this one, so it is dropped, and the fixed starts and the global search
+    // decide alone (a node's distance to a face it is not on then does not depend on the
+    // order of the nodes).
+    bestGap = kInf;
     constexpr int kStarts = 4;
     std::array<std::pair<double, std::size_t>, kStarts> nearest;
     nearest.fill({kInf, 0});
