@@ -325,6 +325,57 @@ TEST(SurfaceMeasure, FlippedTriangleIsTangledOnCurvedSurfaces) {
   }
 }
 
+// A triangle standing edge-on to its surface (standsEdgeOn): the case of a cylinder's triangle
+// whose corners slid onto the circle at its end, so that it lies flat in the end cap's plane.
+// Cylinder of radius 1 about z; corners at angles 0°, 120°, 240° on the circle z = 0, the
+// third lifted by h. By hand for h = 0: c = (0, 0, 3√3/2) and c·n_k = 0 at every corner (the
+// normals n_k are radial). Lifting the third corner tilts c towards the side: still edge-on
+// for h = 0.01, leaning well within 84° at a corner for h = 0.5.
+TEST(SurfaceMeasure, TriangleEdgeOnToItsSurface) {
+  const double deg = kPi / 180.0;
+  auto corner = [&](double a, double z) { return Vec3(std::cos(a * deg), std::sin(a * deg), z); };
+  auto radial = [&](double a) { return Vec3(std::cos(a * deg), std::sin(a * deg), 0); };
+  const Vec3 n[3] = {radial(0), radial(120), radial(240)};
+  const Vec3 flat[3] = {corner(0, 0), corner(120, 0), corner(240, 0)};
+  const Vec3 c = (flat[1] - flat[0]).cross(flat[2] - flat[0]);
+  EXPECT_NEAR(c.z(), 1.5 * std::sqrt(3.0), 1e-12);
+  for (const Vec3& nk : n) EXPECT_NEAR(c.dot(nk), 0.0, 1e-12);
+  EXPECT_TRUE(standsEdgeOn(ElementType::Tri3, flat, n));
+  EXPECT_FALSE(standsAcross(ElementType::Tri3, flat, n)) << "the sign test cannot see it";
+  const Vec3 lifted[3] = {corner(0, 0), corner(120, 0), corner(240, 0.01)};
+  EXPECT_TRUE(standsEdgeOn(ElementType::Tri3, lifted, n));
+  const Vec3 leaning[3] = {corner(0, 0), corner(120, 0), corner(240, 0.5)};
+  EXPECT_FALSE(standsEdgeOn(ElementType::Tri3, leaning, n));
+  // A triangle on the cylinder's side (corners at 0°, 30°, heights 0, 0, 1): along the normals.
+  const Vec3 side[3] = {corner(0, 0), corner(30, 0), corner(15, 1)};
+  const Vec3 ns[3] = {radial(0), radial(30), radial(15)};
+  EXPECT_FALSE(standsEdgeOn(ElementType::Tri3, side, ns));
+  // No normal at any corner (poles): no verdict; other element types: never.
+  const Vec3 none[3] = {Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};
+  EXPECT_FALSE(standsEdgeOn(ElementType::Tri3, flat, none));
+  const Vec3 x6[6] = {flat[0],
+                      flat[1],
+                      flat[2],
+                      0.5 * (flat[0] + flat[1]),
+                      0.5 * (flat[1] + flat[2]),
+                      0.5 * (flat[2] + flat[0])};
+  EXPECT_FALSE(standsEdgeOn(ElementType::Tri6, x6, n));
+  // measureQuality flags it (MeshQuality::edgeOn), grades it as standing across (what a run
+  // may not make of a valid triangle), and leaves the report's counts as they were.
+  const CylinderSurface cyl(1, 0, 1);
+  const std::vector<Vec2> uv = {{0, 0},   {120 * deg, 0},  {240 * deg, 0.01},
+                                {0, 0.5}, {30 * deg, 0.5}, {15 * deg, 1}};
+  const SurfaceMesh m =
+      makeSingleSurfaceMesh(cyl, uv, ElementType::Tri3, {0, 1, 2, 3, 4, 5}, {0, 1, 2, 3, 4, 5});
+  const MeshQuality mq = measureQuality(m, measureByName("shape"));
+  ASSERT_EQ(mq.edgeOn.size(), 2u);
+  EXPECT_EQ(mq.edgeOn[0], 1);
+  EXPECT_EQ(mq.edgeOn[1], 0);
+  EXPECT_EQ(mq.grade(0), mq.tangled[0] ? 2 : 1);
+  EXPECT_EQ(mq.grade(1), 0);
+  EXPECT_EQ(mq.stats.across, static_cast<std::size_t>(mq.across[0]));
+}
+
 // Elements standing across their surface (standsAcross): on a cylinder of radius 1, corners
 // at angles 0°, 100°, 200° (heights 0, 0, 1). By hand, with n_k = (cos θ_k, sin θ_k, 0):
 // c·n = 0.985, 0.985, −1.327 and c·(n_0 + n_1 + n_2) = 0.643 — valid by the paper's measure

@@ -289,6 +289,23 @@ class GmshIsolation(unittest.TestCase):
         self.check_error(cm, self.msh, "did not finish within 1.5 s",
                          "FreeCAD session is unaffected")
 
+    def test_gmsh_import_that_hangs_is_a_timeout(self):
+        # Stopped while still importing Gmsh (a machine so loaded that the import outlasts the
+        # limit): a timeout, not "no Python imports Gmsh", and no other Python is tried.
+        d = tempfile.mkdtemp(prefix="slow-gmsh-", dir=self.dir)
+        with open(os.path.join(d, "gmsh.py"), "w") as f:
+            f.write("import time\ntime.sleep(120)\n")
+        path = os.environ.get("PYTHONPATH")
+        t0 = time.monotonic()
+        with environ(PYTHONPATH=d + (os.pathsep + path if path else ""),
+                     SURFMESH_GMSH_TIMEOUT="1.5"):
+            with self.assertRaises(fileio.GmshProcessError) as cm:
+                fileio.read_mesh(self.msh)
+        self.assertLess(time.monotonic() - t0, 20)
+        self.check_error(cm, self.msh, "did not finish within 1.5 s",
+                         "FreeCAD session is unaffected")
+        self.assertNotIn("no Python here imports", str(cm.exception))
+
     def test_no_python_with_gmsh(self):
         for python in (os.path.join(self.dir, "no_such_python"), shutil.which("true")):
             with self.subTest(python=python), environ(SURFMESH_GMSH_PYTHON=python):

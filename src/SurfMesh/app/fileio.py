@@ -312,6 +312,8 @@ def _run_gmsh(op, what, request, arrays=None, source=None):
             if os.path.exists(started):
                 _gmsh_python = python
                 break
+            if timed_out:  # stopped while still importing (a loaded machine): a timeout
+                break
             # This Python cannot run Gmsh (no gmsh or numpy module): try the next one.
             tried.append(f"{python}: {_log_tail(log, lines=1, chars=300) or f'exit {code}'}")
         else:

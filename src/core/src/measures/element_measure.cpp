@@ -348,6 +348,21 @@ CornerSides cornerSides(ElementType type, const Vec3* x, const Vec3* cornerNorma
   return r;
 }
 
+bool standsEdgeOn(ElementType type, const Vec3* x, const Vec3* cornerNormals) {
+  if (type != ElementType::Tri3) return false;
+  const Vec3 c = (x[1] - x[0]).cross(x[2] - x[0]);
+  const double cn = c.norm();
+  if (!(cn > 0.0)) return false;
+  bool any = false;
+  for (int k = 0; k < 3; ++k) {
+    const Vec3& n = cornerNormals[k];
+    if (!(n.squaredNorm() > 0.0)) continue;
+    any = true;
+    if (!(kEdgeOnSlope * std::abs(c.dot(n)) < cn * n.norm())) return false;
+  }
+  return any;
+}
+
 bool standsAcross(ElementType type, const Vec3* x, const Vec3* cornerNormals) {
   const CornerSides s = cornerSides(type, x, cornerNormals);
   return s.along && s.against;

@@ -57,6 +57,7 @@ ElementQuality elementQuality(const SurfaceMesh& mesh, std::size_t e, const Plan
   ElementQuality q;
   q.tangled = bad;
   q.across = across;
+  q.edgeOn = standsEdgeOn(mesh.elemType[e], x, corners);
   q.distortion = bad ? std::numeric_limits<double>::infinity() : ev.eta;
   q.quality = bad ? 0.0 : std::min(1.0, 1.0 / ev.eta);
   q.minSigma = ev.minSigma;
@@ -71,6 +72,7 @@ MeshQuality measureQuality(const SurfaceMesh& mesh, const PlanarMeasure& m) {
   r.tangled.resize(E);
   r.minSigma.resize(E);
   r.across.resize(E);
+  r.edgeOn.resize(E);
   // Elements [begin, end) with the surfaces `surfaces` (mesh.surfaces or a thread's clones).
   auto range = [&](std::size_t begin, std::size_t end,
                    const std::vector<const Surface*>& surfaces) {

@@ -233,4 +233,14 @@ struct CornerSides {
 };
 CornerSides cornerSides(ElementType type, const Vec3* x, const Vec3* cornerNormals);
 
+/// A linear triangle whose plane stands edge-on to its surface: at every corner with a normal
+/// (one at least), its plane leans more than acos(1/kEdgeOnSlope) ≈ 84° from the surface's
+/// normal (|c·n_k| < ‖c‖ / kEdgeOnSlope, c = (x1 − x0) × (x2 − x0)). Its winding against the
+/// surface is then a matter of rounding (standsAcross cannot tell) and the face it lies on is
+/// doubtful: a triangle on a cylinder whose corners slid along the circle it ends on can lie
+/// flat in the end cap's plane. The report does not count it; a run may not make a triangle
+/// so (MeshQuality::grade, keepValidElements). False for other element types.
+constexpr double kEdgeOnSlope = 10.0;
+bool standsEdgeOn(ElementType type, const Vec3* x, const Vec3* cornerNormals);
+
 }  // namespace surfmesh

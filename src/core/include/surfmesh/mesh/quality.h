@@ -31,14 +31,17 @@ struct MeshQuality {
   std::vector<double> minSigma;        ///< per element, smallest scaled det S (≤ 0: tangled)
   std::vector<unsigned char> across;   ///< per element, 1 when standing across its surface
                                        ///< (as QualityStats::across)
+  std::vector<unsigned char> edgeOn;   ///< per element, 1 when standing edge-on to its
+                                       ///< surface (standsEdgeOn; not in the statistics)
   QualityStats stats;
   /// Element e tangled or standing across: invalid for a solver (as ElementQuality::invalid).
   bool invalid(std::size_t e) const { return tangled[e] || (e < across.size() && across[e]); }
-  /// How invalid element e is: 0 valid, 1 standing across but not tangled (its measured
-  /// quality positive), 2 tangled (quality 0). keepValidElements puts back what a run made
-  /// worse by this grade.
+  /// How invalid element e is: 0 valid, 1 standing across or edge-on to its surface but not
+  /// tangled (its measured quality positive), 2 tangled (quality 0). keepValidElements puts
+  /// back what a run made worse by this grade: a run never stands a triangle edge-on either.
   unsigned char grade(std::size_t e) const {
-    return tangled[e] ? 2 : (e < across.size() && across[e]) ? 1 : 0;
+    if (tangled[e]) return 2;
+    return (e < across.size() && across[e]) || (e < edgeOn.size() && edgeOn[e]) ? 1 : 0;
   }
 };
 
@@ -53,6 +56,7 @@ struct ElementQuality {
   bool tangled = false;
   double minSigma = 0.0;
   bool across = false;
+  bool edgeOn = false;  ///< standsEdgeOn (as MeshQuality::edgeOn)
   /// Tangled or standing across: invalid for a solver.
   bool invalid() const { return tangled || across; }
 };
@@ -71,6 +75,7 @@ inline void storeElementQuality(MeshQuality& q, std::size_t e, const ElementQual
   q.tangled[e] = eq.tangled ? 1 : 0;
   q.minSigma[e] = eq.minSigma;
   q.across[e] = eq.across ? 1 : 0;
+  if (e < q.edgeOn.size()) q.edgeOn[e] = eq.edgeOn ? 1 : 0;
 }
 
 /// Quality of element e of `mesh` with measure `m` (δ = 0), as measureQuality gives it, with
