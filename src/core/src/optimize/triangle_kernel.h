@@ -45,7 +45,7 @@ const double kDetWinv = 2.0 * kInvSqrt3;  // det W⁻¹ of the equilateral ideal
 /// normal at a corner. a is continuous in the node positions. The quality report keeps the
 /// paper's σ; elements the input has standing across keep it in the run too (Gmsh's meshes of
 /// CAD parts have some at small fillets and holes, which no node motion may right).
-constexpr double kAcrossSlope = 10.0;
+constexpr double kAcrossSlope = kEdgeOnSlope;  // the same 84°: a run stands none edge-on
 
 /// a of the comment above, for c, its norm cn and the corner normals n[0 … 2]. When a ≠ ‖c‖,
 /// *which is the corner of m and a = *slope · c·n[*which] (linear in each node); otherwise

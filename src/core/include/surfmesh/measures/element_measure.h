@@ -239,7 +239,8 @@ CornerSides cornerSides(ElementType type, const Vec3* x, const Vec3* cornerNorma
 /// surface is then a matter of rounding (standsAcross cannot tell) and the face it lies on is
 /// doubtful: a triangle on a cylinder whose corners slid along the circle it ends on can lie
 /// flat in the end cap's plane. The report does not count it; a run may not make a triangle
-/// so (MeshQuality::grade, keepValidElements). False for other element types.
+/// so (MeshQuality::grade, keepValidElements). False for other element types. The optimizer's
+/// hold against leaning across (acrossArea, kAcrossSlope) takes the same angle.
 constexpr double kEdgeOnSlope = 10.0;
 bool standsEdgeOn(ElementType type, const Vec3* x, const Vec3* cornerNormals);
 

@@ -75,7 +75,7 @@ inline void storeElementQuality(MeshQuality& q, std::size_t e, const ElementQual
   q.tangled[e] = eq.tangled ? 1 : 0;
   q.minSigma[e] = eq.minSigma;
   q.across[e] = eq.across ? 1 : 0;
-  if (e < q.edgeOn.size()) q.edgeOn[e] = eq.edgeOn ? 1 : 0;
+  q.edgeOn[e] = eq.edgeOn ? 1 : 0;
 }
 
 /// Quality of element e of `mesh` with measure `m` (δ = 0), as measureQuality gives it, with
