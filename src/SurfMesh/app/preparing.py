@@ -345,10 +345,15 @@ def still_flat(data, handle, nodes):
 
 
 def flat_boundary_elements(work, handle):
-    """Bool mask (over ``work``'s elements) of tangled elements that no node movement can
-    repair: ones with two corners on the same CAD vertex (two mesh nodes within that vertex's
-    tolerance: a collapsed edge, like a repeated node), and slivers along one CAD edge, whose
-    corners all lie on that edge or its vertices:
+    """Bool mask (over ``work``'s elements) of elements that no node movement can repair:
+    tangled ones with two corners on the same CAD vertex (two mesh nodes within that vertex's
+    tolerance: a collapsed edge, like a repeated node); ones with three corners on the same CAD
+    vertex, measured tangled or not (the CAD sees one point where the element has an area: its
+    measure follows from which corner (u,v) stands for that point, and that follows the
+    elements around at a degenerate vertex: Gmsh's curvature-sized crank arm has fans of them
+    at the pole of a B-spline face, where the same element was valid in the input and tangled
+    in a result whose flips changed its neighbours only); and tangled slivers along one CAD
+    edge, whose corners all lie on that edge or its vertices:
       * linear ones (tri3, quad4) when (nearly) flat, scaled det S within 1e-2 of 0;
       * curved ones (tri6 ... tri21, quad8) when at a corner both sides that meet there lie on
         CAD edges or vertices (no node of theirs inside a face) and meet at a straight or
@@ -364,8 +369,8 @@ def flat_boundary_elements(work, handle):
     q = handle.measure("shape")
     sigma = np.asarray(q["min_sigma"])
     tangled = np.asarray(q["tangled"])
-    out = np.zeros(work.element_count, dtype=bool)
-    for e in np.nonzero(tangled)[0]:
+    out = _corners_on_one_vertex(work, cls, ent) >= 3
+    for e in np.nonzero(np.asarray(tangled, dtype=bool) & ~out)[0]:
         code = int(work.types[e])
         nc = 4 if code in conversion.QUAD_CODES else 3
         element = work.element(e)
@@ -380,6 +385,23 @@ def flat_boundary_elements(work, handle):
                 out[e] = _fixed_flat_corner(work.nodes, element, nc,
                                             conversion.CURVED_ORDERS[code] - 1, cls)
     return out, q
+
+
+def _corners_on_one_vertex(work, cls, ent):
+    """Per element of ``work``: the largest number of its corners on one CAD vertex (node
+    class 0, the same entity); 0 when none is on a vertex."""
+    out = np.zeros(work.element_count, dtype=np.int64)
+    quad = np.isin(work.types, list(conversion.QUAD_CODES))
+    for nc, sel in ((3, np.nonzero(~quad)[0]), (4, np.nonzero(quad)[0])):
+        if sel.size == 0:
+            continue
+        corners = work.conn[work.offsets[sel][:, None] + np.arange(nc)[None, :]]
+        on_vertex = cls[corners] == 0
+        vertex = ent[corners]
+        for a in range(nc):
+            same = on_vertex & on_vertex[:, [a]] & (vertex == vertex[:, [a]])
+            out[sel] = np.maximum(out[sel], same.sum(axis=1))
+    return out
 
 
 def _fixed_flat_corner(xyz, element, nc, per_side, cls):
