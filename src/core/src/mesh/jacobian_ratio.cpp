@@ -36,11 +36,55 @@ void shapeGradients(ElementType t, double a, double b, Vec2* grad) {
   lagrangeTriangle(elementOrder(t)).gradients(Vec2(a, b), grad);
 }
 
+/// The points where jacobianRatioOf samples det J on an element of type t (its nodes, then
+/// a grid of `divisions` steps per side) with the shape functions' values and reference
+/// gradients there: the same for every element of the type, so tabulated once.
+struct SamplePoints {
+  int k = 0;  // nodes per element
+  std::vector<Vec2> points;
+  std::vector<double> N;   // k per point
+  std::vector<Vec2> grad;  // k per point
+};
+
+SamplePoints samplePoints(ElementType t, int divisions) {
+  SamplePoints s;
+  s.k = nodeCount(t);
+  auto add = [&](const Vec2& p) { s.points.push_back(p); };
+  if (isQuad(t)) {
+    for (double a : {0.0, 1.0})
+      for (double b : {0.0, 1.0}) add(Vec2(a, b));
+    if (t == ElementType::Quad8)  // its side nodes
+      for (const Vec2& p : {Vec2(0.5, 0.0), Vec2(1.0, 0.5), Vec2(0.5, 1.0), Vec2(0.0, 0.5)}) add(p);
+  } else {
+    for (const Vec2& p : lagrangeTriangle(elementOrder(t)).nodes()) add(p);
+  }
+  for (int i = 0; i <= divisions; ++i)
+    for (int j = 0; j <= (isQuad(t) ? divisions : divisions - i); ++j)
+      add(Vec2(double(i) / divisions, double(j) / divisions));
+  s.N.resize(s.points.size() * static_cast<std::size_t>(s.k));
+  s.grad.resize(s.N.size());
+  for (std::size_t q = 0; q < s.points.size(); ++q) {
+    const Vec2& p = s.points[q];
+    elementShapeValues(t, p.x(), p.y(), &s.N[q * static_cast<std::size_t>(s.k)]);
+    shapeGradients(t, p.x(), p.y(), &s.grad[q * static_cast<std::size_t>(s.k)]);
+  }
+  return s;
+}
+
+/// samplePoints of every element type at kJacobianDivisions, built on first use.
+const SamplePoints& defaultSamplePoints(ElementType t) {
+  static const std::vector<SamplePoints> table = [] {
+    std::vector<SamplePoints> v;
+    for (int c = 0; isElementTypeCode(c); ++c)
+      v.push_back(samplePoints(static_cast<ElementType>(c), kJacobianDivisions));
+    return v;
+  }();
+  return table[static_cast<std::size_t>(t)];
+}
+
 }  // namespace
 
 double jacobianRatioOf(const SurfaceMesh& mesh, std::size_t e, int divisions) {
-  Vec2 grad[kMaxElementNodes];
-  double N[kMaxElementNodes];
   Vec3 x[kMaxElementNodes];
   Vec3 nodeNormal[kMaxElementNodes];
   const ElementType t = mesh.elemType[e];
@@ -70,26 +114,16 @@ double jacobianRatioOf(const SurfaceMesh& mesh, std::size_t e, int divisions) {
     if (!(len > 0.0)) return 0.0;
     for (int a = 0; a < k; ++a) nodeNormal[a] = n / len;
   }
-  std::vector<Vec2> points;
-  auto add = [&](const Vec2& p) { points.push_back(p); };
-  if (quad) {
-    for (double a : {0.0, 1.0})
-      for (double b : {0.0, 1.0}) add(Vec2(a, b));
-    if (t == ElementType::Quad8)  // its side nodes
-      for (const Vec2& p : {Vec2(0.5, 0.0), Vec2(1.0, 0.5), Vec2(0.5, 1.0), Vec2(0.0, 0.5)}) add(p);
-  } else {
-    for (const Vec2& p : lagrangeTriangle(elementOrder(t)).nodes()) add(p);
-  }
-  for (int i = 0; i <= divisions; ++i)
-    for (int j = 0; j <= (quad ? divisions : divisions - i); ++j)
-      add(Vec2(double(i) / divisions, double(j) / divisions));
+  SamplePoints own;  // (another number of divisions than the tabulated one)
+  if (divisions != kJacobianDivisions) own = samplePoints(t, divisions);
+  const SamplePoints& sp = divisions == kJacobianDivisions ? defaultSamplePoints(t) : own;
   // exact: the face's own normal at the point the element's (u,v) map reaches (the
   // interpolated node normals where the face has none there).
   auto ratio = [&](bool exact) {
     double lo = std::numeric_limits<double>::infinity(), hi = 0.0;
-    for (const Vec2& p : points) {
-      elementShapeValues(t, p.x(), p.y(), N);
-      shapeGradients(t, p.x(), p.y(), grad);
+    for (std::size_t q = 0; q < sp.points.size(); ++q) {
+      const double* N = &sp.N[q * static_cast<std::size_t>(k)];
+      const Vec2* grad = &sp.grad[q * static_cast<std::size_t>(k)];
       Vec3 xa = Vec3::Zero(), xb = Vec3::Zero(), n = Vec3::Zero();
       Vec2 at = Vec2::Zero();
       for (int a = 0; a < k; ++a) {
