@@ -307,6 +307,25 @@ void NodeClassifier::onOneFace(std::size_t n, int f, const Vec3& p, double vs) {
   if (pole) return;
   if (!onMeshBoundary[n]) {
     setFace(n, f);
+    // A node whose (u,v) on f lies where the parameterization is degenerate is at a pole
+    // farther than vs from its vertex (Gmsh's curvature-sized meshes put nodes within 5e-6
+    // of a B-spline's apex, among elements smaller than that): on that vertex, fixed where it
+    // is as every pole, whose corner (u,v) each element takes along its other corners. As a
+    // face node its (u,v) there is any point of the singular line, which its elements' corners
+    // would not share.
+    const Vec2& uv = nodeUV[n];
+    if (uv.allFinite() && isDegenerate(proj.surfaceCopy(f).d1(uv.x(), uv.y()))) {
+      int bv = -1;
+      double bd = tol;
+      for (int e : S.faceEdges(f)) {
+        if (!S.isDegeneratedEdge(e)) continue;
+        for (int v : S.edgeVertices(e)) {
+          const double d = (S.vertexPoint(v) - p).norm();
+          if (d <= bd) bv = v, bd = d;
+        }
+      }
+      if (bv >= 0) setVertex(n, bv);
+    }
     return;
   }
   // On the mesh's boundary: the nearest CAD edge of f (not a seam of f).
