@@ -369,16 +369,15 @@ def flat_boundary_elements(work, handle):
     q = handle.measure("shape")
     sigma = np.asarray(q["min_sigma"])
     tangled = np.asarray(q["tangled"])
-    out = _corners_on_one_vertex(work, cls, ent) >= 3
-    for e in np.nonzero(np.asarray(tangled, dtype=bool) & ~out)[0]:
+    tangled = np.asarray(tangled, dtype=bool)
+    on_one_vertex = _corners_on_one_vertex(work, cls, ent)
+    out = (on_one_vertex >= 3) | (tangled & (on_one_vertex >= 2))
+    for e in np.nonzero(tangled & ~out)[0]:
         code = int(work.types[e])
         nc = 4 if code in conversion.QUAD_CODES else 3
         element = work.element(e)
         c, on = cls[element[:nc]], ent[element[:nc]]
-        vertices = on[c == 0].tolist()
-        if len(vertices) != len(set(vertices)):
-            out[e] = True
-        elif np.all((c == 0) | (c == 1)) and len(set(on[c == 1].tolist())) <= 1:
+        if np.all((c == 0) | (c == 1)) and len(set(on[c == 1].tolist())) <= 1:
             if len(element) == nc:  # tri3, quad4
                 out[e] = abs(sigma[e]) <= 1e-2
             else:

@@ -313,19 +313,19 @@ void NodeClassifier::onOneFace(std::size_t n, int f, const Vec3& p, double vs) {
     // is as every pole, whose corner (u,v) each element takes along its other corners. As a
     // face node its (u,v) there is any point of the singular line, which its elements' corners
     // would not share.
-    const Vec2& uv = nodeUV[n];
-    if (uv.allFinite() && isDegenerate(proj.surfaceCopy(f).d1(uv.x(), uv.y()))) {
-      int bv = -1;
-      double bd = tol;
-      for (int e : S.faceEdges(f)) {
-        if (!S.isDegeneratedEdge(e)) continue;
-        for (int v : S.edgeVertices(e)) {
-          const double d = (S.vertexPoint(v) - p).norm();
-          if (d <= bd) bv = v, bd = d;
-        }
+    // (The vertex first: most faces have no degenerated edge, and need no derivative here.)
+    int bv = -1;
+    double bd = tol;
+    for (int e : S.faceEdges(f)) {
+      if (!S.isDegeneratedEdge(e)) continue;
+      for (int v : S.edgeVertices(e)) {
+        const double d = (S.vertexPoint(v) - p).norm();
+        if (d <= bd) bv = v, bd = d;
       }
-      if (bv >= 0) setVertex(n, bv);
     }
+    const Vec2& uv = nodeUV[n];
+    if (bv >= 0 && uv.allFinite() && isDegenerate(proj.surfaceCopy(f).d1(uv.x(), uv.y())))
+      setVertex(n, bv);
     return;
   }
   // On the mesh's boundary: the nearest CAD edge of f (not a seam of f).
