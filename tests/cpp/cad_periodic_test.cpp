@@ -290,3 +290,60 @@ TEST(CadPeriodic, FaceNodeProjectedOntoTheApexIsThePole) {
   const MeshQuality q = measureQuality(cm->mesh(), measureByName("shape"));
   EXPECT_EQ(q.stats.tangled + q.stats.across, 0u);
 }
+
+TEST(CadPeriodic, ElementsInsideAPolesBandTakeTheNormalAcrossIt) {
+  // Gmsh's curvature-sized MeshAdapt mesh of nist_pmi_2 puts elements of 5e-7 around the tips
+  // of B-spline cones, closer to the singular line than kPoleNormalTol of the parameter range:
+  // no corner, nor the centroid, has a normal there (Surface::normal is zero), and such an
+  // element was counted tangled however it was wound (136 of that mesh's elements, every one
+  // along FreeCAD's normalAt). Here: a cone's apex node, two rings of 8 nodes 1e-7 and 2e-7
+  // down the cone (every corner of the elements between them in the band), the face's circle
+  // at v = 6. Wound along the face, none is tangled; one element between the rings wound
+  // against it is, and it alone.
+  const gp_Ax3 ax;
+  Handle(Geom_Surface) cone = new Geom_ConicalSurface(ax, 0.4, 0.0);  // apex at v = 0
+  const PeriodicCase c = madeFace("cone_pole_band", cone, 0.0, 2 * kPi, 0.0, 6.0);
+  auto shape = makeShape(c);
+  auto at = [&](double u, double v) {
+    const gp_Pnt p = cone->Value(u, v);
+    return Vec3(p.X(), p.Y(), p.Z());
+  };
+  constexpr int k = 8;
+  auto build = [&](bool flipOne) {
+    MeshInput in;
+    in.nodes.push_back(at(0.0, 0.0));
+    for (double v : {1e-7, 2e-7, 6.0})
+      for (int i = 0; i < k; ++i) in.nodes.push_back(at(2 * kPi * (i + 0.5 * (v > 1.5e-7)) / k, v));
+    auto tri = [&](std::int32_t a, std::int32_t b, std::int32_t d) {
+      in.conn.insert(in.conn.end(), {a, b, d});
+      in.types.push_back(ElementType::Tri3);
+    };
+    for (int i = 0; i < k; ++i) tri(0, 1 + i, 1 + (i + 1) % k);
+    for (int ring = 0; ring < 2; ++ring) {
+      const std::int32_t a0 = 1 + ring * k, b0 = 1 + (ring + 1) * k;
+      for (int i = 0; i < k; ++i) {
+        const std::int32_t a = a0 + i, a1 = a0 + (i + 1) % k, b = b0 + i, b1 = b0 + (i + 1) % k;
+        tri(a, b, a1);
+        if (ring == 0 && i == 0 && flipOne) {
+          tri(a1, b1, b);  // wound against the face
+        } else {
+          tri(a1, b, b1);
+        }
+      }
+    }
+    return in;
+  };
+  for (bool flipOne : {false, true}) {
+    std::unique_ptr<CadMesh> cm;
+    ASSERT_NO_THROW(cm = std::make_unique<CadMesh>(shape, build(flipOne)));
+    const SurfaceMesh& m = cm->mesh();
+    // The rings' nodes are face nodes inside the band: none of them has a normal.
+    for (std::size_t n = 1; n <= 2 * k; ++n) {
+      ASSERT_EQ(m.nodeKind[n], NodeKind::Face) << n;
+      EXPECT_EQ(m.referenceNormal(m.nodeFace[n], m.uv[n]).squaredNorm(), 0.0) << n;
+    }
+    const MeshQuality q = measureQuality(m, measureByName("shape"));
+    EXPECT_EQ(q.stats.tangled + q.stats.across, flipOne ? 1u : 0u) << "flipOne " << flipOne;
+    if (flipOne) EXPECT_TRUE(q.tangled[k + 1]);  // the second element of the first strip
+  }
+}

@@ -24,6 +24,29 @@ Vec3 Surface::normalOf(const SurfaceD1& d) const {
   return (normalSign() * (n / len)).eval();
 }
 
+Vec3 Surface::normalAcrossPole(double u, double v) const {
+  const SurfaceD1 d = d1(u, v);
+  const Vec3 n = normalOf(d);
+  if (n.squaredNorm() > 0.0 || !d.du.allFinite() || !d.dv.allFinite()) return n;
+  // φ_v vanishing: the singular line is u = const and the meridian is v = const (and the
+  // other way round). Steps across the line grow tenfold from 1e-9 of the bounds, towards
+  // their middle: a degenerated edge bounds its face's domain, and beyond it lies the
+  // surface's other nappe, whose normal is turned over.
+  const bool acrossU = d.dv.squaredNorm() <= d.du.squaredNorm();
+  const ParamBounds b = bounds();
+  const double lo = acrossU ? b.umin : b.vmin, hi = acrossU ? b.umax : b.vmax;
+  const double x = acrossU ? u : v;
+  const bool bounded = std::isfinite(hi - lo) && hi - lo < 1e299;
+  const double range = bounded ? hi - lo : std::max(1.0, std::abs(x));
+  const double dir = bounded ? (x <= 0.5 * (lo + hi) ? 1.0 : -1.0) : 1.0;
+  for (double h = 1e-9 * range; h <= 0.25 * range; h *= 10.0) {
+    const double y = x + dir * h;
+    const Vec3 m = acrossU ? normal(y, v) : normal(u, y);
+    if (m.squaredNorm() > 0.0) return m;
+  }
+  return Vec3::Zero();
+}
+
 double wrapInto(double x, double lo, double period) {
   if (!(period > 0.0) || !std::isfinite(x)) return x;
   double k = std::floor((x - lo) / period);

@@ -285,10 +285,15 @@ Vec3 elementReferenceNormal(const SurfaceMesh& mesh, std::size_t e,
   }
   if (anyCorner && n.squaredNorm() < kNormalCancelTol * kNormalCancelTol) return Vec3::Zero();
   if (!anyCorner) {
-    // Every corner degenerate (all at a pole): use the parametric centroid.
+    // Every corner without a normal (at a pole, or within its band: elements smaller than
+    // kPoleNormalTol of the parameter range around a tip): the normal at the parametric
+    // centroid, or across the singular line on the centroid's meridian. Gmsh's curvature-
+    // sized meshes put elements of 5e-7 around B-spline cone tips (nist_pmi_2), which with no
+    // normal at all were counted tangled however they were wound.
     Vec2 c = Vec2::Zero();
     for (int k = 0; k < nc; ++k) c += uv[k];
-    n = referenceNormal(c / nc);
+    c /= nc;
+    n = (o * s.normalAcrossPole(c.x(), c.y())).eval();
   }
   const double len = n.norm();
   return len > 0.0 ? Vec3(n / len) : Vec3::Zero();

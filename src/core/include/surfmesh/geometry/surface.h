@@ -97,6 +97,11 @@ class Surface {
   Vec3 normal(double u, double v) const;
   /// The same from the first derivatives `d` at (u,v): normal(u,v) == normalOf(d1(u,v)).
   Vec3 normalOf(const SurfaceD1& d) const;
+  /// normal(u,v), or where it is zero next to a singular line (a pole's band), the normal a
+  /// little across that line into the parameter bounds, on the same meridian: the limit a
+  /// cone-like tip has along each meridian, and at a smooth pole the pole's own normal. Zero
+  /// when no normal is found within a quarter of the bounds.
+  Vec3 normalAcrossPole(double u, double v) const;
 
   /// Wraps the periodic coordinates of `uv` into [min, min + period).
   Vec2 wrap(const Vec2& uv) const;
