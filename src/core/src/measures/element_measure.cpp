@@ -306,8 +306,16 @@ void elementNodeNormals(const SurfaceMesh& mesh, std::size_t e,
   const Surface& s = *surfaces[static_cast<std::size_t>(f)];
   const int o =
       mesh.faceOrientation.empty() ? 1 : mesh.faceOrientation[static_cast<std::size_t>(f)];
-  for (int k = 0; k < mesh.elementSize(e); ++k)
+  bool any = false;
+  for (int k = 0; k < mesh.elementSize(e); ++k) {
     nodeNormals[k] = Vec3((o * s.normal(uv[k].x(), uv[k].y())).eval());
+    any = any || nodeNormals[k].squaredNorm() > 0.0;
+  }
+  if (any) return;
+  // No node with a normal (the element inside a pole's band): every node takes the element's
+  // reference normal, taken across the singular line (elementReferenceNormal).
+  const Vec3 n = elementReferenceNormal(mesh, e, surfaces);
+  for (int k = 0; k < mesh.elementSize(e); ++k) nodeNormals[k] = n;
 }
 
 bool curvedTriangleAlongFace(const SurfaceMesh& mesh, std::size_t e, const Surface& s,
@@ -320,7 +328,13 @@ bool curvedTriangleAlongFace(const SurfaceMesh& mesh, std::size_t e, const Surfa
     L.shape(xi, N);
     Vec2 c = Vec2::Zero();
     for (int i = 0; i < nn; ++i) c += N[i] * uv[i];
-    return mesh.referenceNormal(mesh.elemFace[e], c, s);
+    const Vec3 n = mesh.referenceNormal(mesh.elemFace[e], c, s);
+    if (n.squaredNorm() > 0.0) return n;
+    // Inside a pole's band: the normal on this point's meridian across the singular line.
+    const int o = mesh.faceOrientation.empty()
+                      ? 1
+                      : mesh.faceOrientation[static_cast<std::size_t>(mesh.elemFace[e])];
+    return Vec3((o * s.normalAcrossPole(c.x(), c.y())).eval());
   };
   return triangleJacobianPositiveOnPieces(order, x, nodeNormals, normalAt);
 }
