@@ -370,3 +370,41 @@ TEST(CadPeriodic, ElementsInsideAPolesBandTakeTheNormalAcrossIt) {
     if (flipOne) EXPECT_TRUE(q.tangled[k + 1]);  // the second element of the first strip
   }
 }
+
+TEST(CadPeriodic, NodeBesideALeftOutElementProjectedOntoTheApexIsThePole) {
+  // The same rule as FaceNodeProjectedOntoTheApexIsThePole for a node on the border of a hole
+  // the elements left out leave (such a node moves in its face): Gmsh's order-2 Delaunay mesh
+  // of OCC's propeller at diagonal / 8 with curvature sizes has them at the hub's tip, and the
+  // recovery refused it ("the corner (u,v) of node … does not match the node's (u,v)"). Here
+  // the apex node of FaceNodeProjectedOntoTheApexIsThePole with three of its eight fan
+  // triangles left out.
+  const gp_Ax3 ax;
+  Handle(Geom_Surface) cone = new Geom_ConicalSurface(ax, 0.4, 0.0);  // apex at v = 0
+  const PeriodicCase c = madeFace("cone_apex_hole", cone, 0.0, 2 * kPi, 0.0, 6.0);
+  auto shape = makeShape(c);
+  MeshInput in;
+  auto at = [&](double u, double v) {
+    const gp_Pnt p = cone->Value(u, v);
+    return Vec3(p.X(), p.Y(), p.Z());
+  };
+  const Vec3 apex = at(0.0, 0.0);
+  const Vec3 axis = (at(0.0, 1.0) + at(kPi, 1.0)) / 2.0 - apex;
+  in.nodes.push_back(apex - 5e-6 * axis.normalized());  // beyond the apex, on the axis
+  constexpr int k = 8;
+  for (int i = 0; i < k; ++i) in.nodes.push_back(at(2 * kPi * i / k, 2e-5));
+  for (int i = 0; i < k; ++i) in.nodes.push_back(at(2 * kPi * i / k, 6.0));
+  for (int i = 0; i < k; ++i) {
+    const std::int32_t a = 1 + i, a1 = 1 + (i + 1) % k, b = 1 + k + i, b1 = 1 + k + (i + 1) % k;
+    if (i >= 3) in.conn.insert(in.conn.end(), {0, a, a1});  // fan triangles 0-2 left out
+    in.conn.insert(in.conn.end(), {a, b, b1, a, b1, a1});
+    for (int t = i >= 3 ? 0 : 1; t < 3; ++t) in.types.push_back(ElementType::Tri3);
+  }
+  in.leftOutNeighbour.assign(in.nodes.size(), 0);
+  for (int i = 0; i <= 3; ++i) in.leftOutNeighbour[static_cast<std::size_t>(i)] = 1;
+  std::unique_ptr<CadMesh> cm;
+  ASSERT_NO_THROW(cm = std::make_unique<CadMesh>(shape, in));
+  EXPECT_EQ(cm->report().nodeClass[0], NodeClass::Vertex);
+  EXPECT_EQ(cm->mesh().nodeKind[0], NodeKind::Fixed);
+  const MeshQuality q = measureQuality(cm->mesh(), measureByName("shape"));
+  EXPECT_EQ(q.stats.tangled + q.stats.across, 0u);
+}

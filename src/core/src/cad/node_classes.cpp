@@ -157,6 +157,30 @@ struct NodeClassifier {
     }
   }
 
+  /// setFace, but a node whose (u,v) on f lies where the parameterization is degenerate is at
+  /// a pole farther than vs from its vertex (Gmsh's curvature-sized meshes put nodes within
+  /// 5e-6 of a B-spline's apex, among elements smaller than that, and within 3e-6 of a surface
+  /// of revolution's tip next to its seam): on that vertex, fixed where it is as every pole,
+  /// whose corner (u,v) each element takes along its other corners. As a face node its (u,v)
+  /// there is any point of the singular line, which its elements' corners would not share.
+  void setFaceOrPole(std::size_t n, int f) {
+    setFace(n, f);
+    // (The vertex first: most faces have no degenerated edge, and need no derivative here.)
+    const Vec3& p = input.nodes[n];
+    int bv = -1;
+    double bd = tol;
+    for (int e : S.faceEdges(f)) {
+      if (!S.isDegeneratedEdge(e)) continue;
+      for (int v : S.edgeVertices(e)) {
+        const double d = (S.vertexPoint(v) - p).norm();
+        if (d <= bd) bv = v, bd = d;
+      }
+    }
+    const Vec2& uv = nodeUV[n];
+    if (bv >= 0 && uv.allFinite() && isDegenerate(proj.surfaceCopy(f).d1(uv.x(), uv.y())))
+      setVertex(n, bv);
+  }
+
   /// The CAD edge of face f nearest to p among those `accept` takes: its id (−1: none), the
   /// distance and the curve parameter. With a finite `cap`, an edge whose box is farther than
   /// the best so far or than cap is not measured.
@@ -189,7 +213,7 @@ struct NodeClassifier {
       }
     const auto& ef = S.edgeFaces(e);
     if (ef.size() == 1 && S.isSeam(e, ef[0])) {  // a seam is inside its face
-      setFace(n, ef[0]);
+      setFaceOrPole(n, ef[0]);
       return;
     }
     report_.nodeClass[n] = NodeClass::Edge;
@@ -281,7 +305,7 @@ void NodeClassifier::classify(std::size_t n) {
     return;
   }
   if (forced[n] == Forced::Face && F.size() == 1 && F[0] == forcedId[n] && !onMeshBoundary[n]) {
-    setFace(n, F[0]);
+    setFaceOrPole(n, F[0]);
     return;
   }
   const double vs = std::min(tol, std::max(0.1 * hmin[n], 1e-9 * diag));
@@ -306,26 +330,7 @@ void NodeClassifier::onOneFace(std::size_t n, int f, const Vec3& p, double vs) {
   }
   if (pole) return;
   if (!onMeshBoundary[n]) {
-    setFace(n, f);
-    // A node whose (u,v) on f lies where the parameterization is degenerate is at a pole
-    // farther than vs from its vertex (Gmsh's curvature-sized meshes put nodes within 5e-6
-    // of a B-spline's apex, among elements smaller than that): on that vertex, fixed where it
-    // is as every pole, whose corner (u,v) each element takes along its other corners. As a
-    // face node its (u,v) there is any point of the singular line, which its elements' corners
-    // would not share.
-    // (The vertex first: most faces have no degenerated edge, and need no derivative here.)
-    int bv = -1;
-    double bd = tol;
-    for (int e : S.faceEdges(f)) {
-      if (!S.isDegeneratedEdge(e)) continue;
-      for (int v : S.edgeVertices(e)) {
-        const double d = (S.vertexPoint(v) - p).norm();
-        if (d <= bd) bv = v, bd = d;
-      }
-    }
-    const Vec2& uv = nodeUV[n];
-    if (bv >= 0 && uv.allFinite() && isDegenerate(proj.surfaceCopy(f).d1(uv.x(), uv.y())))
-      setVertex(n, bv);
+    setFaceOrPole(n, f);
     return;
   }
   // On the mesh's boundary: the nearest CAD edge of f (not a seam of f).
@@ -339,7 +344,7 @@ void NodeClassifier::onOneFace(std::size_t n, int f, const Vec3& p, double vs) {
   if (be >= 0 && bd <= reach) {
     setEdge(n, be, bt);
   } else if (hole) {
-    setFace(n, f);  // inside the face, next to a left-out element: moves in the face
+    setFaceOrPole(n, f);  // inside the face, next to a left-out element: moves in the face
   } else {
     setFace(n, f);
     report_.nodeClass[n] = NodeClass::None;  // fixed below
