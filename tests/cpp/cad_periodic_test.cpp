@@ -253,17 +253,13 @@ TEST(CadPeriodic, ConeApexOffTheSingularityLeavesValidElementsValid) {
   }
 }
 
-TEST(CadPeriodic, FaceNodeProjectedOntoTheApexIsThePole) {
-  // Gmsh's curvature-sized MeshAdapt mesh of nist_pmi_2 at diagonal / 17 has a node 4.9e-6
-  // from a B-spline face's apex, among elements whose sides there are shorter than 5e-5: too
-  // far from the apex's vertex to be taken for it (a tenth of its shortest side), and its
-  // nearest point on the face is the apex itself, where every point of the singular line lies.
-  // As a face node, its (u,v) was one point of that line and its elements' corners another
-  // (a pole's free coordinate follows the element's other corners): the recovery refused the
-  // mesh ("the corner (u,v) of node … does not match the node's (u,v)"). Here: a cone's apex
-  // at v = 0, a node on the axis 5e-6 beyond it (its nearest point on the face: the apex), a
-  // ring of 8 nodes 2e-5 down the cone and the face's circle at v = 6. The node is the apex's
-  // pole, held where it is; the elements measure.
+namespace {
+
+/// A cone's apex at v = 0, a node on the axis 5e-6 beyond it (its nearest point on the face:
+/// the apex), a ring of 8 nodes 2e-5 down the cone and the face's circle at v = 6; the first
+/// `leftOut` of the fan triangles at the node are left out (the node borders their hole).
+/// The node must be the apex's pole, held where it is, and the elements measure valid.
+void expectApexNodeIsThePole(int leftOut) {
   const gp_Ax3 ax;
   Handle(Geom_Surface) cone = new Geom_ConicalSurface(ax, 0.4, 0.0);  // apex at v = 0
   const PeriodicCase c = madeFace("cone_apex_node", cone, 0.0, 2 * kPi, 0.0, 6.0);
@@ -281,8 +277,13 @@ TEST(CadPeriodic, FaceNodeProjectedOntoTheApexIsThePole) {
   for (int i = 0; i < k; ++i) in.nodes.push_back(at(2 * kPi * i / k, 6.0));
   for (int i = 0; i < k; ++i) {
     const std::int32_t a = 1 + i, a1 = 1 + (i + 1) % k, b = 1 + k + i, b1 = 1 + k + (i + 1) % k;
-    in.conn.insert(in.conn.end(), {0, a, a1, a, b, b1, a, b1, a1});
-    for (int t = 0; t < 3; ++t) in.types.push_back(ElementType::Tri3);
+    if (i >= leftOut) in.conn.insert(in.conn.end(), {0, a, a1});
+    in.conn.insert(in.conn.end(), {a, b, b1, a, b1, a1});
+    for (int t = i >= leftOut ? 0 : 1; t < 3; ++t) in.types.push_back(ElementType::Tri3);
+  }
+  if (leftOut > 0) {
+    in.leftOutNeighbour.assign(in.nodes.size(), 0);
+    for (int i = 0; i <= leftOut; ++i) in.leftOutNeighbour[static_cast<std::size_t>(i)] = 1;
   }
   std::unique_ptr<CadMesh> cm;
   ASSERT_NO_THROW(cm = std::make_unique<CadMesh>(shape, in));
@@ -291,6 +292,21 @@ TEST(CadPeriodic, FaceNodeProjectedOntoTheApexIsThePole) {
   EXPECT_EQ(cm->mesh().nodeKind[0], NodeKind::Fixed);
   const MeshQuality q = measureQuality(cm->mesh(), measureByName("shape"));
   EXPECT_EQ(q.stats.tangled + q.stats.across, 0u);
+}
+
+}  // namespace
+
+TEST(CadPeriodic, FaceNodeProjectedOntoTheApexIsThePole) {
+  // Gmsh's curvature-sized MeshAdapt mesh of nist_pmi_2 at diagonal / 17 has a node 4.9e-6
+  // from a B-spline face's apex, among elements whose sides there are shorter than 5e-5: too
+  // far from the apex's vertex to be taken for it (a tenth of its shortest side), and its
+  // nearest point on the face is the apex itself, where every point of the singular line lies.
+  // As a face node, its (u,v) was one point of that line and its elements' corners another
+  // (a pole's free coordinate follows the element's other corners): the recovery refused the
+  // mesh ("the corner (u,v) of node … does not match the node's (u,v)"). Here: a cone's apex
+  // at v = 0, a node on the axis 5e-6 beyond it (its nearest point on the face: the apex), a
+  // ring of 8 nodes 2e-5 down the cone and the face's circle at v = 6.
+  expectApexNodeIsThePole(0);
 }
 
 TEST(CadPeriodic, ElementsInsideAPolesBandTakeTheNormalAcrossIt) {
@@ -376,35 +392,7 @@ TEST(CadPeriodic, NodeBesideALeftOutElementProjectedOntoTheApexIsThePole) {
   // the elements left out leave (such a node moves in its face): Gmsh's order-2 Delaunay mesh
   // of OCC's propeller at diagonal / 8 with curvature sizes has them at the hub's tip, and the
   // recovery refused it ("the corner (u,v) of node … does not match the node's (u,v)"). Here
-  // the apex node of FaceNodeProjectedOntoTheApexIsThePole with three of its eight fan
-  // triangles left out.
-  const gp_Ax3 ax;
-  Handle(Geom_Surface) cone = new Geom_ConicalSurface(ax, 0.4, 0.0);  // apex at v = 0
-  const PeriodicCase c = madeFace("cone_apex_hole", cone, 0.0, 2 * kPi, 0.0, 6.0);
-  auto shape = makeShape(c);
-  MeshInput in;
-  auto at = [&](double u, double v) {
-    const gp_Pnt p = cone->Value(u, v);
-    return Vec3(p.X(), p.Y(), p.Z());
-  };
-  const Vec3 apex = at(0.0, 0.0);
-  const Vec3 axis = (at(0.0, 1.0) + at(kPi, 1.0)) / 2.0 - apex;
-  in.nodes.push_back(apex - 5e-6 * axis.normalized());  // beyond the apex, on the axis
-  constexpr int k = 8;
-  for (int i = 0; i < k; ++i) in.nodes.push_back(at(2 * kPi * i / k, 2e-5));
-  for (int i = 0; i < k; ++i) in.nodes.push_back(at(2 * kPi * i / k, 6.0));
-  for (int i = 0; i < k; ++i) {
-    const std::int32_t a = 1 + i, a1 = 1 + (i + 1) % k, b = 1 + k + i, b1 = 1 + k + (i + 1) % k;
-    if (i >= 3) in.conn.insert(in.conn.end(), {0, a, a1});  // fan triangles 0-2 left out
-    in.conn.insert(in.conn.end(), {a, b, b1, a, b1, a1});
-    for (int t = i >= 3 ? 0 : 1; t < 3; ++t) in.types.push_back(ElementType::Tri3);
-  }
-  in.leftOutNeighbour.assign(in.nodes.size(), 0);
-  for (int i = 0; i <= 3; ++i) in.leftOutNeighbour[static_cast<std::size_t>(i)] = 1;
-  std::unique_ptr<CadMesh> cm;
-  ASSERT_NO_THROW(cm = std::make_unique<CadMesh>(shape, in));
-  EXPECT_EQ(cm->report().nodeClass[0], NodeClass::Vertex);
-  EXPECT_EQ(cm->mesh().nodeKind[0], NodeKind::Fixed);
-  const MeshQuality q = measureQuality(cm->mesh(), measureByName("shape"));
-  EXPECT_EQ(q.stats.tangled + q.stats.across, 0u);
+  // the case of FaceNodeProjectedOntoTheApexIsThePole with three of its eight fan triangles
+  // left out.
+  expectApexNodeIsThePole(3);
 }
