@@ -31,7 +31,7 @@ Vec3 Surface::normalAcrossPole(double u, double v) const {
   // φ_v vanishing: the singular line is u = const and the meridian is v = const (and the
   // other way round). Steps across the line grow tenfold from 1e-9 of the bounds, towards
   // their middle: a degenerated edge bounds its face's domain, and beyond it lies the
-  // surface's other nappe, whose normal is turned over.
+  // surface's other nappe, whose normal is turned over. (Unbounded: towards increasing values.)
   const bool acrossU = d.dv.squaredNorm() <= d.du.squaredNorm();
   const ParamBounds b = bounds();
   const double lo = acrossU ? b.umin : b.vmin, hi = acrossU ? b.umax : b.vmax;

@@ -292,8 +292,7 @@ Vec3 elementReferenceNormal(const SurfaceMesh& mesh, std::size_t e,
     // normal at all were counted tangled however they were wound.
     Vec2 c = Vec2::Zero();
     for (int k = 0; k < nc; ++k) c += uv[k];
-    c /= nc;
-    n = (o * s.normalAcrossPole(c.x(), c.y())).eval();
+    n = mesh.referenceNormalAcrossPole(f, c / nc, s);
   }
   const double len = n.norm();
   return len > 0.0 ? Vec3(n / len) : Vec3::Zero();
@@ -328,13 +327,8 @@ bool curvedTriangleAlongFace(const SurfaceMesh& mesh, std::size_t e, const Surfa
     L.shape(xi, N);
     Vec2 c = Vec2::Zero();
     for (int i = 0; i < nn; ++i) c += N[i] * uv[i];
-    const Vec3 n = mesh.referenceNormal(mesh.elemFace[e], c, s);
-    if (n.squaredNorm() > 0.0) return n;
     // Inside a pole's band: the normal on this point's meridian across the singular line.
-    const int o = mesh.faceOrientation.empty()
-                      ? 1
-                      : mesh.faceOrientation[static_cast<std::size_t>(mesh.elemFace[e])];
-    return Vec3((o * s.normalAcrossPole(c.x(), c.y())).eval());
+    return mesh.referenceNormalAcrossPole(mesh.elemFace[e], c, s);
   };
   return triangleJacobianPositiveOnPieces(order, x, nodeNormals, normalAt);
 }

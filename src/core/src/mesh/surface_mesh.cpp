@@ -109,6 +109,11 @@ Vec3 SurfaceMesh::referenceNormal(int f, const Vec2& uvp, const Surface& s) cons
   return (o * s.normal(uvp.x(), uvp.y())).eval();
 }
 
+Vec3 SurfaceMesh::referenceNormalAcrossPole(int f, const Vec2& uvp, const Surface& s) const {
+  const int o = faceOrientation.empty() ? 1 : faceOrientation[static_cast<std::size_t>(f)];
+  return (o * s.normalAcrossPole(uvp.x(), uvp.y())).eval();
+}
+
 void SurfaceMesh::addElement(ElementType t, const std::int32_t* nodes, int face, const Vec2* uvs) {
   const int n = surfmesh::nodeCount(t);
   if (elemOffset.empty()) elemOffset.push_back(0);

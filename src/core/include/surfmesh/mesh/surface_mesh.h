@@ -97,6 +97,9 @@ struct SurfaceMesh {
   /// The same on `s`, a copy of face f's surface (a worker thread's own: an OCC surface's
   /// evaluation caches are not thread-safe).
   Vec3 referenceNormal(int f, const Vec2& uv, const Surface& s) const;
+  /// The same where the surface has a normal; inside a pole's band, its normal across the
+  /// singular line (Surface::normalAcrossPole) × faceOrientation[f].
+  Vec3 referenceNormalAcrossPole(int f, const Vec2& uv, const Surface& s) const;
 
   /// Appends an element; `uvs` may be null (then the nodes' uv are used, unwrapped).
   void addElement(ElementType t, const std::int32_t* nodes, int face, const Vec2* uvs = nullptr);
